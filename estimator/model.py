@@ -1,0 +1,238 @@
+"""Rotary-wing propulsion power models: pure numpy, vectorized, no I/O.
+
+References
+----------
+- Y. Zeng, J. Xu, R. Zhang, "Energy minimization for wireless communication with rotary-wing
+  UAV", IEEE TWC 2019: eq. (12) power model and the physical meaning of its parameters.
+- The seed paper (``shared/seed/energy-model-uav-communications.tex``): eq. (1), the same model
+  with five fitted coefficients c1..c5, and eq. (2), its heuristic generalization to 2-D level
+  flight with centripetal acceleration a⊥ and the kinetic-energy change.
+
+All inputs are SI: speeds are horizontal *airspeed* magnitudes (m/s), accelerations m/s²,
+power W. When the coefficients are fitted to battery data they are electrical power at the
+battery (propulsion efficiency folded in).
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Callable
+from dataclasses import asdict, dataclass
+
+import numpy as np
+from numpy.typing import ArrayLike, NDArray
+from scipy.optimize import minimize_scalar
+
+G_MPS2 = 9.80665
+SEA_LEVEL_DENSITY_KGPM3 = 1.225
+COEFFICIENT_NAMES = ("c1", "c2", "c3", "c4", "c5")
+
+FloatArray = NDArray[np.float64]
+
+
+@dataclass(frozen=True)
+class PowerModel:
+    """Eq. (1)/(2) of the seed paper.
+
+    c1: blade-profile power in hover, W.          c2: 3/U_tip², s²/m².
+    c3: induced power in hover, W.                c4: 2·v0² (v0 hover induced velocity), m²/s².
+    c5: parasite (fuselage drag) coefficient, W·s³/m³.
+    """
+
+    c1: float
+    c2: float
+    c3: float
+    c4: float
+    c5: float
+
+    def __post_init__(self) -> None:
+        for name in COEFFICIENT_NAMES:
+            value = getattr(self, name)
+            if not math.isfinite(value) or value < 0.0:
+                raise ValueError(f"coefficient {name} must be finite and ≥ 0, got {value}")
+        if self.c4 <= 0.0:
+            raise ValueError("power model coefficient c4 must be > 0")
+
+    # -- evaluation ----------------------------------------------------------------------------
+
+    def profile_power_w(self, speed_mps: ArrayLike) -> FloatArray:
+        """Blade-profile power c1 (1 + c2 V²), W."""
+        v = np.asarray(speed_mps, dtype=float)
+        return self.c1 * (1.0 + self.c2 * v * v)
+
+    def induced_power_w(
+        self, speed_mps: ArrayLike, accel_centripetal_mps2: ArrayLike = 0.0
+    ) -> FloatArray:
+        """Induced power, eq. (2)'s induced integrand (eq. (1)'s when a⊥ = 0), W.
+
+        The load factor n² = 1 + a⊥²/g² scales the thrust a turn needs.
+        """
+        v = np.asarray(speed_mps, dtype=float)
+        load2 = 1.0 + np.square(np.asarray(accel_centripetal_mps2, dtype=float) / G_MPS2)
+        v2_c4 = v * v / self.c4
+        inner = np.sqrt(load2 + v2_c4 * v2_c4) - v2_c4
+        return self.c3 * np.sqrt(load2) * np.sqrt(inner)
+
+    def parasite_power_w(self, speed_mps: ArrayLike) -> FloatArray:
+        """Parasite power c5 V³, W."""
+        v = np.asarray(speed_mps, dtype=float)
+        return self.c5 * v * v * v
+
+    def power_w(self, speed_mps: ArrayLike, accel_centripetal_mps2: ArrayLike = 0.0) -> FloatArray:
+        """Power in level flight at airspeed V with centripetal acceleration a⊥, W.
+
+        With a⊥ = 0 this is eq. (1); otherwise the integrand of eq. (2) without the
+        kinetic-energy term (add :func:`kinetic_power_w` for an instantaneous prediction).
+        """
+        return (
+            self.profile_power_w(speed_mps)
+            + self.induced_power_w(speed_mps, accel_centripetal_mps2)
+            + self.parasite_power_w(speed_mps)
+        )
+
+    @property
+    def hover_power_w(self) -> float:
+        """P(0) = c1 + c3, W."""
+        return self.c1 + self.c3
+
+    # -- characteristic speeds -------------------------------------------------------------------
+
+    def max_endurance_speed_mps(self, max_speed_mps: float = 30.0) -> float:
+        """V_me = argmin P(V) on [0, max_speed_mps], m/s."""
+        return _argmin_on_grid(lambda v: self.power_w(v), 0.0, max_speed_mps)
+
+    def max_range_speed_mps(self, max_speed_mps: float = 30.0) -> float:
+        """V_mr = argmin P(V)/V on (0, max_speed_mps], m/s (energy per metre is lowest)."""
+        return _argmin_on_grid(lambda v: self.power_w(v) / v, 0.05, max_speed_mps)
+
+    # -- parametrizations --------------------------------------------------------------------------
+
+    def as_array(self) -> FloatArray:
+        """[c1, c2, c3, c4, c5]."""
+        return np.array([self.c1, self.c2, self.c3, self.c4, self.c5])
+
+    @classmethod
+    def from_array(cls, values: ArrayLike) -> PowerModel:
+        c = np.asarray(values, dtype=float)
+        return cls(*(float(x) for x in c))
+
+    def as_dict(self) -> dict[str, float]:
+        return asdict(self)
+
+    def hover_parameters(self) -> HoverParameters:
+        """The same model in the well-conditioned hover parametrization."""
+        return HoverParameters(
+            hover_power_w=self.hover_power_w,
+            profile_fraction=self.c1 / self.hover_power_w,
+            tip_speed_mps=math.sqrt(3.0 / self.c2) if self.c2 > 0 else math.inf,
+            induced_velocity_mps=math.sqrt(self.c4 / 2.0),
+            parasite_coeff=self.c5,
+        )
+
+    def rescaled(self, mass_ratio: float = 1.0, density_ratio: float = 1.0) -> PowerModel:
+        """The model for mass m·mass_ratio and air density ρ·density_ratio.
+
+        From Zeng et al.'s parameters: c1 ∝ ρ, c2 fixed (tip speed), c3 ∝ W^{3/2} ρ^{-1/2},
+        c4 ∝ W/ρ, c5 ∝ ρ.
+        """
+        if mass_ratio <= 0 or density_ratio <= 0:
+            raise ValueError("mass and density ratios must be > 0")
+        return PowerModel(
+            c1=self.c1 * density_ratio,
+            c2=self.c2,
+            c3=self.c3 * mass_ratio**1.5 / math.sqrt(density_ratio),
+            c4=self.c4 * mass_ratio / density_ratio,
+            c5=self.c5 * density_ratio,
+        )
+
+
+@dataclass(frozen=True)
+class HoverParameters:
+    """Well-conditioned parametrization of :class:`PowerModel`.
+
+    hover_power_w: P(0) = c1 + c3, W — the best-determined quantity in any flight.
+    profile_fraction: c1 / (c1 + c3), the share of hover power that is blade profile (0..1).
+    tip_speed_mps: rotor blade tip speed U_tip, m/s (c2 = 3 / U_tip²).
+    induced_velocity_mps: mean rotor induced velocity in hover v0, m/s (c4 = 2 v0²).
+    parasite_coeff: c5 = ½ d0 ρ s A, W·s³/m³.
+    """
+
+    hover_power_w: float
+    profile_fraction: float
+    tip_speed_mps: float
+    induced_velocity_mps: float
+    parasite_coeff: float
+
+    def to_model(self) -> PowerModel:
+        c1 = self.profile_fraction * self.hover_power_w
+        return PowerModel(
+            c1=c1,
+            c2=3.0 / self.tip_speed_mps**2,
+            c3=self.hover_power_w - c1,
+            c4=2.0 * self.induced_velocity_mps**2,
+            c5=self.parasite_coeff,
+        )
+
+
+@dataclass(frozen=True)
+class RotorcraftPhysics:
+    """Physical airframe parameters in Zeng et al.'s notation; all rotors lumped together.
+
+    mass_kg: take-off mass. air_density_kgpm3: ρ. rotor_radius_m: R of one rotor.
+    rotor_count: number of rotors (disc area A = n π R²). tip_speed_mps: U_tip = Ω R.
+    solidity: s, blade area over disc area. profile_drag_coeff: δ. induced_correction: k.
+    fuselage_drag_ratio: d0.
+    """
+
+    mass_kg: float
+    rotor_radius_m: float
+    rotor_count: int = 4
+    tip_speed_mps: float = 120.0
+    solidity: float = 0.05
+    profile_drag_coeff: float = 0.012
+    induced_correction: float = 0.1
+    fuselage_drag_ratio: float = 0.6
+    air_density_kgpm3: float = SEA_LEVEL_DENSITY_KGPM3
+
+    @property
+    def disc_area_m2(self) -> float:
+        return self.rotor_count * math.pi * self.rotor_radius_m**2
+
+    def to_model(self) -> PowerModel:
+        """Mechanical rotor power model (no electrical losses)."""
+        rho, area, u_tip = self.air_density_kgpm3, self.disc_area_m2, self.tip_speed_mps
+        weight_n = self.mass_kg * G_MPS2
+        return PowerModel(
+            c1=self.profile_drag_coeff / 8.0 * rho * self.solidity * area * u_tip**3,
+            c2=3.0 / u_tip**2,
+            c3=(1.0 + self.induced_correction) * weight_n**1.5 / math.sqrt(2.0 * rho * area),
+            c4=weight_n / (rho * area),
+            c5=0.5 * self.fuselage_drag_ratio * rho * self.solidity * area,
+        )
+
+
+def kinetic_power_w(mass_kg: float, velocity_mps: ArrayLike, accel_mps2: ArrayLike) -> FloatArray:
+    """Rate of change of kinetic energy m vᵀa, W (eq. (2)'s ΔK, differentiated).
+
+    ``velocity_mps`` and ``accel_mps2`` are vectors along the last axis (any frame, same one).
+    """
+    v = np.asarray(velocity_mps, dtype=float)
+    a = np.asarray(accel_mps2, dtype=float)
+    return np.asarray(mass_kg * np.sum(v * a, axis=-1), dtype=float)
+
+
+def _argmin_on_grid(fn: Callable[[FloatArray], FloatArray], lo: float, hi: float) -> float:
+    """Global minimum of a smooth 1-D function: coarse grid, then bounded refinement."""
+    grid = np.linspace(lo, hi, 601)
+    values = fn(grid)
+    i = int(np.argmin(values))
+    a, b = grid[max(i - 1, 0)], grid[min(i + 1, len(grid) - 1)]
+    if b <= a:
+        return float(grid[i])
+    res = minimize_scalar(
+        lambda x: float(fn(np.array([x]))[0]),
+        bounds=(a, b),
+        method="bounded",
+        options={"xatol": 1e-6},
+    )
+    return float(res.x) if res.fun <= values[i] else float(grid[i])

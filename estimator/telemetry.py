@@ -1,0 +1,54 @@
+"""Typed telemetry samples: what every source (socket, log, CSV, simulator) is decoded into.
+
+Times are seconds on the autopilot's clock (``time_boot_ms`` / 1000, or a log's own time
+base), never the wall clock of the process that reads them. Velocities are NED, m/s.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+
+@dataclass(frozen=True, slots=True)
+class VelocitySample:
+    """Vehicle velocity over ground in the local NED frame (m/s), altitude above home (m)."""
+
+    time_s: float
+    vn_mps: float
+    ve_mps: float
+    vd_mps: float
+    alt_m: float | None = None
+
+
+@dataclass(frozen=True, slots=True)
+class BatterySample:
+    """Battery pack reading. ``None`` marks a value the autopilot reported as unknown."""
+
+    time_s: float
+    voltage_v: float
+    current_a: float | None = None
+    consumed_mah: float | None = None
+    remaining_pct: float | None = None
+
+    @property
+    def power_w(self) -> float | None:
+        """Electrical power drawn from the pack (W), or None without a current sensor."""
+        return None if self.current_a is None else self.voltage_v * self.current_a
+
+
+@dataclass(frozen=True, slots=True)
+class ArmedSample:
+    """Armed state from the autopilot's HEARTBEAT."""
+
+    time_s: float
+    armed: bool
+
+
+@dataclass(frozen=True, slots=True)
+class RebootSample:
+    """The autopilot's clock went backwards: it rebooted. Carries the new clock time."""
+
+    time_s: float
+
+
+Sample = VelocitySample | BatterySample | ArmedSample | RebootSample
