@@ -1,0 +1,259 @@
+"""ArduPilot DataFlash (.bin) logs → :mod:`estimator.telemetry` samples.
+
+Records are read with pymavlink's ``DFReader_binary``, whose per-type offset index lets us
+parse only the types we use (no ``mavutil`` connection, no process-wide state). Time is each
+record's ``TimeUS`` (µs since the autopilot's boot) / 1e6. What is used:
+
+- velocity (NED, m/s): the EKF's ``XKF1`` (EKF3, its first core ``C``) or ``NKF1`` (EKF2)
+  ``VN, VE, VD`` with altitude ``−PD``; without either, ``GPS`` ``Spd, GCrs, VZ`` (3-D fix
+  only) with altitude above the first fix;
+- battery: ``BAT`` instance 0: ``Volt`` (V), ``Curr`` (A), ``CurrTot`` (mAh), ``RemPct`` (%);
+  ArduPilot logs NaN for values it does not know: they become ``None`` (no usable voltage
+  drops the record);
+- armed state: ``ARM.ArmState``, or ``EV`` ids 10 (armed) / 11 (disarmed) in older logs.
+
+Counters, final after iteration: ``skipped`` (records with unusable values, or older than
+samples already given), ``bad_frames`` (corrupt regions between records), ``truncated`` (the
+last record is cut off).
+"""
+
+from __future__ import annotations
+
+import contextlib
+import heapq
+import io
+import math
+import os
+import struct
+import sys
+from collections.abc import Iterator
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+from pymavlink.DFReader import DFReader_binary
+
+from estimator.errors import UserError
+from estimator.logs import SampleStream
+from estimator.telemetry import ArmedSample, BatterySample, Sample, VelocitySample
+
+#: Velocity sources, most preferred first.
+VELOCITY_TYPES = ("XKF1", "NKF1", "GPS")
+#: ArduPilot event ids in ``EV``.
+EVENT_ARMED, EVENT_DISARMED = 10, 11
+#: A GPS ``Status`` at least this is a 3-D fix.
+GPS_FIX_3D = 3
+#: Records are re-sorted by time within this window (ArduPilot logs from several threads).
+REORDER_WINDOW_S = 0.5
+#: Records parsed between yields (pymavlink's stderr diagnostics are silenced per batch).
+_BATCH = 2000
+_BAT_INSTANCE_COLUMNS = ("Inst", "Instance", "I")
+FMT_TYPE = 0x80
+
+
+class _DataFlashIndex(DFReader_binary):
+    """``DFReader_binary`` without its whole-file clock search: we time records by TimeUS."""
+
+    def init_clock(self) -> None:
+        self.clock = None
+
+
+def iter_samples(path: str | Path) -> SampleStream:
+    """Samples of a DataFlash log in time order (see :class:`estimator.logs.SampleStream`)."""
+    path = Path(path)
+    stream = SampleStream(path, "dataflash", ())
+    stream._it = _Decoder(_open(path), stream).samples()
+    return stream
+
+
+class _Decoder:
+    """DataFlash records → samples; counts what it skips into ``stream``."""
+
+    def __init__(self, log: _DataFlashIndex, stream: SampleStream) -> None:
+        self._log = log
+        self._stream = stream
+        self._velocity_type = next((t for t in VELOCITY_TYPES if self._count(t) > 0), None)
+        self._ekf_core: int | None = None
+        self._gps_alt0_m: float | None = None
+        self._armed: bool | None = None
+        self._bat_instance = _column(log, "BAT", _BAT_INSTANCE_COLUMNS)
+
+    # -- reading -------------------------------------------------------------------------------
+
+    def _count(self, name: str) -> int:
+        type_id = self._log.name_to_id.get(name)
+        return 0 if type_id is None else int(self._log.counts[type_id])
+
+    def samples(self) -> Iterator[Sample]:
+        self._check_framing()
+        wanted = {t for t in ("BAT", "ARM") if self._count(t) > 0}
+        if "ARM" not in wanted and self._count("EV") > 0:
+            wanted.add("EV")
+        if self._velocity_type is not None:
+            wanted.add(self._velocity_type)
+        heap: list[tuple[float, int, Sample]] = []
+        last_out_s = -math.inf
+        seq = 0
+        done = not wanted
+        while not done:
+            batch = []
+            with contextlib.redirect_stderr(io.StringIO()):
+                for _ in range(_BATCH):
+                    msg = self._log.recv_match(type=wanted, strict=True)
+                    if msg is None:
+                        done = True
+                        break
+                    batch.append(msg)
+            for msg in batch:
+                sample = _HANDLERS[msg.get_type()](self, msg)
+                if sample is None:
+                    continue
+                if sample.time_s < last_out_s:
+                    self._stream.skipped += 1
+                    continue
+                heapq.heappush(heap, (sample.time_s, seq, sample))
+                seq += 1
+                while heap and heap[0][0] < sample.time_s - REORDER_WINDOW_S:
+                    last_out_s = heap[0][0]
+                    yield heapq.heappop(heap)[2]
+        while heap:
+            yield heapq.heappop(heap)[2]
+        self._log.close()
+
+    def _check_framing(self) -> None:
+        """Count gaps between indexed records (corruption) and a cut-off last record."""
+        starts, ends = [], []
+        for type_id, offsets in enumerate(self._log.offsets):
+            if offsets and type_id in self._log.formats:
+                ofs = np.asarray(offsets, dtype=np.int64)
+                starts.append(ofs)
+                ends.append(ofs + self._log.formats[type_id].len)
+        if not starts:
+            self._stream.bad_frames = 1
+            return
+        start = np.concatenate(starts)
+        end = np.concatenate(ends)
+        order = np.argsort(start, kind="stable")
+        start, end = start[order], end[order]
+        self._stream.bad_frames = int(start[0] > 0) + int(np.count_nonzero(start[1:] != end[:-1]))
+        self._stream.truncated = bool(end[-1] > self._log.data_len)
+
+    # -- record handlers -----------------------------------------------------------------------
+
+    def _ekf(self, msg: Any) -> Sample | None:
+        if "C" in msg.fmt.colhash:
+            core = msg.C
+            if self._ekf_core is None:
+                self._ekf_core = core
+            if core != self._ekf_core:
+                return None
+        v = (msg.VN, msg.VE, msg.VD)
+        if not all(math.isfinite(x) for x in v):
+            self._stream.skipped += 1
+            return None
+        return VelocitySample(msg.TimeUS / 1e6, v[0], v[1], v[2], -msg.PD)
+
+    def _gps(self, msg: Any) -> Sample | None:
+        if msg.Status < GPS_FIX_3D:
+            self._stream.skipped += 1
+            return None
+        if self._gps_alt0_m is None:
+            self._gps_alt0_m = msg.Alt
+        course = math.radians(msg.GCrs)
+        return VelocitySample(
+            msg.TimeUS / 1e6,
+            msg.Spd * math.cos(course),
+            msg.Spd * math.sin(course),
+            msg.VZ,
+            msg.Alt - self._gps_alt0_m,
+        )
+
+    def _battery(self, msg: Any) -> Sample | None:
+        if self._bat_instance is not None and getattr(msg, self._bat_instance) != 0:
+            return None
+        voltage_v = msg.Volt
+        if not math.isfinite(voltage_v) or voltage_v <= 0.0:
+            self._stream.skipped += 1
+            return None
+        remaining = getattr(msg, "RemPct", None) if "RemPct" in msg.fmt.colhash else None
+        return BatterySample(
+            msg.TimeUS / 1e6,
+            voltage_v,
+            _finite(msg.Curr),
+            _finite(msg.CurrTot),
+            float(remaining) if remaining is not None and 0 <= remaining <= 100 else None,
+        )
+
+    def _arm(self, msg: Any) -> Sample | None:
+        return self._armed_change(msg.TimeUS / 1e6, bool(msg.ArmState))
+
+    def _event(self, msg: Any) -> Sample | None:
+        if msg.Id not in (EVENT_ARMED, EVENT_DISARMED):
+            return None
+        return self._armed_change(msg.TimeUS / 1e6, msg.Id == EVENT_ARMED)
+
+    def _armed_change(self, time_s: float, armed: bool) -> Sample | None:
+        if armed == self._armed:
+            return None
+        self._armed = armed
+        return ArmedSample(time_s, armed)
+
+
+_HANDLERS = {
+    "XKF1": _Decoder._ekf,
+    "NKF1": _Decoder._ekf,
+    "GPS": _Decoder._gps,
+    "BAT": _Decoder._battery,
+    "ARM": _Decoder._arm,
+    "EV": _Decoder._event,
+}
+
+
+def _open(path: Path) -> _DataFlashIndex:
+    try:
+        if path.is_dir():
+            raise UserError(f"log {path} is a directory, not a file")
+        if path.stat().st_size == 0:
+            raise UserError(f"log {path} is empty")
+        with _quiet_stderr():
+            log = _DataFlashIndex(str(path))
+    except FileNotFoundError:
+        raise UserError(f"log {path} does not exist") from None
+    except (OSError, ValueError, KeyError, struct.error) as exc:
+        raise UserError(f"cannot read DataFlash log {path}: {exc}") from None
+    if not any(log.counts[t] for t in log.formats if t != FMT_TYPE):
+        log.close()
+        raise UserError(f"{path} is not a DataFlash log (no records found)")
+    return log
+
+
+@contextlib.contextmanager
+def _quiet_stderr() -> Iterator[None]:
+    """Silence pymavlink's per-byte diagnostics while it indexes a damaged log.
+
+    Its C indexer writes to file descriptor 2 directly, so the descriptor is redirected for
+    the duration (briefly process-wide); the damage is reported by our counters instead.
+    """
+    sys.stderr.flush()
+    saved = os.dup(2)
+    try:
+        with open(os.devnull, "w") as devnull, contextlib.redirect_stderr(io.StringIO()):
+            os.dup2(devnull.fileno(), 2)
+            yield
+    finally:
+        os.dup2(saved, 2)
+        os.close(saved)
+
+
+def _column(log: _DataFlashIndex, name: str, candidates: tuple[str, ...]) -> str | None:
+    """The first of ``candidates`` that message ``name`` has, or None."""
+    type_id = log.name_to_id.get(name)
+    if type_id is None:
+        return None
+    columns = log.formats[type_id].colhash
+    return next((c for c in candidates if c in columns), None)
+
+
+def _finite(value: float) -> float | None:
+    """ArduPilot logs NaN for a value it does not know."""
+    return float(value) if math.isfinite(value) else None
