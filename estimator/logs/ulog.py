@@ -1,0 +1,160 @@
+"""PX4 ULog (.ulg) logs → :mod:`estimator.telemetry` samples, read with pyulog.
+
+Topics used (instance 0), time from each record's ``timestamp`` (µs since boot) / 1e6:
+
+- ``vehicle_local_position``: ``vx, vy, vz`` (NED, m/s), altitude ``−z`` (m above the
+  local origin); records flagged ``v_xy_valid``/``v_z_valid`` false are skipped;
+- ``battery_status``: ``voltage_v`` (V), ``current_a`` (A, −1 = unknown), ``discharged_mah``
+  (mAh, negative = unknown), ``remaining`` (fraction 0–1, negative = unknown → percent);
+  records with ``connected`` false or no usable voltage are skipped;
+- ``vehicle_status``: ``arming_state`` (2 = armed), as changes.
+
+Counters: ``skipped`` (records with unusable values), ``bad_frames`` (1 when pyulog detected
+corruption and re-synchronised), ``truncated`` (the file ends inside a message: what came
+before is read).
+"""
+
+from __future__ import annotations
+
+import contextlib
+import io
+from collections.abc import Iterator
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+from pyulog import ULog
+from pyulog.core import ULogException
+
+from estimator.errors import UserError
+from estimator.logs import SampleStream
+from estimator.telemetry import ArmedSample, BatterySample, Sample, VelocitySample
+
+TOPICS = ("vehicle_local_position", "battery_status", "vehicle_status")
+#: ``vehicle_status.arming_state`` value of an armed vehicle (PX4 ≥ 1.8).
+ARMING_STATE_ARMED = 2
+
+
+class _ReadProbe(io.BufferedReader):
+    """A file whose last read tells whether pyulog stopped inside a message."""
+
+    last_read_short = False
+
+    def read(self, size: int | None = -1) -> bytes:
+        data = super().read(size)
+        self.last_read_short = size is not None and 0 < len(data) < size
+        return data
+
+
+def iter_samples(path: str | Path) -> SampleStream:
+    """Samples of a ULog in time order (see :class:`estimator.logs.SampleStream`)."""
+    path = Path(path)
+    ulog, truncated = _load(path)
+    stream = SampleStream(path, "ulog", ())
+    stream.truncated = truncated
+    stream.bad_frames = int(ulog.file_corruption)
+    stream._it = _samples(ulog, stream)
+    return stream
+
+
+def _load(path: Path) -> tuple[ULog, bool]:
+    if path.is_dir():
+        raise UserError(f"{path} is a directory, not a log file")
+    try:
+        probe = _ReadProbe(io.FileIO(path, "rb"))
+    except FileNotFoundError:
+        raise UserError(f"{path} does not exist") from None
+    except OSError as exc:
+        raise UserError(f"cannot read {path}: {exc.strerror}") from None
+    try:
+        # pyulog reports corruption with print(); our counters report it instead
+        with contextlib.redirect_stdout(io.StringIO()):
+            ulog = ULog(probe, message_name_filter_list=list(TOPICS))
+    except (ULogException, ValueError, OSError) as exc:
+        raise UserError(f"{path} is not a readable PX4 ULog: {exc}") from None
+    finally:
+        probe.close()
+    return ulog, probe.last_read_short
+
+
+def _dataset(ulog: ULog, topic: str) -> dict[str, Any] | None:
+    """The lowest instance of ``topic`` as a dict of arrays, or None if not logged."""
+    instances = [d for d in ulog.data_list if d.name == topic]
+    if not instances:
+        return None
+    data: dict[str, Any] = min(instances, key=lambda d: d.multi_id).data
+    return data
+
+
+def _flag(data: dict[str, Any], name: str, n: int) -> np.ndarray:
+    return np.asarray(data[name], dtype=bool) if name in data else np.ones(n, dtype=bool)
+
+
+def _velocities(data: dict[str, Any], stream: SampleStream) -> list[Sample]:
+    t = data["timestamp"] / 1e6
+    v = np.column_stack([data["vx"], data["vy"], data["vz"]]).astype(float)
+    alt = -np.asarray(data["z"], dtype=float)
+    ok = _flag(data, "v_xy_valid", len(t)) & _flag(data, "v_z_valid", len(t))
+    ok &= np.isfinite(v).all(axis=1)
+    stream.skipped += int(np.count_nonzero(~ok))
+    return [
+        VelocitySample(
+            float(t[i]),
+            float(v[i, 0]),
+            float(v[i, 1]),
+            float(v[i, 2]),
+            float(alt[i]) if np.isfinite(alt[i]) else None,
+        )
+        for i in np.flatnonzero(ok)
+    ]
+
+
+def _batteries(data: dict[str, Any], stream: SampleStream) -> list[Sample]:
+    t = data["timestamp"] / 1e6
+    volt = np.asarray(data["voltage_v"], dtype=float)
+    n = len(t)
+    nan = np.full(n, np.nan)
+    current = np.asarray(data.get("current_a", nan), dtype=float)
+    consumed = np.asarray(data.get("discharged_mah", nan), dtype=float)
+    remaining = np.asarray(data.get("remaining", nan), dtype=float)
+    ok = _flag(data, "connected", n) & np.isfinite(volt) & (volt > 0.0)
+    stream.skipped += int(np.count_nonzero(~ok))
+    return [
+        BatterySample(
+            float(t[i]),
+            float(volt[i]),
+            _opt(current[i]),
+            _opt(consumed[i]),
+            None if not remaining[i] >= 0.0 else float(remaining[i]) * 100.0,
+        )
+        for i in np.flatnonzero(ok)
+    ]
+
+
+def _arming(data: dict[str, Any]) -> list[Sample]:
+    armed = np.asarray(data["arming_state"]) == ARMING_STATE_ARMED
+    changes = np.flatnonzero(np.concatenate([[True], armed[1:] != armed[:-1]]))
+    t = data["timestamp"] / 1e6
+    return [ArmedSample(float(t[i]), bool(armed[i])) for i in changes]
+
+
+def _opt(value: float) -> float | None:
+    """A finite non-negative value, or None (PX4 logs −1 or NaN for unknown)."""
+    return float(value) if np.isfinite(value) and value >= 0.0 else None
+
+
+def _samples(ulog: ULog, stream: SampleStream) -> Iterator[Sample]:
+    parts: list[list[Sample]] = []
+    status = _dataset(ulog, "vehicle_status")
+    if status is not None and "arming_state" in status:
+        parts.append(_arming(status))
+    position = _dataset(ulog, "vehicle_local_position")
+    if position is not None:
+        parts.append(_velocities(position, stream))
+    battery = _dataset(ulog, "battery_status")
+    if battery is not None:
+        parts.append(_batteries(battery, stream))
+    merged = [s for part in parts for s in part]
+    # stable sort: at equal times the arming state comes first, then velocity, then battery
+    merged.sort(key=lambda s: s.time_s)
+    yield from merged
