@@ -1,0 +1,314 @@
+"""``uav-energy replay LOG... [--vehicle FILE.toml] [--out CSV] [--report DIR] [--json]
+[--speed max|N]``: recorded flights through the daemon's pipeline (:mod:`estimator.replay`).
+
+Output: a table of the power error per flight on stdout (or one JSON object with ``--json``),
+the estimates as CSV with ``--out``, plots with ``--report``. ``--speed N`` paces the samples at
+N times the log's own time (``max``, the default, as fast as possible); pacing happens here,
+outside the pipeline, so it never changes an estimate. A progress bar shows on a terminal.
+With several logs, one that cannot be read is reported and skipped (``logs_skipped``); with a
+single log, or when none can be read, the error ends the command (exit 2).
+"""
+
+from __future__ import annotations
+
+import argparse
+import csv
+import json
+import math
+import os
+import sys
+import time
+from collections.abc import Iterable, Iterator, Sequence
+from dataclasses import fields
+from pathlib import Path
+from typing import Any
+
+from rich.console import Console
+from rich.progress import (
+    BarColumn,
+    MofNCompleteColumn,
+    Progress,
+    TaskID,
+    TextColumn,
+    TimeElapsedColumn,
+)
+from rich.table import Table
+
+from estimator.errors import UserError
+from estimator.logs import FORMATS, iter_samples
+from estimator.pipeline import Estimate
+from estimator.replay import FlightReplay, Summary, replay_stream, summarize
+from estimator.telemetry import Sample
+from estimator.vehicle import Vehicle, default_vehicle, load_vehicle
+
+#: CSV columns, in order; every other Estimate field follows them.
+CSV_COLUMNS = (
+    "time_s",
+    "speed_mps",
+    "accel_tangential_mps2",
+    "accel_centripetal_mps2",
+    "climb_mps",
+    "power_measured_w",
+    "power_model_w",
+    "energy_remaining_wh",
+    "energy_remaining_sigma_wh",
+    "endurance_s",
+    "endurance_sigma_s",
+)
+_PROGRESS_EVERY = 500
+#: Path components kept in a flight's label.
+_NAME_PARTS = 3
+_LOGS_TASK = TaskID(0)  # the first task of :func:`_progress`
+
+
+def register(subparsers: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
+    parser = subparsers.add_parser(
+        "replay",
+        help="replay recorded flights through the estimator pipeline",
+        description="Replay logs (tlog, DataFlash .bin, PX4 .ulg, CMU CSV; format by content) "
+        "through the same pipeline the daemon runs, timed by the logs' own stamps.",
+    )
+    parser.add_argument("logs", nargs="+", type=Path, metavar="LOG", help="log files")
+    parser.add_argument(
+        "--vehicle", type=Path, metavar="FILE.toml", help="vehicle file (default: built-in)"
+    )
+    parser.add_argument(
+        "--format", default="auto", choices=("auto", *FORMATS), help="log format (default: auto)"
+    )
+    parser.add_argument("--out", type=Path, metavar="FILE.csv", help="write every estimate")
+    parser.add_argument("--report", type=Path, metavar="DIR", help="write plots and a summary")
+    parser.add_argument("--json", action="store_true", help="print one JSON object")
+    parser.add_argument(
+        "--speed",
+        type=parse_speed,
+        default=None,
+        metavar="max|N",
+        help="pace at N× log time (default: max, as fast as possible)",
+    )
+    parser.set_defaults(func=run)
+
+
+def parse_speed(text: str) -> float | None:
+    """``max`` → None (no pacing), else a positive factor of real time."""
+    if text.strip().lower() == "max":
+        return None
+    try:
+        value = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected 'max' or a number, got {text!r}") from None
+    if not math.isfinite(value) or value <= 0:
+        raise argparse.ArgumentTypeError(f"speed must be > 0, got {text!r}")
+    return value
+
+
+def paced(samples: Iterable[Sample], speed: float) -> Iterator[Sample]:
+    """Yield samples no faster than ``speed`` × their own clock (rebased when it jumps back)."""
+    base: tuple[float, float] | None = None  # (wall s, log s)
+    last_log_s = -math.inf
+    for sample in samples:
+        now = time.perf_counter()
+        if base is None or sample.time_s < last_log_s:
+            base = (now, sample.time_s)
+        delay = base[0] + (sample.time_s - base[1]) / speed - now
+        if delay > 0:
+            time.sleep(delay)
+        last_log_s = sample.time_s
+        yield sample
+
+
+def run(args: argparse.Namespace) -> int:
+    vehicle = default_vehicle() if args.vehicle is None else load_vehicle(args.vehicle)
+    names = flight_names(args.logs)
+    console = Console(file=sys.stderr)
+    flights: list[FlightReplay] = []
+    skipped_logs: list[dict[str, str]] = []
+    wall_start = time.perf_counter()
+    with _progress(console, len(args.logs)) as progress:
+        for path, name in zip(args.logs, names, strict=True):
+            try:
+                flight = _replay_one(path, name, vehicle, args, progress)
+            except UserError as exc:
+                if len(args.logs) == 1:
+                    raise
+                console.print(
+                    f"uav-energy replay: skipped {path}: {exc}", highlight=False, soft_wrap=True
+                )
+                skipped_logs.append({"log": str(path), "error": str(exc)})
+                continue
+            if not flight.estimates:
+                console.print(
+                    f"uav-energy replay: {path} gave no estimates (no battery telemetry?)",
+                    highlight=False,
+                    soft_wrap=True,
+                )
+            flights.append(flight)
+    wall_s = time.perf_counter() - wall_start
+    if not flights:
+        raise UserError(f"no log could be replayed ({skipped_logs[0]['error']})")
+    if args.out is not None:
+        write_csv(args.out, flights)
+    if args.report is not None:
+        from estimator.replay_report import write_report  # matplotlib only when asked
+
+        write_report(flights, args.report, vehicle.name)
+    result = result_json(flights, wall_s, vehicle, skipped_logs)
+    if args.json:
+        print(json.dumps(result, indent=2))
+    else:
+        _print_table(flights, result, vehicle)
+    return 0
+
+
+def _replay_one(
+    path: Path, name: str, vehicle: Vehicle, args: argparse.Namespace, progress: Progress
+) -> FlightReplay:
+    stream = iter_samples(path, args.format)
+    task = progress.add_task(name, total=None)
+
+    def on_sample(n: int) -> None:
+        if n % _PROGRESS_EVERY == 0:
+            progress.update(task, completed=n)
+
+    samples: Iterable[Sample] = stream if args.speed is None else paced(stream, args.speed)
+    try:
+        return replay_stream(stream, vehicle, name, samples=samples, on_sample=on_sample)
+    finally:
+        progress.remove_task(task)
+        progress.advance(_LOGS_TASK)
+
+
+def _progress(console: Console, n_logs: int) -> Progress:
+    """Logs done of all, and the current log's samples; only on a terminal (stderr)."""
+    progress = Progress(
+        TextColumn("{task.description}"),
+        BarColumn(),
+        MofNCompleteColumn(),
+        TimeElapsedColumn(),
+        console=console,
+        transient=True,
+        disable=not console.is_terminal,
+    )
+    progress.add_task("logs", total=n_logs)
+    return progress
+
+
+def flight_names(paths: Sequence[Path]) -> list[str]:
+    """Short unique labels: the path below the logs' common folder, without the suffix."""
+    if len(paths) == 1:
+        return [paths[0].stem]
+    absolute = [p.resolve() for p in paths]
+    common = Path(os.path.commonpath([p.parent for p in absolute]))
+    return ["/".join(p.relative_to(common).with_suffix("").parts[-_NAME_PARTS:]) for p in absolute]
+
+
+def write_csv(path: Path, flights: Sequence[FlightReplay]) -> None:
+    """One row per estimate: ``flight``, :data:`CSV_COLUMNS`, then the other Estimate fields."""
+    extra = [f.name for f in fields(Estimate) if f.name not in CSV_COLUMNS]
+    columns = ["flight", *CSV_COLUMNS, *extra]
+    try:
+        with path.open("w", newline="") as handle:
+            writer = csv.writer(handle)
+            writer.writerow(columns)
+            for flight in flights:
+                for estimate in flight.estimates:
+                    row = estimate.as_dict()
+                    writer.writerow([flight.name, *(_cell(row[c]) for c in columns[1:])])
+    except OSError as exc:
+        raise UserError(f"cannot write {path}: {exc.strerror}") from None
+
+
+def _cell(value: Any) -> str:
+    if value is None:
+        return ""
+    if isinstance(value, bool):
+        return str(int(value))
+    if isinstance(value, float):
+        return format(value, ".10g")
+    return str(value)
+
+
+def result_json(
+    flights: Sequence[FlightReplay],
+    wall_s: float,
+    vehicle: Vehicle,
+    skipped_logs: list[dict[str, str]],
+) -> dict[str, Any]:
+    """The ``--json`` object: totals, reader counters, and one row per flight."""
+    total = summarize(flights)
+    result: dict[str, Any] = {
+        **_finite(total.as_dict()),
+        "wall_s": wall_s,
+        "samples_per_s": total.messages / wall_s if wall_s > 0 else None,
+        "vehicle": vehicle.name,
+        "logs": len(flights),
+        "logs_skipped": skipped_logs,
+        "skipped": sum(f.skipped for f in flights),
+        "bad_frames": sum(f.bad_frames for f in flights),
+        "truncated": sum(f.truncated for f in flights),
+        "flights": [_flight_row(f) for f in flights],
+    }
+    return result
+
+
+def _flight_row(flight: FlightReplay) -> dict[str, Any]:
+    return {
+        "flight": flight.name,
+        "log": str(flight.path),
+        "format": flight.format,
+        **_finite(summarize([flight]).as_dict()),
+        "estimates": len(flight.estimates),
+        "skipped": flight.skipped,
+        "bad_frames": flight.bad_frames,
+        "truncated": flight.truncated,
+    }
+
+
+def _finite(values: dict[str, Any]) -> dict[str, Any]:
+    """JSON has no NaN/inf: such values become null."""
+    return {
+        k: None if isinstance(v, float) and not math.isfinite(v) else v for k, v in values.items()
+    }
+
+
+def _print_table(flights: Sequence[FlightReplay], result: dict[str, Any], vehicle: Vehicle) -> None:
+    table = Table(title=f"replay with vehicle '{vehicle.name}' (errors over airborne samples)")
+    for header in (
+        "flight",
+        "samples",
+        "airborne s",
+        "RMSE W",
+        "MAPE %",
+        "E meas Wh",
+        "E model Wh",
+    ):
+        if header == "flight":
+            table.add_column(header, overflow="fold")
+        else:
+            table.add_column(header, justify="right", no_wrap=True)
+    for flight in flights:
+        table.add_row(flight.name, *_cells(summarize([flight])))
+    if len(flights) > 1:
+        table.add_row("all", *_cells(summarize(flights)), style="bold")
+    console = Console()
+    console.print(table)
+    console.print(
+        f"{result['messages']} samples in {result['wall_s']:.2f} s "
+        f"({result['samples_per_s'] or 0:.0f} samples/s); skipped {result['skipped']}, "
+        f"bad frames {result['bad_frames']}, truncated logs {result['truncated']}",
+        highlight=False,
+        soft_wrap=True,
+    )
+
+
+def _cells(s: Summary) -> list[str]:
+    def fmt(x: float | None, spec: str) -> str:
+        return "–" if x is None else format(x, spec)
+
+    return [
+        str(s.messages),
+        f"{s.airborne_s:.0f}",
+        fmt(s.power_rmse_w, ".1f"),
+        fmt(s.power_mape_pct, ".1f"),
+        f"{s.energy_measured_wh:.2f}",
+        f"{s.energy_predicted_wh:.2f}",
+    ]
