@@ -72,6 +72,7 @@ _STREAM_PHASE_S = {
 _MODE_STABILIZE, _MODE_AUTO, _MODE_LAND = 0, 3, 9
 #: Drag seen by the attitude (horizontal drag acceleration = k V²): about 20° tilt at 14 m/s.
 _DRAG_TILT_PER_MPS2 = 0.018
+_EARTH_RADIUS_M = 6_378_137.0
 #: Guard for the truth-only extension that finds the reserve (s of simulated flight).
 _MAX_EXTENSION_S = 6 * 3600.0
 
@@ -231,31 +232,26 @@ _RECORD_NAMES = (
 
 
 class _Autopilot:
-    """Steps the vehicle through ground → take-off → legs → land → ground at DT_S."""
+    """Steps the vehicle through ground → take-off → legs → land → ground at DT_S.
+
+    Scalar floats throughout (north, east components): this loop runs 50 times per second of
+    flight and numpy's per-call overhead would dominate.
+    """
 
     def __init__(self, plan: Plan, dyn: Dynamics, cyclic: bool) -> None:
         self.plan, self.dyn, self.cyclic = plan, dyn, cyclic
         self.t = 0.0
-        self.pos = np.zeros(2)
-        self.vel = np.zeros(2)
-        self.acc = np.zeros(2)
-        self.alt = 0.0
-        self.vz_up = 0.0
-        self.alt_target = 0.0
+        self.pn = self.pe = self.vn = self.ve = self.an = self.ae = 0.0
+        self.alt = self.vz_up = self.alt_target = self.yaw = 0.0
         self.climb_mps = 2.0
-        self.yaw = 0.0
         self.phase = "ground"
         self.phase_t0 = 0.0
         self.leg_i = -1
         self.leg: Leg | None = None
-        self.leg_origin = np.zeros(2)
-        self.circle_center = np.zeros(2)
+        self.origin = (0.0, 0.0)
+        self.center = (0.0, 0.0)
         self.circle_angle = 0.0
         self.done = False
-
-    @property
-    def armed(self) -> bool:
-        return self.phase in ("takeoff", "leg", "land")
 
     @property
     def mode(self) -> int:
@@ -280,12 +276,12 @@ class _Autopilot:
         self.leg_i, self.leg = i, self.plan.legs[i]
         self.phase_t0 = self.t
         leg = self.leg
-        self.leg_origin = self.pos.copy()
+        self.origin = (self.pn, self.pe)
         self.circle_angle = 0.0
         if leg.kind == "circle":
             h = math.radians(leg.heading_deg)
-            right = np.array([-math.sin(h), math.cos(h)])
-            self.circle_center = self.pos + (1.0 if leg.clockwise else -1.0) * leg.radius_m * right
+            side = (1.0 if leg.clockwise else -1.0) * leg.radius_m
+            self.center = (self.pn - side * math.sin(h), self.pe + side * math.cos(h))
         if leg.alt_m is not None:
             self.alt_target, self.climb_mps = leg.alt_m, leg.climb_mps
 
@@ -297,44 +293,47 @@ class _Autopilot:
         else:
             self._enter("land")
 
-    def _leg_command(self, leg: Leg) -> tuple[np.ndarray, np.ndarray, bool]:
-        """(velocity command, feed-forward acceleration, leg finished) for the current leg."""
-        zero = np.zeros(2)
+    def _leg_command(self, leg: Leg) -> tuple[float, float, float, float, bool]:
+        """Velocity command (n, e), feed-forward acceleration (n, e), leg finished."""
         elapsed = self.t - self.phase_t0
         timed_out = leg.duration_s is not None and elapsed >= leg.duration_s
         if leg.kind == "hover":
-            return zero, zero, timed_out
+            return 0.0, 0.0, 0.0, 0.0, timed_out
         if leg.kind == "straight":
             h = math.radians(leg.heading_deg)
-            u = np.array([math.cos(h), math.sin(h)])
+            un, ue = math.cos(h), math.sin(h)
             speed = leg.speed_mps
             finished = timed_out
             if leg.distance_m is not None:
-                remaining = leg.distance_m - float(np.dot(self.pos - self.leg_origin, u))
+                along = (self.pn - self.origin[0]) * un + (self.pe - self.origin[1]) * ue
+                remaining = leg.distance_m - along
                 speed = min(speed, math.sqrt(2.0 * self.dyn.brake_accel_mps2 * max(remaining, 0)))
-                ground = float(np.hypot(*self.vel))
+                ground = math.hypot(self.vn, self.ve)
                 finished = remaining <= 0.05 or (remaining < 2.0 and ground < 0.1)
-            return speed * u, zero, finished
-        # circle
-        r_vec = self.pos - self.circle_center
-        r = max(float(np.hypot(*r_vec)), 1e-6)
-        r_hat = r_vec / r
-        t_hat = (
-            np.array([-r_hat[1], r_hat[0]]) if leg.clockwise else np.array([r_hat[1], -r_hat[0]])
-        )
-        v_t = float(np.dot(self.vel, t_hat))
+            return speed * un, speed * ue, 0.0, 0.0, finished
+        # circle: track the tangent, correct the radius, feed forward the centripetal accel
+        rn, re = self.pn - self.center[0], self.pe - self.center[1]
+        r = max(math.hypot(rn, re), 1e-6)
+        rn, re = rn / r, re / r
+        tn, te = (-re, rn) if leg.clockwise else (re, -rn)
+        v_t = self.vn * tn + self.ve * te
         self.circle_angle += max(v_t, 0.0) * DT_S / leg.radius_m
-        cmd = leg.speed_mps * t_hat + 0.5 * (leg.radius_m - r) * r_hat
-        ff = -(v_t * v_t / leg.radius_m) * r_hat
+        correction = 0.5 * (leg.radius_m - r)
+        centripetal = v_t * v_t / leg.radius_m
         finished = timed_out or (
             leg.turns is not None and self.circle_angle >= 2 * math.pi * leg.turns
         )
-        return cmd, ff, finished
+        return (
+            leg.speed_mps * tn + correction * rn,
+            leg.speed_mps * te + correction * re,
+            -centripetal * rn,
+            -centripetal * re,
+            finished,
+        )
 
     def step(self) -> None:
         dyn = self.dyn
-        cmd, ff = np.zeros(2), np.zeros(2)
-        vz_cmd = 0.0
+        cn = ce = fn = fe = vz_cmd = 0.0
         if self.phase == "ground":
             if self.t - self.phase_t0 >= dyn.ground_s and not self.done:
                 self._enter("takeoff")
@@ -346,38 +345,41 @@ class _Autopilot:
             self._start_leg(0)
         if self.phase == "leg":
             assert self.leg is not None
-            cmd, ff, finished = self._leg_command(self.leg)
+            cn, ce, fn, fe, finished = self._leg_command(self.leg)
             if finished:
                 self._next_leg()
         if self.phase in ("takeoff", "leg"):
-            rate_down = min(self.climb_mps, dyn.max_descent_mps)
-            vz_cmd = float(np.clip(0.8 * (self.alt_target - self.alt), -rate_down, self.climb_mps))
+            down = min(self.climb_mps, dyn.max_descent_mps)
+            vz_cmd = _clip(0.8 * (self.alt_target - self.alt), -down, self.climb_mps)
         elif self.phase == "land":
             vz_cmd = -max(0.5, min(1.5, 0.3 * self.alt))
-        flying = self.phase in ("takeoff", "leg", "land")
-        if flying:
-            a_des = ff + (cmd - self.vel) / dyn.velocity_tau_s
-            norm = float(np.hypot(*a_des))
-            if norm > dyn.max_accel_mps2:
-                a_des *= dyn.max_accel_mps2 / norm
-            jerk = np.clip(a_des - self.acc, -dyn.max_jerk_mps3 * DT_S, dyn.max_jerk_mps3 * DT_S)
-            self.acc = self.acc + jerk
-            self.vel = self.vel + self.acc * DT_S
-            self.pos = self.pos + self.vel * DT_S
-            az = np.clip(
-                (vz_cmd - self.vz_up) / dyn.vertical_tau_s,
-                -dyn.max_vertical_accel_mps2,
-                dyn.max_vertical_accel_mps2,
-            )
-            self.vz_up += float(az) * DT_S
-            self.alt += self.vz_up * DT_S
-            if float(np.hypot(*self.vel)) > 1.0:
-                self.yaw = math.atan2(self.vel[1], self.vel[0])
-            if self.phase == "land" and self.alt <= 0.0:
-                self.alt, self.vz_up = 0.0, 0.0
-                self.vel, self.acc = np.zeros(2), np.zeros(2)
-                self._enter("landed")
+        if self.phase in ("takeoff", "leg", "land"):
+            self._move(cn, ce, fn, fe, vz_cmd)
         self.t = round(self.t + DT_S, 9)
+
+    def _move(self, cn: float, ce: float, fn: float, fe: float, vz_cmd: float) -> None:
+        """Velocity tracking with bounded acceleration and jerk; vertical first-order."""
+        dyn = self.dyn
+        dn = fn + (cn - self.vn) / dyn.velocity_tau_s
+        de = fe + (ce - self.ve) / dyn.velocity_tau_s
+        norm = math.hypot(dn, de)
+        if norm > dyn.max_accel_mps2:
+            dn, de = dn * dyn.max_accel_mps2 / norm, de * dyn.max_accel_mps2 / norm
+        jerk = dyn.max_jerk_mps3 * DT_S
+        self.an += _clip(dn - self.an, -jerk, jerk)
+        self.ae += _clip(de - self.ae, -jerk, jerk)
+        self.vn += self.an * DT_S
+        self.ve += self.ae * DT_S
+        self.pn += self.vn * DT_S
+        self.pe += self.ve * DT_S
+        limit = dyn.max_vertical_accel_mps2
+        self.vz_up += _clip((vz_cmd - self.vz_up) / dyn.vertical_tau_s, -limit, limit) * DT_S
+        self.alt += self.vz_up * DT_S
+        if math.hypot(self.vn, self.ve) > 1.0:
+            self.yaw = math.atan2(self.ve, self.vn)
+        if self.phase == "land" and self.alt <= 0.0:
+            self.alt = self.vz_up = self.vn = self.ve = self.an = self.ae = 0.0
+            self._enter("landed")
 
     def run(self, steps: int) -> dict[str, np.ndarray]:
         """Record the state, then step, up to ``steps`` times; stops early at a landing start."""
@@ -386,28 +388,22 @@ class _Autopilot:
             if self.done:
                 break
             was_landing = self.phase == "land"
+            flying = self.phase in ("takeoff", "leg", "land")
             rows.append(
                 (
-                    self.t,
-                    float(self.armed),
-                    float(self.phase in ("takeoff", "leg", "land")),
-                    self.pos[0],
-                    self.pos[1],
-                    self.alt,
-                    self.vel[0],
-                    self.vel[1],
-                    -self.vz_up,
-                    self.acc[0],
-                    self.acc[1],
-                    self.yaw,
-                    float(self.mode),
+                    *(self.t, float(flying), float(flying), self.pn, self.pe, self.alt),
+                    *(self.vn, self.ve, -self.vz_up, self.an, self.ae, self.yaw, self.mode),
                 )
             )
             self.step()
             if self.phase == "land" and not was_landing:
                 break
-        cols = np.array(rows, dtype=float).reshape(-1, 13).T
+        cols = np.array(rows, dtype=float).reshape(-1, len(_RECORD_NAMES)).T
         return dict(zip(_RECORD_NAMES, cols, strict=True))
+
+
+def _clip(x: float, lo: float, hi: float) -> float:
+    return lo if x < lo else hi if x > hi else x
 
 
 # -- battery ------------------------------------------------------------------------------------
@@ -625,44 +621,27 @@ def _truth(
 
 
 class _Telemetry:
-    """Builds the ArduCopter-like message stream from the truth, with sensor noise."""
+    """Builds the ArduCopter-like message stream from the truth, with sensor noise.
+
+    Each stream samples the truth at its own rate (the physics step at or before its send
+    time; stamps carry 0–7 ms of scheduling jitter); noise is drawn per stream, vectorized.
+    """
 
     def __init__(self, config: SimConfig, truth: SimTruth) -> None:
-        self.config, self.truth = config, truth
+        self.config, self.truth, self.noise = config, truth, config.noise
         self.rng = np.random.default_rng(config.seed)
         self.mav = mavlink.MAVLink(None, srcSystem=1, srcComponent=1)
-        noise = config.noise
         n = len(truth)
-        self.vel_err = np.stack([self._ar1(n, noise.velocity_sigma_mps) for _ in range(3)])
+        sigma, tau = self.noise.velocity_sigma_mps, self.noise.velocity_tau_s
+        self.vel_err = np.stack([_ar1(self.rng, n, sigma, tau) for _ in range(3)])
         wind = [e for e in config.all_effects() if isinstance(e, Wind)]
         wn, we = wind[0].vector_ne_mps() if wind else (0.0, 0.0)
         self.air_n, self.air_e = truth.vn_mps - wn, truth.ve_mps - we
-        #: Energy drawn at the terminals so far, J (BATTERY_STATUS.energy_consumed is in hJ).
+        #: Energy drawn at the terminals before each step, J (BATTERY_STATUS hJ field).
         self.energy_j = np.cumsum(truth.power_w) * DT_S - truth.power_w * DT_S
-
-    def _ar1(self, n: int, sigma: float) -> FloatArray:
-        if sigma == 0 or n == 0:
-            return np.zeros(n)
-        phi = math.exp(-DT_S / self.config.noise.velocity_tau_s)
-        w = self.rng.normal(0.0, sigma * math.sqrt(1 - phi * phi), n)
-        w[0] = self.rng.normal(0.0, sigma)
-        return np.asarray(lfilter([1.0], [1.0, -phi], w), dtype=float)
 
     def messages(self) -> list[tuple[float, mavlink.MAVLink_message]]:
         t_end = float(self.truth.time_s[-1]) if len(self.truth) else 0.0
-        scheduled: list[tuple[int, int, str, int]] = []
-        for order, (name, rate) in enumerate(sorted(self.config.rates_hz.items())):
-            if rate <= 0:
-                continue
-            if name not in _STREAM_PHASE_S:
-                raise ValueError(f"the simulator does not send {name}")
-            times = np.arange(_STREAM_PHASE_S[name], t_end + 1e-9, 1.0 / rate)
-            idx = self.truth.at(times)
-            jitter = self.rng.integers(0, 8, len(times))
-            for tt, k, j in zip(times, idx, jitter, strict=True):
-                scheduled.append((round(tt * 1000) + int(j), order, name, int(k)))
-        scheduled.sort()
-        out: list[tuple[float, mavlink.MAVLink_message]] = []
         builders = {
             "HEARTBEAT": self._heartbeat,
             "GLOBAL_POSITION_INT": self._global_position,
@@ -672,178 +651,225 @@ class _Telemetry:
             "SYS_STATUS": self._sys_status,
             "BATTERY_STATUS": self._battery_status,
         }
-        for ms, _, name, k in scheduled:
-            msg = builders[name](k, ms)
+        scheduled: list[tuple[int, int, mavlink.MAVLink_message]] = []
+        for order, name in enumerate(builders):
+            rate = float(self.config.rates_hz.get(name, 0.0))
+            if rate <= 0:
+                continue
+            times = np.arange(_STREAM_PHASE_S[name], t_end + 1e-9, 1.0 / rate)
+            idx = np.asarray(self.truth.at(times), dtype=int)
+            ms = np.round(times * 1000).astype(int) + self.rng.integers(0, 8, len(times))
+            msgs = builders[name](idx, ms)
+            scheduled.extend(zip(ms.tolist(), [order] * len(msgs), msgs, strict=True))
+        scheduled.sort(key=lambda item: (item[0], item[1]))
+        out: list[tuple[float, mavlink.MAVLink_message]] = []
+        for ms_i, _, msg in scheduled:
             msg.pack(self.mav)
             self.mav.seq = (self.mav.seq + 1) % 256
-            out.append((ms / 1000.0, msg))
+            out.append((ms_i / 1000.0, msg))
         return out
 
-    # measured quantities
+    # measured quantities (vectorized over a stream's samples)
 
-    def _velocity(self, k: int) -> tuple[float, float, float]:
-        tr, e = self.truth, self.vel_err[:, k]
-        return tr.vn_mps[k] + e[0], tr.ve_mps[k] + e[1], tr.vd_mps[k] + e[2]
+    def _normal(self, sigma: float, n: int) -> FloatArray:
+        return self.rng.normal(0.0, sigma, n) if sigma > 0 else np.zeros(n)
 
-    def _alt(self, k: int) -> float:
-        return float(self.truth.alt_m[k] + self.rng.normal(0.0, self.config.noise.altitude_sigma_m))
+    def _velocity(self, idx: np.ndarray) -> tuple[FloatArray, FloatArray, FloatArray]:
+        tr, e = self.truth, self.vel_err[:, idx]
+        return tr.vn_mps[idx] + e[0], tr.ve_mps[idx] + e[1], tr.vd_mps[idx] + e[2]
 
-    def _battery(self, k: int) -> tuple[float, float]:
-        noise = self.config.noise
-        v = self.truth.voltage_v[k] + self.rng.normal(0.0, noise.voltage_sigma_v)
-        i = self.truth.current_a[k] * noise.current_scale + self.rng.normal(
-            0.0, noise.current_sigma_a
-        )
-        return float(v), float(i)
+    def _alt(self, idx: np.ndarray) -> FloatArray:
+        return self.truth.alt_m[idx] + self._normal(self.noise.altitude_sigma_m, len(idx))
 
-    def _remaining_pct(self, k: int) -> int:
-        spec = self.config.vehicle.battery
-        consumed_ah = self.truth.consumed_mah[k] * self.config.noise.current_scale / 1000.0
-        return int(np.clip(round(100.0 * (1.0 - consumed_ah / spec.capacity_ah)), 0, 100))
+    def _battery(self, idx: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Measured voltage (mV) and current (cA), quantised as MAVLink carries them."""
+        v = self.truth.voltage_v[idx] + self._normal(self.noise.voltage_sigma_v, len(idx))
+        i = self.truth.current_a[idx] * self.noise.current_scale
+        i = i + self._normal(self.noise.current_sigma_a, len(idx))
+        return np.clip(np.round(v * 1000), 0, 65534), np.clip(np.round(i * 100), -1, 32767)
 
-    def _attitude_angles(self, k: int) -> tuple[float, float, float]:
+    def _remaining_pct(self, idx: np.ndarray) -> np.ndarray:
+        """ArduPilot's estimate: 100 × (1 − consumed / capacity), consumed as measured."""
+        capacity_mah = 1000.0 * self.config.vehicle.battery.capacity_ah
+        consumed = self.truth.consumed_mah[idx] * self.noise.current_scale
+        return np.clip(np.round(100.0 * (1.0 - consumed / capacity_mah)), 0, 100)
+
+    def _attitude_angles(self, idx: np.ndarray) -> tuple[FloatArray, FloatArray, FloatArray]:
         """Roll, pitch, yaw (rad): the thrust tilts for the acceleration and the drag."""
         tr = self.truth
-        air_n, air_e = self.air_n[k], self.air_e[k]
-        air = math.hypot(air_n, air_e)
-        fn = tr.an_mps2[k] + _DRAG_TILT_PER_MPS2 * air * air_n
-        fe = tr.ae_mps2[k] + _DRAG_TILT_PER_MPS2 * air * air_e
-        yaw = float(tr.yaw_rad[k])
-        forward = fn * math.cos(yaw) + fe * math.sin(yaw)
-        right = -fn * math.sin(yaw) + fe * math.cos(yaw)
-        if not tr.flying[k]:
-            forward = right = 0.0
-        return math.atan2(right, G_MPS2), -math.atan2(forward, G_MPS2), yaw
+        air_n, air_e = self.air_n[idx], self.air_e[idx]
+        air = np.hypot(air_n, air_e)
+        flying = tr.flying[idx]
+        fn = np.where(flying, tr.an_mps2[idx] + _DRAG_TILT_PER_MPS2 * air * air_n, 0.0)
+        fe = np.where(flying, tr.ae_mps2[idx] + _DRAG_TILT_PER_MPS2 * air * air_e, 0.0)
+        yaw = tr.yaw_rad[idx]
+        forward = fn * np.cos(yaw) + fe * np.sin(yaw)
+        right = -fn * np.sin(yaw) + fe * np.cos(yaw)
+        return np.arctan2(right, G_MPS2), -np.arctan2(forward, G_MPS2), yaw
 
-    # builders
+    # builders: truth indices and stamps (ms) in, messages out
 
-    def _heartbeat(self, k: int, ms: int) -> mavlink.MAVLink_message:
-        armed = bool(self.truth.armed[k])
-        base = mavlink.MAV_MODE_FLAG_CUSTOM_MODE_ENABLED | mavlink.MAV_MODE_FLAG_STABILIZE_ENABLED
-        if armed:
-            base |= mavlink.MAV_MODE_FLAG_SAFETY_ARMED | mavlink.MAV_MODE_FLAG_GUIDED_ENABLED
-        status = mavlink.MAV_STATE_ACTIVE if armed else mavlink.MAV_STATE_STANDBY
-        return self.mav.heartbeat_encode(
-            mavlink.MAV_TYPE_QUADROTOR,
-            mavlink.MAV_AUTOPILOT_ARDUPILOTMEGA,
-            base,
-            int(self.truth.mode[k]),
-            status,
-            3,
+    def _heartbeat(self, idx: np.ndarray, ms: np.ndarray) -> list[mavlink.MAVLink_message]:
+        out = []
+        for k in idx.tolist():
+            armed = bool(self.truth.armed[k])
+            base = (
+                mavlink.MAV_MODE_FLAG_CUSTOM_MODE_ENABLED | mavlink.MAV_MODE_FLAG_STABILIZE_ENABLED
+            )
+            if armed:
+                base |= mavlink.MAV_MODE_FLAG_SAFETY_ARMED | mavlink.MAV_MODE_FLAG_GUIDED_ENABLED
+            status = mavlink.MAV_STATE_ACTIVE if armed else mavlink.MAV_STATE_STANDBY
+            out.append(
+                self.mav.heartbeat_encode(
+                    mavlink.MAV_TYPE_QUADROTOR,
+                    mavlink.MAV_AUTOPILOT_ARDUPILOTMEGA,
+                    base,
+                    int(self.truth.mode[k]),
+                    status,
+                    3,
+                )
+            )
+        return out
+
+    def _global_position(self, idx: np.ndarray, ms: np.ndarray) -> list[mavlink.MAVLink_message]:
+        c, tr, n = self.config, self.truth, len(idx)
+        pn = tr.pn_m[idx] + self._normal(self.noise.position_sigma_m, n)
+        pe = tr.pe_m[idx] + self._normal(self.noise.position_sigma_m, n)
+        lat = c.home_lat_deg + np.degrees(pn / _EARTH_RADIUS_M)
+        lon = c.home_lon_deg + np.degrees(pe / (_EARTH_RADIUS_M * np.cos(np.radians(lat))))
+        alt = self._alt(idx)
+        vel = [np.clip(np.round(v * 100), -32768, 32767) for v in self._velocity(idx)]
+        hdg = np.round(np.degrees(tr.yaw_rad[idx]) * 100).astype(int) % 36000
+        cols = zip(
+            ms.tolist(),
+            np.round(lat * 1e7).astype(int).tolist(),
+            np.round(lon * 1e7).astype(int).tolist(),
+            np.round((c.home_msl_m + alt) * 1000).astype(int).tolist(),
+            np.round(alt * 1000).astype(int).tolist(),
+            *(v.astype(int).tolist() for v in vel),
+            hdg.tolist(),
+            strict=True,
         )
+        return [self.mav.global_position_int_encode(*row) for row in cols]
 
-    def _global_position(self, k: int, ms: int) -> mavlink.MAVLink_message:
-        c, tr, sigma = self.config, self.truth, self.config.noise.position_sigma_m
-        pn = tr.pn_m[k] + self.rng.normal(0.0, sigma)
-        pe = tr.pe_m[k] + self.rng.normal(0.0, sigma)
-        lat = c.home_lat_deg + math.degrees(pn / 6_378_137.0)
-        lon = c.home_lon_deg + math.degrees(pe / (6_378_137.0 * math.cos(math.radians(lat))))
-        alt = self._alt(k)
-        vn, ve, vd = self._velocity(k)
-        hdg = round(math.degrees(tr.yaw_rad[k]) * 100) % 36000
-        return self.mav.global_position_int_encode(
-            ms,
-            round(lat * 1e7),
-            round(lon * 1e7),
-            round((c.home_msl_m + alt) * 1000),
-            round(alt * 1000),
-            _cm(vn),
-            _cm(ve),
-            _cm(vd),
-            hdg,
+    def _local_position(self, idx: np.ndarray, ms: np.ndarray) -> list[mavlink.MAVLink_message]:
+        tr, n, sigma = self.truth, len(idx), self.noise.position_sigma_m
+        cols = zip(
+            ms.tolist(),
+            (tr.pn_m[idx] + self._normal(sigma, n)).tolist(),
+            (tr.pe_m[idx] + self._normal(sigma, n)).tolist(),
+            (-self._alt(idx)).tolist(),
+            *(v.tolist() for v in self._velocity(idx)),
+            strict=True,
         )
+        return [self.mav.local_position_ned_encode(*row) for row in cols]
 
-    def _local_position(self, k: int, ms: int) -> mavlink.MAVLink_message:
-        tr, sigma = self.truth, self.config.noise.position_sigma_m
-        vn, ve, vd = self._velocity(k)
-        return self.mav.local_position_ned_encode(
-            ms,
-            float(tr.pn_m[k] + self.rng.normal(0.0, sigma)),
-            float(tr.pe_m[k] + self.rng.normal(0.0, sigma)),
-            -self._alt(k),
-            float(vn),
-            float(ve),
-            float(vd),
+    def _attitude(self, idx: np.ndarray, ms: np.ndarray) -> list[mavlink.MAVLink_message]:
+        n, s = len(idx), self.noise.attitude_sigma_rad
+        roll, pitch, yaw = self._attitude_angles(idx)
+        back = np.maximum(idx - 5, 0)
+        r0, p0, y0 = self._attitude_angles(back)
+        span = np.maximum((idx - back) * DT_S, DT_S)
+        wrap = np.remainder(yaw - y0 + np.pi, 2 * np.pi) - np.pi
+        yaw_meas = np.remainder(yaw + self._normal(s, n) + np.pi, 2 * np.pi) - np.pi
+        cols = zip(
+            ms.tolist(),
+            (roll + self._normal(s, n)).tolist(),
+            (pitch + self._normal(s, n)).tolist(),
+            yaw_meas.tolist(),
+            ((roll - r0) / span).tolist(),
+            ((pitch - p0) / span).tolist(),
+            (wrap / span).tolist(),
+            strict=True,
         )
+        return [self.mav.attitude_encode(*row) for row in cols]
 
-    def _attitude(self, k: int, ms: int) -> mavlink.MAVLink_message:
-        roll, pitch, yaw = self._attitude_angles(k)
-        prev = max(k - 5, 0)
-        r0, p0, y0 = self._attitude_angles(prev)
-        span = max((k - prev) * DT_S, DT_S)
-        s = self.config.noise.attitude_sigma_rad
-        yaw_rate = math.remainder(yaw - y0, 2 * math.pi) / span
-        return self.mav.attitude_encode(
-            ms,
-            roll + self.rng.normal(0.0, s),
-            pitch + self.rng.normal(0.0, s),
-            math.remainder(yaw + self.rng.normal(0.0, s), 2 * math.pi),
-            (roll - r0) / span,
-            (pitch - p0) / span,
-            yaw_rate,
-        )
-
-    def _vfr_hud(self, k: int, ms: int) -> mavlink.MAVLink_message:
+    def _vfr_hud(self, idx: np.ndarray, ms: np.ndarray) -> list[mavlink.MAVLink_message]:
         tr = self.truth
-        vn, ve, vd = self._velocity(k)
-        ground = math.hypot(vn, ve)
+        vn, ve, vd = self._velocity(idx)
+        ground = np.hypot(vn, ve)
         hover_w = self.config.vehicle.model.hover_power_w
-        throttle = 45.0 * (tr.power_w[k] / hover_w) ** (2.0 / 3.0) if tr.flying[k] else 0.0
-        alt = self._alt(k)
-        return self.mav.vfr_hud_encode(
-            ground,
-            ground,
-            round(math.degrees(tr.yaw_rad[k])) % 360,
-            int(np.clip(round(throttle), 0, 100)),
-            self.config.home_msl_m + alt,
-            -vd,
+        ratio = np.maximum(tr.power_w[idx], 0.0) / hover_w
+        throttle = np.where(tr.flying[idx], np.clip(np.round(45.0 * ratio ** (2 / 3)), 0, 100), 0)
+        heading = np.round(np.degrees(tr.yaw_rad[idx])).astype(int) % 360
+        cols = zip(
+            ground.tolist(),
+            ground.tolist(),
+            heading.tolist(),
+            throttle.astype(int).tolist(),
+            (self.config.home_msl_m + self._alt(idx)).tolist(),
+            (-vd).tolist(),
+            strict=True,
         )
+        return [self.mav.vfr_hud_encode(*row) for row in cols]
 
-    def _sys_status(self, k: int, ms: int) -> mavlink.MAVLink_message:
-        v, i = self._battery(k)
+    def _sys_status(self, idx: np.ndarray, ms: np.ndarray) -> list[mavlink.MAVLink_message]:
+        mv, ca = self._battery(idx)
         sensors = (
             mavlink.MAV_SYS_STATUS_SENSOR_3D_GYRO
             | mavlink.MAV_SYS_STATUS_SENSOR_3D_ACCEL
             | mavlink.MAV_SYS_STATUS_SENSOR_GPS
             | mavlink.MAV_SYS_STATUS_SENSOR_BATTERY
         )
-        return self.mav.sys_status_encode(
-            sensors, sensors, sensors, 250, _mv(v), _ca(i), self._remaining_pct(k), 0, 0, 0, 0, 0, 0
+        cols = zip(
+            mv.astype(int).tolist(),
+            ca.astype(int).tolist(),
+            self._remaining_pct(idx).astype(int).tolist(),
+            strict=True,
         )
+        return [
+            self.mav.sys_status_encode(sensors, sensors, sensors, 250, v, i, pct, 0, 0, 0, 0, 0, 0)
+            for v, i, pct in cols
+        ]
 
-    def _battery_status(self, k: int, ms: int) -> mavlink.MAVLink_message:
-        v, i = self._battery(k)
+    def _battery_status(self, idx: np.ndarray, ms: np.ndarray) -> list[mavlink.MAVLink_message]:
         tr, spec = self.truth, self.config.vehicle.battery
-        consumed_mah = tr.consumed_mah[k] * self.config.noise.current_scale
-        low = tr.soc[k] <= spec.reserve_fraction
-        return self.mav.battery_status_encode(
-            0,
-            mavlink.MAV_BATTERY_FUNCTION_ALL,
-            mavlink.MAV_BATTERY_TYPE_LIPO,
-            32767,
-            [_mv(v)] + [65535] * 9,
-            _ca(i),
-            round(consumed_mah),
-            round(self.energy_j[k] * self.config.noise.current_scale / 100.0),
-            self._remaining_pct(k),
-            0,
-            mavlink.MAV_BATTERY_CHARGE_STATE_LOW if low else mavlink.MAV_BATTERY_CHARGE_STATE_OK,
-            [0, 0, 0, 0],
-            0,
-            0,
+        mv, ca = self._battery(idx)
+        consumed = np.round(tr.consumed_mah[idx] * self.noise.current_scale).astype(int)
+        energy_hj = np.round(self.energy_j[idx] * self.noise.current_scale / 100.0).astype(int)
+        state = np.where(
+            tr.soc[idx] <= spec.reserve_fraction,
+            mavlink.MAV_BATTERY_CHARGE_STATE_LOW,
+            mavlink.MAV_BATTERY_CHARGE_STATE_OK,
         )
+        cols = zip(
+            mv.astype(int).tolist(),
+            ca.astype(int).tolist(),
+            consumed.tolist(),
+            energy_hj.tolist(),
+            self._remaining_pct(idx).astype(int).tolist(),
+            state.tolist(),
+            strict=True,
+        )
+        return [
+            self.mav.battery_status_encode(
+                0,
+                mavlink.MAV_BATTERY_FUNCTION_ALL,
+                mavlink.MAV_BATTERY_TYPE_LIPO,
+                32767,  # temperature unknown
+                [v] + [65535] * 9,  # ArduPilot without cell monitoring: total in voltages[0]
+                i,
+                mah,
+                hj,
+                pct,
+                0,
+                st,
+                [0, 0, 0, 0],
+                0,
+                0,
+            )
+            for v, i, mah, hj, pct, st in cols
+        ]
 
 
-def _cm(v_mps: float) -> int:
-    return int(np.clip(round(v_mps * 100.0), -32768, 32767))
-
-
-def _mv(v: float) -> int:
-    return int(np.clip(round(v * 1000.0), 0, 65534))
-
-
-def _ca(i_a: float) -> int:
-    return int(np.clip(round(i_a * 100.0), -1, 32767))
+def _ar1(rng: np.random.Generator, n: int, sigma: float, tau_s: float) -> FloatArray:
+    """Stationary first-order Gauss-Markov noise with std ``sigma`` and time constant tau_s."""
+    if sigma <= 0 or n == 0:
+        return np.zeros(n)
+    phi = math.exp(-DT_S / tau_s)
+    w = rng.normal(0.0, sigma * math.sqrt(1 - phi * phi), n)
+    w[0] = rng.normal(0.0, sigma)
+    return np.asarray(lfilter([1.0], [1.0, -phi], w), dtype=float)
 
 
 # -- files --------------------------------------------------------------------------------------
