@@ -7,9 +7,9 @@ would have published. No wall clock is read here: pacing (``--speed``) and timin
 the caller.
 
 Power error is measured where the model is meant to hold: at each battery sample with a
-current reading while the vehicle is *airborne* (armed, or no arming information in the log,
-and more than :data:`AIRBORNE_ALT_M` above home when the altitude is known), model power of
-the estimate at that instant against the measured V·I. Energies integrate both powers over
+current reading while the vehicle is *airborne* (armed and more than :data:`AIRBORNE_ALT_M`
+above home; a log without arming state or altitude is judged on the other alone), model power
+of the estimate at that instant against the measured V·I. Energies integrate both powers over
 the same airborne intervals (gaps longer than :data:`MAX_GAP_S` are not integrated).
 """
 
@@ -40,19 +40,34 @@ FloatArray = NDArray[np.float64]
 
 @dataclass
 class PowerTrace:
-    """Model and measured power at each battery sample with a current reading (W)."""
+    """At each battery sample with a current reading: time (s), measured and model power (W),
+    the armed state then (1/0, NaN unknown) and the height over home (m, NaN unknown)."""
 
     time_s: list[float] = field(default_factory=list)
     measured_w: list[float] = field(default_factory=list)
     model_w: list[float] = field(default_factory=list)
-    airborne: list[bool] = field(default_factory=list)
+    armed: list[float] = field(default_factory=list)
+    alt_m: list[float] = field(default_factory=list)
+
+    def airborne(self) -> NDArray[np.bool_]:
+        """Armed and above :data:`AIRBORNE_ALT_M`. A log that never gives the armed state
+        (or the altitude) is judged on the other alone."""
+        armed = np.asarray(self.armed, dtype=float)
+        alt = np.asarray(self.alt_m, dtype=float)
+        ok = np.ones(len(armed), dtype=bool)
+        if np.isfinite(armed).any():
+            ok &= armed == 1.0
+        if np.isfinite(alt).any():
+            ok &= alt > AIRBORNE_ALT_M
+        return ok
 
     def arrays(self) -> tuple[FloatArray, FloatArray, FloatArray, NDArray[np.bool_]]:
+        """(time, measured, model, airborne)."""
         return (
             np.asarray(self.time_s, dtype=float),
             np.asarray(self.measured_w, dtype=float),
             np.asarray(self.model_w, dtype=float),
-            np.asarray(self.airborne, dtype=bool),
+            self.airborne(),
         )
 
 
@@ -98,25 +113,19 @@ class Summary:
 
 
 class _FlightPhase:
-    """Tracks armed state and height over home from the samples, to tell airborne points."""
+    """Tracks the armed state and the height over home from the samples."""
 
     def __init__(self) -> None:
-        self.armed: bool | None = None
-        self.alt_m: float | None = None
+        self.armed = math.nan
+        self.alt_m = math.nan
 
     def observe(self, sample: Sample) -> None:
         if isinstance(sample, ArmedSample):
-            self.armed = sample.armed
+            self.armed = float(sample.armed)
         elif isinstance(sample, VelocitySample):
-            self.alt_m = sample.alt_m
+            self.alt_m = math.nan if sample.alt_m is None else sample.alt_m
         elif isinstance(sample, RebootSample):
-            self.armed = None
-
-    @property
-    def airborne(self) -> bool:
-        if self.armed is False:
-            return False
-        return self.alt_m is None or self.alt_m > AIRBORNE_ALT_M
+            self.armed = self.alt_m = math.nan
 
 
 def run(
@@ -145,7 +154,8 @@ def run(
                 power.time_s.append(sample.time_s)
                 power.measured_w.append(measured_w)
                 power.model_w.append(latest.power_model_w)
-                power.airborne.append(phase.airborne)
+                power.armed.append(phase.armed)
+                power.alt_m.append(phase.alt_m)
         count += 1
         if on_sample is not None:
             on_sample(count)
