@@ -224,7 +224,7 @@ class Climb(Effect):
 
     Rotor power changes by m g (v_c + v_i(v_c) − v0) / efficiency, with climb rate
     v_c = −v_d and induced velocity v_i = −v_c/2 + sqrt(v_c²/4 + v0²): ≈ m g v_c/2 for slow
-    climbs, → m g v_c for fast ones; negative (less power) in descent, never below −hover's
+    climbs, → m g (v_c − v0) for fast ones; negative (less power) in descent, never below −hover's
     induced share. efficiency (0..1]: electrical to rotor-work conversion (motor × ESC ×
     rotor figure of merit); about m g v0 / c3 for a consistent model.
     """

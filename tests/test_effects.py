@@ -1,0 +1,222 @@
+"""Physics of each power effect, their composition, and their vehicle-file serialisation."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+from estimator.effects import (
+    EFFECT_TYPES,
+    Acceleration,
+    AirDensity,
+    Avionics,
+    Climb,
+    FlightState,
+    Mass,
+    Turn,
+    Voltage,
+    Wind,
+    effect_from_params,
+    effects_from_tables,
+    effects_to_tables,
+    predict_power_w,
+)
+from estimator.errors import UserError
+from estimator.model import G_MPS2, SEA_LEVEL_DENSITY_KGPM3
+from estimator.vehicle import default_vehicle, load_vehicle
+
+VEHICLE = default_vehicle()
+MODEL, MASS_KG = VEHICLE.model, VEHICLE.mass_kg
+
+
+def state(
+    vn: float | list[float] = 0.0,
+    ve: float | list[float] = 0.0,
+    vd: float | list[float] = 0.0,
+    an: float | list[float] = 0.0,
+    ae: float | list[float] = 0.0,
+    voltage: float | list[float] = 24.0,
+    n: int = 1,
+) -> FlightState:
+    cols = [np.broadcast_to(np.asarray(x, dtype=float), (n,)) for x in (vn, ve, vd, an, ae)]
+    t = np.arange(n, dtype=float)
+    v = np.broadcast_to(np.asarray(voltage, dtype=float), (n,))
+    return FlightState(t, cols[0], cols[1], cols[2], cols[3], cols[4], np.full(n, 20.0), v)
+
+
+def power(st: FlightState, *effects: object) -> np.ndarray:
+    return predict_power_w(MODEL, MASS_KG, st, list(effects))  # type: ignore[arg-type]
+
+
+def test_no_effects_is_eq1_in_steady_level_flight() -> None:
+    speeds = np.array([0.0, 3.0, 8.0, 14.0])
+    st = state(vn=list(speeds), n=4)
+    assert power(st) == pytest.approx(MODEL.power_w(speeds))
+
+
+def test_kinetic_term_adds_m_v_dot_a() -> None:
+    st = state(vn=10.0, an=0.5)
+    assert power(st)[0] == pytest.approx(float(MODEL.power_w(10.0)) + MASS_KG * 10.0 * 0.5)
+
+
+def test_turn_uses_centripetal_acceleration_in_the_load_factor() -> None:
+    st = state(vn=8.0, ae=3.0)  # a ⊥ v
+    expected = MODEL.power_w(8.0, 3.0 * 8.0 / math.sqrt(64.0 + 0.25))  # kinematics floor
+    assert power(st)[0] == pytest.approx(float(expected))
+
+
+def test_wind_from_north_makes_power_depend_on_heading() -> None:
+    wind = Wind(speed_mps=5.0, from_deg=0.0)
+    headings = {"north": (8.0, 0.0), "south": (-8.0, 0.0), "east": (0.0, 8.0)}
+    got = {name: float(power(state(vn=vn, ve=ve), wind)[0]) for name, (vn, ve) in headings.items()}
+    # flying into a north wind is a 13 m/s airspeed, with it 3 m/s, across it sqrt(8²+5²)
+    assert got["north"] == pytest.approx(float(MODEL.power_w(13.0)))
+    assert got["south"] == pytest.approx(float(MODEL.power_w(3.0)))
+    assert got["east"] == pytest.approx(float(MODEL.power_w(math.hypot(8.0, 5.0))))
+    assert got["north"] > max(got["east"], got["south"])  # 13 m/s is past the minimum
+
+
+def test_wind_from_deg_is_where_it_blows_from() -> None:
+    wn, we = Wind(speed_mps=4.0, from_deg=90.0).vector_ne_mps()
+    assert (wn, we) == pytest.approx((0.0, -4.0))  # an east wind blows towards the west
+
+
+def test_hovering_in_wind_sees_the_wind_as_airspeed() -> None:
+    assert power(state(), Wind(6.0, 200.0))[0] == pytest.approx(float(MODEL.power_w(6.0)))
+
+
+def test_mass_rescales_hover_induced_power_by_w_to_the_three_halves() -> None:
+    ratio = (MASS_KG + 1.0) / MASS_KG
+    got = power(state(), Mass(delta_kg=1.0))[0]
+    assert got == pytest.approx(MODEL.c1 + MODEL.c3 * ratio**1.5)
+
+
+def test_mass_step_applies_from_at_s_on() -> None:
+    st = state(vn=6.0, n=10)  # times 0..9 s
+    got = power(st, Mass(delta_kg=0.5, at_s=4.0))
+    base = float(MODEL.power_w(6.0))
+    heavier = float(MODEL.rescaled((MASS_KG + 0.5) / MASS_KG).power_w(6.0))
+    assert got[:4] == pytest.approx([base] * 4)
+    assert got[4:] == pytest.approx([heavier] * 6)
+
+
+def test_mass_changes_kinetic_term_with_actual_mass() -> None:
+    st = state(vn=10.0, an=1.0)
+    heavy = MODEL.rescaled((MASS_KG + 2.0) / MASS_KG)
+    expected = float(heavy.power_w(10.0)) + (MASS_KG + 2.0) * 10.0
+    assert power(st, Mass(delta_kg=2.0))[0] == pytest.approx(expected)
+
+
+def test_thin_air_raises_hover_power_and_lowers_profile_power() -> None:
+    rho = 1.0
+    r = rho / SEA_LEVEL_DENSITY_KGPM3
+    got = power(state(), AirDensity(rho_kgpm3=rho))[0]
+    assert got == pytest.approx(MODEL.c1 * r + MODEL.c3 / math.sqrt(r))
+    assert got > MODEL.hover_power_w
+
+
+def test_climb_follows_momentum_theory() -> None:
+    eff = 0.6
+    v0 = math.sqrt(MODEL.c4 / 2.0)
+    climbs = np.array([0.0, 0.2, 2.0, 30.0, -2.0])
+    got = power(state(vd=list(-climbs), n=5), Climb(efficiency=eff)) - MODEL.hover_power_w
+    weight = MASS_KG * G_MPS2
+    exact = weight * (climbs / 2 + np.sqrt(climbs**2 / 4 + v0**2) - v0) / eff
+    assert got == pytest.approx(exact)
+    assert got[0] == pytest.approx(0.0)
+    assert got[1] == pytest.approx(weight * 0.2 / 2 / eff, rel=0.02)  # slow: m g v_c / 2η
+    assert got[3] == pytest.approx(weight * (30.0 - v0) / eff, rel=0.05)  # fast: m g (v_c − v0)/η
+    assert got[4] < 0  # descending needs less power
+
+
+def test_avionics_adds_a_constant_load_from_at_s() -> None:
+    st = state(vn=5.0, n=6)
+    got = power(st, Avionics(power_w=25.0, at_s=3.0)) - float(MODEL.power_w(5.0))
+    assert got == pytest.approx([0, 0, 0, 25, 25, 25])
+    assert power(state(), Avionics(power_w=10.0))[0] == pytest.approx(MODEL.hover_power_w + 10)
+
+
+def test_voltage_losses_grow_as_the_battery_sags() -> None:
+    eff = Voltage(resistance_ohm=0.15, reference_v=25.2)
+    volts = [25.2, 23.0, 21.0]
+    got = power(state(voltage=volts, n=3), eff) - MODEL.hover_power_w
+    p = MODEL.hover_power_w
+    assert got == pytest.approx([0.15 * p * p * (1 / v**2 - 1 / 25.2**2) for v in volts])
+    assert got[0] == pytest.approx(0.0) and 0 < got[1] < got[2]
+
+
+def test_voltage_losses_ignore_unknown_voltage() -> None:
+    got = power(state(voltage=float("nan")), Voltage(resistance_ohm=0.2, reference_v=25.0))
+    assert got[0] == pytest.approx(MODEL.hover_power_w)
+
+
+def test_acceleration_effect_makes_braking_cost_instead_of_return() -> None:
+    braking = state(vn=10.0, an=-1.0)
+    ideal = power(braking)[0]
+    no_recovery = power(braking, Acceleration(efficiency=1.0, recovery=0.0))[0]
+    assert no_recovery == pytest.approx(float(MODEL.power_w(10.0)))
+    assert ideal == pytest.approx(no_recovery - MASS_KG * 10.0)
+    speeding = state(vn=10.0, an=1.0)
+    lossy = power(speeding, Acceleration(efficiency=0.5))[0]
+    assert lossy == pytest.approx(float(MODEL.power_w(10.0)) + 2 * MASS_KG * 10.0)
+
+
+def test_turn_effect_grows_with_the_square_of_centripetal_acceleration() -> None:
+    turns = state(vn=[8.0, 8.0], ae=[2.0, 4.0], n=2)
+    extra = power(turns, Turn(power_w_per_g2=300.0)) - power(turns)
+    assert extra[1] / extra[0] == pytest.approx(4.0, rel=1e-6)
+
+
+def test_effects_compose_in_any_order() -> None:
+    st = state(vn=[2.0, 9.0, -4.0], ve=[1.0, 0.0, 3.0], vd=[-1.0, 0.0, 0.5], n=3)
+    effects = [Wind(3.0, 45.0), Mass(0.4), AirDensity(1.1), Climb(0.7), Avionics(12.0)]
+    assert power(st, *effects) == pytest.approx(power(st, *reversed(effects)))
+
+
+def test_from_velocity_differentiates_velocity() -> None:
+    t = np.linspace(0.0, 10.0, 101)
+    st = FlightState.from_velocity(t, 0.5 * t, np.zeros_like(t), np.zeros_like(t))
+    assert st.an_mps2 == pytest.approx(np.full(101, 0.5))
+    assert np.isnan(st.voltage_v).all()
+
+
+def test_flight_state_rejects_mismatched_arrays() -> None:
+    with pytest.raises(ValueError, match="shape"):
+        FlightState(*(np.zeros(3),) * 7, np.zeros(2))
+
+
+def test_effects_round_trip_through_a_vehicle_file(tmp_path) -> None:  # type: ignore[no-untyped-def]
+    effects = [Wind(4.5, 270.0), Mass(0.3, None), Avionics(15.0, 120.0), Voltage(0.1, 25.2)]
+    tables = effects_to_tables(effects)
+    assert tables["wind"] == {"speed_mps": 4.5, "from_deg": 270.0}
+    vehicle = VEHICLE.__class__(**{**VEHICLE.__dict__, "effects": tables})
+    path = tmp_path / "v.toml"
+    vehicle.save(path)
+    assert effects_from_tables(load_vehicle(path).effects) == effects
+
+
+def test_every_effect_type_round_trips_its_defaults() -> None:
+    for name, cls in EFFECT_TYPES.items():
+        effect = cls()
+        assert effect.name == name
+        assert effect_from_params(name, effect.params) == effect
+
+
+@pytest.mark.parametrize(
+    ("name", "params", "message"),
+    [
+        ("gust", {}, "unknown effect"),
+        ("wind", {"speed": 3}, "unknown parameter"),
+        ("wind", {"speed_mps": "fast"}, "finite number"),
+        ("air_density", {"rho_kgpm3": -1.0}, "out of range"),
+        ("climb", {"efficiency": 1.5}, "out of range"),
+    ],
+)
+def test_bad_effect_tables_are_one_line_user_errors(
+    name: str, params: dict[str, object], message: str
+) -> None:
+    with pytest.raises(UserError, match=message) as info:
+        effect_from_params(name, params)
+    assert "\n" not in str(info.value)
