@@ -1,0 +1,206 @@
+"""ArduPilot DataFlash (.bin) and PX4 ULog (.ulg) readers, on spec-faithful fixtures."""
+
+from __future__ import annotations
+
+import itertools
+import math
+import os
+from pathlib import Path
+
+import numpy as np
+import pytest
+from fixtures.dataflash_writer import DataFlashWriter
+from fixtures.flight import ARM_S, DISARM_S, Truth, make_truth, write_bin, write_ulg
+from fixtures.ulog_writer import ULogWriter
+from pymavlink.DFReader import DFReader_binary
+from pyulog import ULog
+
+from estimator.errors import UserError
+from estimator.logs import SampleStream, detect_format, iter_samples
+from estimator.telemetry import ArmedSample, BatterySample, Sample, VelocitySample
+
+
+@pytest.fixture(scope="module")
+def truth() -> Truth:
+    return make_truth()
+
+
+def _read(path: Path) -> tuple[list[Sample], SampleStream]:
+    stream = iter_samples(path)
+    return list(stream), stream
+
+
+def _of(samples: list[Sample], kind: type) -> list:
+    return [s for s in samples if isinstance(s, kind)]
+
+
+def _in_time_order(samples: list[Sample]) -> bool:
+    times = [s.time_s for s in samples]
+    return all(a <= b for a, b in itertools.pairwise(times))
+
+
+# -- the fixtures are the real formats ---------------------------------------------------------
+
+
+def test_dataflash_fixture_is_read_by_pymavlink_with_the_written_values(
+    tmp_path: Path, truth: Truth
+) -> None:
+    path = write_bin(tmp_path / "f.bin", truth)
+    log = DFReader_binary(str(path))
+    xkf1 = []
+    while (msg := log.recv_match(type=["XKF1"])) is not None:
+        if msg.C == 0:
+            xkf1.append((msg.VN, msg.VE, msg.VD, msg.PD))
+    assert len(xkf1) == len(truth.velocity_time_s)
+    got = np.array(xkf1)
+    np.testing.assert_allclose(got[:, :3], truth.v_ned_mps, atol=1e-5)
+    np.testing.assert_allclose(-got[:, 3], truth.alt_m, atol=1e-4)
+
+
+def test_ulog_fixture_is_read_by_pyulog_without_corruption(tmp_path: Path, truth: Truth) -> None:
+    path = write_ulg(tmp_path / "f.ulg", truth)
+    ulog = ULog(str(path))
+    assert not ulog.file_corruption
+    position = ulog.get_dataset("vehicle_local_position").data
+    np.testing.assert_allclose(position["vx"], truth.v_ned_mps[:, 0], atol=1e-5)
+    battery = ulog.get_dataset("battery_status", 0).data
+    np.testing.assert_allclose(battery["voltage_v"], truth.voltage_v, rtol=1e-6)
+
+
+def test_formats_are_recognised_by_content_not_name(tmp_path: Path) -> None:
+    assert detect_format(write_bin(tmp_path / "a.log")) == "dataflash"
+    assert detect_format(write_ulg(tmp_path / "b.bin")) == "ulog"
+
+
+# -- DataFlash ---------------------------------------------------------------------------------
+
+
+@pytest.mark.parametrize("velocity", ["XKF1", "NKF1", "GPS"])
+def test_dataflash_velocity_source_gives_the_flown_velocity(
+    tmp_path: Path, truth: Truth, velocity: str
+) -> None:
+    samples, stream = _read(write_bin(tmp_path / "f.bin", truth, velocity=velocity))
+    v = _of(samples, VelocitySample)
+    assert len(v) == len(truth.velocity_time_s)
+    got = np.array([(s.vn_mps, s.ve_mps, s.vd_mps, s.alt_m) for s in v])
+    # XKF1's second core logs VN + 3 m/s: only the first core may come through
+    np.testing.assert_allclose(got[:, :3], truth.v_ned_mps, atol=2e-3)
+    np.testing.assert_allclose(got[:, 3], truth.alt_m, atol=0.02)
+    assert _in_time_order(samples)
+    assert (stream.skipped, stream.bad_frames, stream.truncated) == (0, 0, False)
+
+
+def test_dataflash_battery_and_arming(tmp_path: Path, truth: Truth) -> None:
+    samples, _ = _read(write_bin(tmp_path / "f.bin", truth))
+    bat = _of(samples, BatterySample)
+    assert len(bat) == len(truth.battery_time_s)
+    np.testing.assert_allclose([b.voltage_v for b in bat], truth.voltage_v, rtol=1e-6)
+    np.testing.assert_allclose([b.current_a for b in bat], truth.current_a, rtol=1e-6)
+    np.testing.assert_allclose([b.consumed_mah for b in bat], truth.consumed_mah, rtol=1e-5)
+    armed = _of(samples, ArmedSample)
+    assert [(round(a.time_s), a.armed) for a in armed] == [(ARM_S, True), (DISARM_S, False)]
+
+
+def test_dataflash_unknown_values_become_none_and_other_batteries_are_ignored(
+    tmp_path: Path,
+) -> None:
+    log = DataFlashWriter()
+    log.define("BAT")
+    log.define("EV")
+    log.write("EV", TimeUS=500_000, Id=10)
+    log.write("BAT", TimeUS=1_000_000, Inst=0, Volt=12.1, Curr=math.nan, CurrTot=math.nan)
+    log.write("BAT", TimeUS=1_000_100, Inst=1, Volt=3.3, Curr=1.0, CurrTot=5.0)
+    log.write("BAT", TimeUS=2_000_000, Inst=0, Volt=math.nan, Curr=10.0, CurrTot=5.0)
+    log.write("BAT", TimeUS=3_000_000, Inst=0, Volt=12.0, Curr=10.0, CurrTot=5.0, RemPct=255)
+    log.write("EV", TimeUS=4_000_000, Id=11)
+    samples, stream = _read(log.save(tmp_path / "bat.bin"))
+    bat = _of(samples, BatterySample)
+    assert [(b.time_s, b.current_a, b.consumed_mah) for b in bat] == [
+        (1.0, None, None),
+        (3.0, pytest.approx(10.0), pytest.approx(5.0)),
+    ]
+    assert bat[1].remaining_pct is None  # 255: not a percentage
+    assert stream.skipped == 1  # the NaN voltage
+    assert [(a.time_s, a.armed) for a in _of(samples, ArmedSample)] == [(0.5, True), (4.0, False)]
+
+
+def test_dataflash_truncated_file_reads_up_to_the_damage(tmp_path: Path, truth: Truth) -> None:
+    data = write_bin(tmp_path / "f.bin", truth).read_bytes()
+    cut = tmp_path / "cut.bin"
+    cut.write_bytes(data[: len(data) // 2 + 7])
+    samples, stream = _read(cut)
+    assert stream.truncated
+    assert 300 < len(samples) < 600 and _in_time_order(samples)
+    assert max(s.time_s for s in samples) > 25.0
+
+
+def test_dataflash_corrupt_region_is_counted_and_skipped(tmp_path: Path, truth: Truth) -> None:
+    data = write_bin(tmp_path / "f.bin", truth).read_bytes()
+    bad = tmp_path / "bad.bin"
+    bad.write_bytes(data[:40_000] + b"\x00garbage" * 10 + data[40_000:])
+    samples, stream = _read(bad)
+    assert stream.bad_frames == 1 and not stream.truncated
+    assert len(_of(samples, VelocitySample)) >= len(truth.velocity_time_s) - 2
+
+
+def test_dataflash_magic_followed_by_noise_is_a_user_error(tmp_path: Path) -> None:
+    noise = tmp_path / "noise.bin"
+    noise.write_bytes(b"\xa3\x95" + os.urandom(4000))
+    with pytest.raises(UserError, match="not a DataFlash log"):
+        iter_samples(noise)
+
+
+# -- ULog --------------------------------------------------------------------------------------
+
+
+def test_ulog_gives_the_flown_velocity_battery_and_arming(tmp_path: Path, truth: Truth) -> None:
+    samples, stream = _read(write_ulg(tmp_path / "f.ulg", truth))
+    v = _of(samples, VelocitySample)
+    np.testing.assert_allclose(
+        [(s.vn_mps, s.ve_mps, s.vd_mps) for s in v], truth.v_ned_mps, atol=1e-5
+    )
+    bat = _of(samples, BatterySample)  # instance 1 (3.0 V) must not appear
+    np.testing.assert_allclose([b.voltage_v for b in bat], truth.voltage_v, rtol=1e-6)
+    assert bat[0].remaining_pct == pytest.approx(100.0, abs=0.01)
+    armed = [(round(a.time_s), a.armed) for a in _of(samples, ArmedSample)]
+    assert armed == [(0, False), (ARM_S, True), (DISARM_S, False)]
+    assert _in_time_order(samples)
+    assert (stream.skipped, stream.bad_frames, stream.truncated) == (0, 0, False)
+
+
+def test_ulog_unknown_current_and_invalid_velocity(tmp_path: Path) -> None:
+    log = ULogWriter()
+    log.add_format("battery_status")
+    log.add_format("vehicle_local_position")
+    log.subscribe("battery_status")
+    log.subscribe("vehicle_local_position")
+    log.write("battery_status", timestamp=1_000_000, voltage_v=16.0, current_a=-1.0,
+              discharged_mah=-1.0, remaining=-1.0, connected=True)  # fmt: skip
+    log.write("battery_status", timestamp=2_000_000, voltage_v=16.0, current_a=5.0,
+              connected=False)  # fmt: skip
+    log.write("vehicle_local_position", timestamp=1_500_000, vx=1.0, v_xy_valid=False,
+              v_z_valid=True)  # fmt: skip
+    log.write("vehicle_local_position", timestamp=2_500_000, vx=2.0, z=-3.0, v_xy_valid=True,
+              v_z_valid=True)  # fmt: skip
+    samples, stream = _read(log.save(tmp_path / "u.ulg"))
+    assert samples == [
+        BatterySample(1.0, 16.0, None, None, None),
+        VelocitySample(2.5, 2.0, 0.0, 0.0, 3.0),
+    ]
+    assert stream.skipped == 2
+
+
+def test_ulog_truncated_file_reads_up_to_the_damage(tmp_path: Path, truth: Truth) -> None:
+    data = write_ulg(tmp_path / "f.ulg", truth).read_bytes()
+    cut = tmp_path / "cut.ulg"
+    cut.write_bytes(data[: len(data) // 2 + 7])  # inside a data message
+    samples, stream = _read(cut)
+    assert stream.truncated
+    assert 300 < len(samples) < 700 and _in_time_order(samples)
+
+
+def test_ulog_with_a_bad_header_is_a_user_error(tmp_path: Path) -> None:
+    bad = tmp_path / "bad.ulg"
+    bad.write_bytes(b"ULog\x00\x00")
+    with pytest.raises(UserError, match="not a readable PX4 ULog"):
+        iter_samples(bad)
