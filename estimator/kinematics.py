@@ -1,12 +1,20 @@
 """Flight-state kinematics: speed, tangential and centripetal acceleration (horizontal plane).
 
 Frames: velocity and acceleration are horizontal NED components (north, east), m/s and m/s².
+The pure functions work on arrays; :class:`KinematicsFilter` is the causal, noise-robust
+estimator the pipeline runs on each velocity sample.
 """
 
 from __future__ import annotations
 
+import math
+from dataclasses import dataclass
+
 import numpy as np
+from filterpy.kalman import KalmanFilter
 from numpy.typing import ArrayLike, NDArray
+
+from estimator.telemetry import VelocitySample
 
 #: Below about this speed the direction of flight is noise; a⊥ is faded out smoothly.
 DEFAULT_SPEED_FLOOR_MPS = 0.5
@@ -43,3 +51,107 @@ def tangential_accel_mps2(
     an, ae = np.asarray(an_mps2, dtype=float), np.asarray(ae_mps2, dtype=float)
     dot = vn * an + ve * ae
     return np.asarray(dot / np.sqrt(vn * vn + ve * ve + speed_floor_mps**2), dtype=float)
+
+
+@dataclass(frozen=True, slots=True)
+class KinematicState:
+    """Filtered flight state at one instant (NED frame; horizontal accelerations over ground).
+
+    time_s: sample time, s.  vn/ve/vd_mps: velocity, m/s.  an/ae_mps2: horizontal
+    acceleration, m/s².  speed_mps: horizontal speed.  accel_tangential/centripetal_mps2: along
+    and across the horizontal velocity (low-speed treatment of the functions above).
+    climb_mps: −vd, m/s (up positive).  alt_m: altitude above home, m (None if unknown).
+    accel_sigma_mps2: 1σ of each horizontal acceleration component, m/s².
+    """
+
+    time_s: float
+    vn_mps: float
+    ve_mps: float
+    vd_mps: float
+    an_mps2: float
+    ae_mps2: float
+    speed_mps: float
+    accel_tangential_mps2: float
+    accel_centripetal_mps2: float
+    climb_mps: float
+    alt_m: float | None
+    accel_sigma_mps2: float = 0.0
+
+
+@dataclass(frozen=True, slots=True)
+class KinematicsSettings:
+    """Tuning of :class:`KinematicsFilter`.
+
+    jerk_psd: white-jerk spectral density of the constant-acceleration model, m²/s⁵ (larger
+    follows manoeuvres faster, smooths less).  velocity_noise_mps: 1σ of a velocity sample
+    (GNSS/EKF velocity), m/s.  max_gap_s: a longer gap between samples restarts the filter
+    from the next sample (the acceleration is unknown across it).
+    """
+
+    jerk_psd: float = 0.5
+    velocity_noise_mps: float = 0.1
+    vertical_velocity_noise_mps: float = 0.15
+    max_gap_s: float = 1.5
+    initial_accel_sigma_mps2: float = 1.0
+
+
+class KinematicsFilter:
+    """Causal constant-acceleration Kalman filter per axis (north, east, down) on velocity.
+
+    State [vn, ve, vd, an, ae, ad]; measurements are velocity samples at any, irregular rate
+    (2–50 Hz). The transition and white-jerk process noise are built from each sample's own
+    time step, so rates and jitter need no tuning. Gaps longer than ``max_gap_s``, time going
+    backwards, and :meth:`reset` restart the filter from the next sample.
+    """
+
+    def __init__(self, settings: KinematicsSettings | None = None) -> None:
+        self.settings = settings or KinematicsSettings()
+        s = self.settings
+        kf = KalmanFilter(dim_x=6, dim_z=3)
+        kf.H = np.hstack([np.eye(3), np.zeros((3, 3))])
+        kf.R = np.diag(
+            [s.velocity_noise_mps**2, s.velocity_noise_mps**2, s.vertical_velocity_noise_mps**2]
+        )
+        self._kf = kf
+        self._last_time_s: float | None = None
+        self.restarts = 0
+
+    def reset(self) -> None:
+        """Forget the state (after an autopilot reboot or a source change)."""
+        self._last_time_s = None
+
+    def update(self, sample: VelocitySample) -> KinematicState:
+        """Fold in one velocity sample and return the filtered state at its time."""
+        s = self.settings
+        z = np.array([sample.vn_mps, sample.ve_mps, sample.vd_mps])
+        dt = None if self._last_time_s is None else sample.time_s - self._last_time_s
+        kf = self._kf
+        if dt is None or dt <= 0.0 or dt > s.max_gap_s:
+            if self._last_time_s is not None:
+                self.restarts += 1
+            kf.x = np.concatenate([z, np.zeros(3)])
+            kf.P = np.diag(
+                np.concatenate([np.diag(kf.R), np.full(3, s.initial_accel_sigma_mps2**2)])
+            )
+        else:
+            f = np.eye(6)
+            f[:3, 3:] = dt * np.eye(3)
+            q_axis = s.jerk_psd * np.array([[dt**3 / 3.0, dt**2 / 2.0], [dt**2 / 2.0, dt]])
+            kf.predict(F=f, Q=np.kron(q_axis, np.eye(3)))
+            kf.update(z)
+        self._last_time_s = sample.time_s
+        vn, ve, vd, an, ae, _ = (float(x) for x in kf.x)
+        return KinematicState(
+            time_s=sample.time_s,
+            vn_mps=vn,
+            ve_mps=ve,
+            vd_mps=vd,
+            an_mps2=an,
+            ae_mps2=ae,
+            speed_mps=math.hypot(vn, ve),
+            accel_tangential_mps2=float(tangential_accel_mps2(vn, ve, an, ae)),
+            accel_centripetal_mps2=float(centripetal_accel_mps2(vn, ve, an, ae)),
+            climb_mps=-vd,
+            alt_m=sample.alt_m,
+            accel_sigma_mps2=math.sqrt(0.5 * (kf.P[3, 3] + kf.P[4, 4])),
+        )
