@@ -1,0 +1,271 @@
+"""Flight-log readers, recognised by content (never by file name).
+
+Two views of a log:
+
+- :func:`iter_samples` streams :mod:`estimator.telemetry` samples in time order (replay, the
+  daemon-equivalence tests). Counters ``skipped``, ``bad_frames`` and ``truncated`` are
+  readable on the returned :class:`SampleStream` after iteration.
+- :func:`load_flights` gives whole flights as numpy arrays (:class:`FlightSeries`) for offline
+  work: fitting, residual analysis.
+
+Formats: ``tlog`` (MAVLink telemetry log, :mod:`estimator.logs.tlog`), ``cmu-csv`` (CMU DJI
+M100 dataset, :mod:`estimator.logs.cmu`), ``dataflash`` (ArduPilot .bin) and ``ulog`` (PX4);
+the last two live in their own modules, imported only when such a file is met.
+"""
+
+from __future__ import annotations
+
+import importlib
+from collections.abc import Iterable, Iterator, Sequence
+from dataclasses import dataclass, field
+from pathlib import Path
+from types import ModuleType
+
+import numpy as np
+from numpy.typing import NDArray
+
+from estimator.errors import UserError
+from estimator.telemetry import ArmedSample, BatterySample, RebootSample, Sample, VelocitySample
+
+FloatArray = NDArray[np.float64]
+
+FORMATS = ("tlog", "cmu-csv", "dataflash", "ulog")
+#: Velocity older than this (s) is not attached to a battery sample in :func:`series_from_samples`.
+DEFAULT_VELOCITY_MAX_AGE_S = 1.0
+
+_DATAFLASH_MAGIC = b"\xa3\x95"
+_ULOG_MAGIC = b"ULog"
+_MAVLINK_STX = (0xFE, 0xFD)
+_MODULES = {"tlog": "tlog", "cmu-csv": "cmu", "dataflash": "dataflash", "ulog": "ulog"}
+
+
+@dataclass
+class FlightSeries:
+    """One flight as aligned arrays (one row per power sample), time on the log's own clock.
+
+    Velocity is NED over ground (m/s), ``alt_m`` above home/take-off (m). ``voltage_v`` and
+    ``current_a`` are NaN when the source only has their product ``power_w`` (W).
+    ``extras`` holds source-specific per-row columns (CMU: ``payload_kg``,
+    ``airflow_speed_mps``, ``airflow_from_deg``; tlogs: ``armed`` as 0/1/NaN).
+    """
+
+    flight_id: str
+    time_s: FloatArray
+    vn_mps: FloatArray
+    ve_mps: FloatArray
+    vd_mps: FloatArray
+    alt_m: FloatArray
+    voltage_v: FloatArray
+    current_a: FloatArray
+    power_w: FloatArray
+    extras: dict[str, FloatArray] = field(default_factory=dict)
+
+    def __len__(self) -> int:
+        return len(self.time_s)
+
+    @property
+    def speed_mps(self) -> FloatArray:
+        """Horizontal ground speed, m/s."""
+        return np.asarray(np.hypot(self.vn_mps, self.ve_mps), dtype=float)
+
+    def subset(self, mask: NDArray[np.bool_], flight_id: str | None = None) -> FlightSeries:
+        """The rows where ``mask`` is true (same columns, same extras)."""
+        return FlightSeries(
+            flight_id=self.flight_id if flight_id is None else flight_id,
+            time_s=self.time_s[mask],
+            vn_mps=self.vn_mps[mask],
+            ve_mps=self.ve_mps[mask],
+            vd_mps=self.vd_mps[mask],
+            alt_m=self.alt_m[mask],
+            voltage_v=self.voltage_v[mask],
+            current_a=self.current_a[mask],
+            power_w=self.power_w[mask],
+            extras={k: v[mask] for k, v in self.extras.items()},
+        )
+
+
+class SampleStream(Iterator[Sample]):
+    """Samples of one log in time order; counters are final once iteration has ended.
+
+    ``skipped``: records passed over on purpose (message types the decoder does not use, rows
+    with missing values); ``bad_frames``: corrupt records; ``truncated``: the file ended in the
+    middle of a record (everything before the damage was read).
+    """
+
+    def __init__(self, path: Path, fmt: str, samples: Iterable[Sample]) -> None:
+        self.path = path
+        self.format = fmt
+        self.skipped = 0
+        self.bad_frames = 0
+        self.truncated = False
+        self._it = iter(samples)
+
+    def __iter__(self) -> SampleStream:
+        return self
+
+    def __next__(self) -> Sample:
+        return next(self._it)
+
+
+def detect_format(path: str | Path) -> str:
+    """The log format of ``path`` from its first bytes: one of :data:`FORMATS`."""
+    path = Path(path)
+    head = _read_head(path)
+    if not head:
+        raise UserError(f"{path} is empty")
+    if head.startswith(_ULOG_MAGIC):
+        return "ulog"
+    if head.startswith(_DATAFLASH_MAGIC):
+        return "dataflash"
+    if len(head) > 8 and head[8] in _MAVLINK_STX:
+        return "tlog"
+    first_line = head.split(b"\n", 1)[0].decode("utf-8", "replace")
+    if _module("cmu-csv").looks_like_cmu_header(first_line):
+        return "cmu-csv"
+    raise UserError(
+        f"{path} is not a recognised log (expected a MAVLink tlog, a CMU CSV, "
+        "a DataFlash .bin or a PX4 .ulg)"
+    )
+
+
+def iter_samples(path: str | Path, fmt: str = "auto") -> SampleStream:
+    """Stream the telemetry samples of one log (see :class:`SampleStream`)."""
+    path = Path(path)
+    fmt = _resolve(path, fmt)
+    stream: SampleStream = _module(fmt).iter_samples(path)
+    return stream
+
+
+def load_flights(paths: Sequence[str | Path], fmt: str = "auto") -> list[FlightSeries]:
+    """Read logs into flights. CMU CSV files are read together (regime files join up)."""
+    if not paths:
+        raise UserError("no log files given")
+    by_format: dict[str, list[Path]] = {}
+    for p in paths:
+        path = Path(p)
+        by_format.setdefault(_resolve(path, fmt), []).append(path)
+    flights: list[FlightSeries] = []
+    for name, group in by_format.items():
+        module = _module(name)
+        if hasattr(module, "load_flights"):
+            flights.extend(module.load_flights(group))
+        else:
+            for path in group:
+                flights.extend(flights_from_stream(iter_samples(path, name), path.stem))
+    return flights
+
+
+def flights_from_stream(
+    stream: SampleStream,
+    name: str,
+    velocity_max_age_s: float = DEFAULT_VELOCITY_MAX_AGE_S,
+) -> list[FlightSeries]:
+    """Build flights from a sample stream: one per autopilot boot, one row per power sample.
+
+    Each battery sample gets the latest velocity sample not older than
+    ``velocity_max_age_s`` (previous-sample alignment, no look-ahead); samples without a recent
+    velocity are dropped. Raises UserError when the log has no velocity or no current.
+    """
+    segments: list[list[Sample]] = [[]]
+    for sample in stream:
+        if isinstance(sample, RebootSample):
+            segments.append([])
+        else:
+            segments[-1].append(sample)
+    all_samples = [s for seg in segments for s in seg]
+    batteries = [s for s in all_samples if isinstance(s, BatterySample)]
+    if not any(isinstance(s, VelocitySample) for s in all_samples):
+        raise UserError(
+            f"{stream.path} has no velocity messages (GLOBAL_POSITION_INT/LOCAL_POSITION_NED)"
+        )
+    if not batteries:
+        raise UserError(f"{stream.path} has no battery messages (SYS_STATUS/BATTERY_STATUS)")
+    if all(b.current_a is None for b in batteries):
+        raise UserError(f"{stream.path} has no battery current (the autopilot reports it unknown)")
+    flights = []
+    for i, seg in enumerate(segments):
+        flight_id = name if len(segments) == 1 else f"{name}#{i + 1}"
+        series = _align(seg, flight_id, velocity_max_age_s)
+        if series is not None:
+            flights.append(series)
+    if not flights:
+        raise UserError(
+            f"{stream.path} has no battery sample with a velocity within {velocity_max_age_s} s"
+        )
+    return flights
+
+
+def _align(samples: list[Sample], flight_id: str, max_age_s: float) -> FlightSeries | None:
+    rows: list[tuple[float, ...]] = []
+    last_v: VelocitySample | None = None
+    armed = float("nan")
+    for s in samples:
+        if isinstance(s, VelocitySample):
+            last_v = s
+        elif isinstance(s, ArmedSample):
+            armed = 1.0 if s.armed else 0.0
+        elif isinstance(s, BatterySample) and s.current_a is not None and last_v is not None:
+            if s.time_s - last_v.time_s > max_age_s:
+                continue
+            alt = float("nan") if last_v.alt_m is None else last_v.alt_m
+            rows.append(
+                (
+                    s.time_s,
+                    last_v.vn_mps,
+                    last_v.ve_mps,
+                    last_v.vd_mps,
+                    alt,
+                    s.voltage_v,
+                    s.current_a,
+                    armed,
+                )
+            )
+    if not rows:
+        return None
+    a = np.array(rows, dtype=float)
+    return FlightSeries(
+        flight_id=flight_id,
+        time_s=a[:, 0],
+        vn_mps=a[:, 1],
+        ve_mps=a[:, 2],
+        vd_mps=a[:, 3],
+        alt_m=a[:, 4],
+        voltage_v=a[:, 5],
+        current_a=a[:, 6],
+        power_w=a[:, 5] * a[:, 6],
+        extras={"armed": a[:, 7]},
+    )
+
+
+def _resolve(path: Path, fmt: str) -> str:
+    if path.is_dir():
+        raise UserError(f"{path} is a directory, not a log file")
+    if not path.exists():
+        raise UserError(f"{path} does not exist")
+    if fmt == "auto":
+        return detect_format(path)
+    if fmt not in FORMATS:
+        raise UserError(f"unknown log format {fmt!r} (choose from auto, {', '.join(FORMATS)})")
+    return fmt
+
+
+def _read_head(path: Path, size: int = 4096) -> bytes:
+    if path.is_dir():
+        raise UserError(f"{path} is a directory, not a log file")
+    try:
+        with path.open("rb") as f:
+            return f.read(size)
+    except FileNotFoundError:
+        raise UserError(f"{path} does not exist") from None
+    except OSError as exc:
+        raise UserError(f"cannot read {path}: {exc.strerror}") from None
+
+
+def _module(fmt: str) -> ModuleType:
+    name = f"estimator.logs.{_MODULES[fmt]}"
+    try:
+        return importlib.import_module(name)
+    except ModuleNotFoundError as exc:
+        if exc.name == name:
+            raise UserError(f"log format {fmt!r} is not supported yet") from None
+        raise

@@ -1,0 +1,119 @@
+"""MAVLink telemetry logs (``.tlog``; the IRIS+ ``.log`` files are the same thing).
+
+A tlog is a sequence of records: an 8-byte big-endian receive stamp (µs since the Unix epoch)
+followed by one MAVLink 1 (STX 0xFE) or MAVLink 2 (STX 0xFD) frame. The receive stamp is not
+used: sample times come from the autopilot's ``time_boot_ms`` (:class:`TelemetryDecoder`), as
+in the daemon, so a replay gives the same samples as a live run.
+
+Speed: the frame header is read here and frames whose message id the decoder does not use are
+skipped without being parsed. A record without a frame start is corrupt: it is counted and the
+reader re-synchronises on the next plausible record. A file that ends inside a record is read
+up to the damage and flagged ``truncated``.
+"""
+
+from __future__ import annotations
+
+import struct
+from collections.abc import Iterator
+from pathlib import Path
+
+from estimator.decode import USED_MESSAGE_IDS, FrameParser, TelemetryDecoder
+from estimator.errors import UserError
+from estimator.logs import SampleStream
+from estimator.telemetry import Sample
+
+STAMP_BYTES = 8
+_STX_V1, _STX_V2 = 0xFE, 0xFD
+_V1_OVERHEAD = 8  # STX len seq sys comp msgid + crc16
+_V2_OVERHEAD = 12  # STX len incompat compat seq sys comp msgid[3] + crc16
+_V2_SIGNATURE = 13
+_SIGNED_FLAG = 0x01
+#: A resync candidate's stamp must lie within this distance (µs) of the last good stamp.
+_RESYNC_WINDOW_US = 3600 * 1_000_000
+
+
+def iter_samples(path: Path) -> SampleStream:
+    """Stream the samples of a tlog (see :class:`estimator.logs.SampleStream`)."""
+    try:
+        data = path.read_bytes()
+    except OSError as exc:
+        raise UserError(f"cannot read {path}: {exc.strerror}") from None
+    if len(data) <= STAMP_BYTES or data[STAMP_BYTES] not in (_STX_V1, _STX_V2):
+        raise UserError(f"{path} is not a MAVLink telemetry log (no frame after the first stamp)")
+    stream = SampleStream(path, "tlog", iter(()))
+    stream._it = _records(data, stream)
+    return stream
+
+
+def frame_length(data: bytes | memoryview, start: int) -> tuple[int, int] | None:
+    """(total frame length, message id) of the frame at ``start``, or None if no STX there.
+
+    The length may run past the end of ``data`` (a truncated frame): callers check.
+    """
+    if start + 6 > len(data):
+        return None
+    stx = data[start]
+    if stx == _STX_V1:
+        return data[start + 1] + _V1_OVERHEAD, data[start + 5]
+    if stx == _STX_V2:
+        if start + 10 > len(data):
+            return None
+        length = data[start + 1] + _V2_OVERHEAD
+        if data[start + 2] & _SIGNED_FLAG:
+            length += _V2_SIGNATURE
+        msgid = data[start + 7] | data[start + 8] << 8 | data[start + 9] << 16
+        return length, msgid
+    return None
+
+
+def _records(data: bytes, stream: SampleStream) -> Iterator[Sample]:
+    parser = FrameParser()
+    decoder = TelemetryDecoder()
+    view = memoryview(data)
+    end = len(data)
+    pos = 0
+    last_stamp_us: int | None = None
+    while pos < end:
+        if pos + STAMP_BYTES >= end:
+            stream.truncated = True
+            break
+        header = frame_length(view, pos + STAMP_BYTES)
+        if header is None:
+            stream.bad_frames += 1
+            pos = _resync(data, pos + 1, last_stamp_us)
+            continue
+        length, msgid = header
+        frame_end = pos + STAMP_BYTES + length
+        if frame_end > end:
+            stream.truncated = True
+            break
+        last_stamp_us = struct.unpack_from(">Q", data, pos)[0]
+        if msgid not in USED_MESSAGE_IDS:
+            stream.skipped += 1
+            pos = frame_end
+            continue
+        bad_before = parser.bad_frames
+        messages = parser.feed(data[pos + STAMP_BYTES : frame_end])
+        stream.bad_frames += parser.bad_frames - bad_before
+        pos = frame_end
+        yield from decoder.decode_all(messages)
+
+
+def _resync(data: bytes, start: int, last_stamp_us: int | None) -> int:
+    """Offset of the next record whose frame starts with STX and whose stamp is plausible."""
+    end = len(data)
+    pos = start
+    while pos + STAMP_BYTES < end:
+        candidates = [
+            i
+            for i in (data.find(bytes([s]), pos + STAMP_BYTES) for s in (_STX_V1, _STX_V2))
+            if i >= 0
+        ]
+        if not candidates:
+            return end
+        record = min(candidates) - STAMP_BYTES
+        stamp = struct.unpack_from(">Q", data, record)[0]
+        if last_stamp_us is None or abs(stamp - last_stamp_us) < _RESYNC_WINDOW_US:
+            return record
+        pos = record + 1
+    return end
