@@ -1,0 +1,230 @@
+"""``uav-energy replay``: same estimates as the pipeline, CSV/JSON contents, formats, bad input."""
+
+from __future__ import annotations
+
+import argparse
+import csv
+import json
+import os
+from pathlib import Path
+
+import pytest
+from fixtures.flight import write_bin, write_ulg
+
+from estimator.cli import main
+from estimator.commands.replay import CSV_COLUMNS, flight_names, parse_speed
+from estimator.logs import iter_samples
+from estimator.pipeline import Pipeline
+from estimator.replay import replay_log, summarize
+from estimator.vehicle import default_vehicle
+
+REPO = Path(__file__).resolve().parent.parent
+IRIS_LOG = REPO / "replay" / "iris" / "2016-08-03" / "002" / "002.log"
+IRIS_LOG_2 = REPO / "replay" / "iris" / "2016-03-21" / "010" / "010.log"
+
+
+@pytest.fixture(scope="module")
+def logs(tmp_path_factory: pytest.TempPathFactory) -> dict[str, Path]:
+    """The same synthetic flight as DataFlash and ULog, and a real IRIS+ tlog."""
+    d = tmp_path_factory.mktemp("logs")
+    return {
+        "bin": write_bin(d / "flight.bin"),
+        "ulg": write_ulg(d / "flight.ulg"),
+        "tlog": IRIS_LOG,
+    }
+
+
+def _replay_cli(capsys: pytest.CaptureFixture[str], *args: str) -> tuple[int, str, str]:
+    code = main(["replay", *args])
+    out, err = capsys.readouterr()
+    return code, out, err
+
+
+# -- same numbers as the pipeline ---------------------------------------------------------------
+
+
+@pytest.mark.parametrize("kind", ["tlog", "bin", "ulg"])
+def test_replay_equals_feeding_the_same_samples_through_pipeline(
+    logs: dict[str, Path], kind: str
+) -> None:
+    vehicle = default_vehicle()
+    pipeline = Pipeline(vehicle)
+    direct = [e for s in iter_samples(logs[kind]) if (e := pipeline.process(s)) is not None]
+    replayed = replay_log(logs[kind], vehicle).estimates
+    assert direct and replayed == direct
+
+
+def test_dataflash_and_ulog_of_one_flight_replay_alike_and_match_its_power(
+    logs: dict[str, Path],
+) -> None:
+    vehicle = default_vehicle()
+    s_bin = summarize([replay_log(logs["bin"], vehicle)])
+    s_ulg = summarize([replay_log(logs["ulg"], vehicle)])
+    # the fixture's measured power is the vehicle's own model: errors are the filter's lag
+    for s in (s_bin, s_ulg):
+        assert s.power_points > 200 and s.airborne_s == pytest.approx(46.6, abs=0.5)
+        assert s.power_mape_pct is not None and s.power_mape_pct < 3.0
+        assert s.energy_predicted_wh == pytest.approx(s.energy_measured_wh, rel=0.02)
+    assert s_bin.energy_measured_wh == pytest.approx(s_ulg.energy_measured_wh, rel=1e-3)
+    assert s_bin.power_rmse_w == pytest.approx(s_ulg.power_rmse_w, rel=0.1)
+
+
+def test_paced_replay_gives_the_same_estimates_as_max_speed(
+    logs: dict[str, Path], tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    fast, paced = tmp_path / "fast.csv", tmp_path / "paced.csv"
+    assert _replay_cli(capsys, str(logs["bin"]), "--out", str(fast))[0] == 0
+    # 60 s of log at 3000× real time: 20 ms
+    assert _replay_cli(capsys, str(logs["bin"]), "--speed", "3000", "--out", str(paced))[0] == 0
+    assert fast.read_text() == paced.read_text()
+
+
+# -- outputs ------------------------------------------------------------------------------------
+
+
+def test_csv_has_the_required_columns_and_one_row_per_estimate(
+    logs: dict[str, Path], tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    out = tmp_path / "est.csv"
+    code, stdout, _ = _replay_cli(capsys, str(logs["ulg"]), "--out", str(out))
+    assert code == 0 and "flight" in stdout
+    with out.open() as f:
+        rows = list(csv.DictReader(f))
+    header = list(rows[0])
+    assert header[: len(CSV_COLUMNS) + 1] == ["flight", *CSV_COLUMNS]
+    estimates = replay_log(logs["ulg"], default_vehicle()).estimates
+    assert len(rows) == len(estimates)
+    for row, est in zip(rows, estimates, strict=True):
+        assert float(row["time_s"]) == pytest.approx(est.time_s)
+        assert float(row["power_model_w"]) == pytest.approx(est.power_model_w)
+        assert float(row["endurance_sigma_s"]) == pytest.approx(est.endurance_sigma_s)
+    measured = [r["power_measured_w"] for r in rows]
+    assert all(m != "" for m in measured)  # the fixture has a current sensor throughout
+
+
+def test_json_has_the_totals_and_a_row_per_flight(
+    logs: dict[str, Path], capsys: pytest.CaptureFixture[str]
+) -> None:
+    code, out, _ = _replay_cli(capsys, str(logs["tlog"]), str(IRIS_LOG_2), "--json")
+    assert code == 0
+    result = json.loads(out)
+    for key in (
+        "messages",
+        "duration_s",
+        "wall_s",
+        "power_rmse_w",
+        "power_mape_pct",
+        "energy_measured_wh",
+        "energy_predicted_wh",
+    ):
+        assert isinstance(result[key], int | float), key
+    rows = result["flights"]
+    assert [r["flight"] for r in rows] == ["2016-08-03/002/002", "2016-03-21/010/010"]
+    assert result["messages"] == sum(r["messages"] for r in rows)
+    assert result["energy_measured_wh"] == pytest.approx(sum(r["energy_measured_wh"] for r in rows))
+    # pooled RMSE lies between the flights' RMSEs
+    rmse = sorted(r["power_rmse_w"] for r in rows)
+    assert rmse[0] <= result["power_rmse_w"] <= rmse[1]
+    # IRIS+ hovers at 130–220 W: the measured energy is that power over the airborne time
+    mean_power_w = result["energy_measured_wh"] * 3600 / result["airborne_s"]
+    assert 100 < mean_power_w < 250
+
+
+def test_report_writes_the_plots_and_a_summary(
+    logs: dict[str, Path], tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    report = tmp_path / "report"
+    assert _replay_cli(capsys, str(logs["bin"]), "--report", str(report))[0] == 0
+    pngs = sorted(p.name for p in report.glob("*.png"))
+    assert pngs == ["flight-energy.png", "flight-kinematics.png", "flight-power.png"]
+    assert all((report / p).read_bytes().startswith(b"\x89PNG") for p in pngs)
+    summary = (report / "summary.md").read_text()
+    assert "| flight |" in summary and "flight-power.png" in summary
+
+
+def test_flight_names_are_the_paths_below_the_common_folder() -> None:
+    paths = [Path("/d/2016-03-14/002/002.log"), Path("/d/2016-06-01/002/002.log")]
+    assert flight_names(paths) == ["2016-03-14/002/002", "2016-06-01/002/002"]
+    assert flight_names([Path("/d/x/one.tlog")]) == ["one"]
+
+
+# -- bad input ----------------------------------------------------------------------------------
+
+
+def _bad_inputs(tmp: Path) -> dict[str, Path]:
+    data = IRIS_LOG.read_bytes()
+    files = {
+        "random bytes": os.urandom(20_000),
+        "empty file": b"",
+        # a CMU header without time, position or the other velocity components
+        "csv missing columns": b'"","twist_linear_x","orientation_w","y","flight"\n'
+        b'"1",0.1,1,200,3\n',
+        "text": b"hello, this is not a log\n",
+    }
+    paths = {}
+    for name, blob in files.items():
+        p = tmp / name.replace(" ", "_")
+        p.write_bytes(blob)
+        paths[name] = p
+    paths["directory"] = tmp
+    paths["missing file"] = tmp / "nope.tlog"
+    paths["truncated tlog"] = tmp / "cut.tlog"
+    paths["truncated tlog"].write_bytes(data[: len(data) // 2 + 5])
+    return paths
+
+
+@pytest.mark.parametrize(
+    "name",
+    ["random bytes", "empty file", "csv missing columns", "text", "directory", "missing file"],
+)
+def test_bad_input_is_a_one_line_error_with_exit_2(
+    name: str, tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    code, out, err = _replay_cli(capsys, str(_bad_inputs(tmp_path)[name]))
+    assert code == 2 and out == ""
+    assert err.startswith("uav-energy replay: error:") and err.count("\n") == 1, err
+    assert "Traceback" not in err
+
+
+def test_truncated_tlog_replays_up_to_the_damage_and_says_so(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    path = _bad_inputs(tmp_path)["truncated tlog"]
+    code, out, _ = _replay_cli(capsys, str(path), "--json")
+    result = json.loads(out)
+    assert code == 0 and result["truncated"] == 1
+    whole = summarize([replay_log(IRIS_LOG, default_vehicle())])
+    assert 0.3 * whole.messages < result["messages"] < 0.7 * whole.messages
+
+
+def test_a_bad_log_among_several_is_skipped_and_counted(
+    logs: dict[str, Path], tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    bad = _bad_inputs(tmp_path)["random bytes"]
+    code, out, err = _replay_cli(capsys, str(logs["bin"]), str(bad), "--json")
+    result = json.loads(out)
+    assert code == 0 and result["logs"] == 1
+    assert [s["log"] for s in result["logs_skipped"]] == [str(bad)]
+    assert "skipped" in err and "Traceback" not in err
+
+
+def test_all_logs_bad_is_an_error(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    bad = _bad_inputs(tmp_path)
+    code, _, err = _replay_cli(capsys, str(bad["empty file"]), str(bad["text"]))
+    assert code == 2 and "no log could be replayed" in err
+
+
+def test_bad_vehicle_file_is_a_one_line_error(
+    logs: dict[str, Path], tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    vehicle = tmp_path / "v.toml"
+    vehicle.write_text("[vehicle]\nname = 'x'\n")
+    code, _, err = _replay_cli(capsys, str(logs["bin"]), "--vehicle", str(vehicle))
+    assert code == 2 and err.count("\n") == 1
+
+
+@pytest.mark.parametrize("text", ["0", "-2", "fast", "nan"])
+def test_speed_must_be_max_or_a_positive_number(text: str) -> None:
+    with pytest.raises(argparse.ArgumentTypeError, match=r"speed|expected"):
+        parse_speed(text)
+    assert parse_speed("max") is None and parse_speed("10") == 10.0
