@@ -686,7 +686,7 @@ class _Telemetry:
         v = self.truth.voltage_v[idx] + self._normal(self.noise.voltage_sigma_v, len(idx))
         i = self.truth.current_a[idx] * self.noise.current_scale
         i = i + self._normal(self.noise.current_sigma_a, len(idx))
-        return np.clip(np.round(v * 1000), 0, 65534), np.clip(np.round(i * 100), -1, 32767)
+        return np.clip(np.round(v * 1000), 0, 65534), np.clip(np.round(i * 100), 0, 32767)
 
     def _remaining_pct(self, idx: np.ndarray) -> np.ndarray:
         """ArduPilot's estimate: 100 × (1 − consumed / capacity), consumed as measured."""
