@@ -164,7 +164,7 @@ def flights_from_stream(
 
     Each battery sample gets the latest velocity sample not older than
     ``velocity_max_age_s`` (previous-sample alignment, no look-ahead); samples without a recent
-    velocity are dropped. Raises UserError when the log has no velocity or no current.
+    velocity, or without a newer autopilot time than the previous row, are dropped. Raises UserError when the log has no velocity or no current.
     """
     segments: list[list[Sample]] = [[]]
     for sample in stream:
@@ -205,7 +205,7 @@ def _align(samples: list[Sample], flight_id: str, max_age_s: float) -> FlightSer
         elif isinstance(s, ArmedSample):
             armed = 1.0 if s.armed else 0.0
         elif isinstance(s, BatterySample) and s.current_a is not None and last_v is not None:
-            if s.time_s - last_v.time_s > max_age_s:
+            if s.time_s - last_v.time_s > max_age_s or (rows and s.time_s <= rows[-1][0]):
                 continue
             alt = float("nan") if last_v.alt_m is None else last_v.alt_m
             rows.append(

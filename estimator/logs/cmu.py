@@ -135,6 +135,8 @@ def _read_csv(path: Path) -> dict[str, FloatArray]:
             index = [header.index(c) for c in wanted]
             rows = []
             for line_no, row in enumerate(reader, start=2):
+                if not row:
+                    continue
                 try:
                     rows.append([float(row[i]) for i in index])
                 except (ValueError, IndexError):

@@ -1,0 +1,265 @@
+"""Log readers: format by content, tlog speed path and damage handling, CMU CSV layout."""
+
+from __future__ import annotations
+
+import math
+import struct
+from pathlib import Path
+
+import numpy as np
+import pytest
+from tlog_builder import flight_frames, write_tlog
+
+from estimator.decode import FrameParser, TelemetryDecoder
+from estimator.errors import UserError
+from estimator.logs import detect_format, iter_samples, load_flights
+from estimator.logs.cmu import REQUIRED_COLUMNS
+from estimator.telemetry import BatterySample, VelocitySample
+
+REPO = Path(__file__).resolve().parent.parent
+IRIS_MARCH = REPO / "replay/iris/2016-03-14/004/004-F2.log"
+IRIS_AUGUST = REPO / "replay/iris/2016-08-03/002/002.log"
+
+
+# -- format detection ---------------------------------------------------------------------------
+
+
+def test_iris_log_with_log_extension_is_recognised_as_tlog() -> None:
+    assert detect_format(IRIS_MARCH) == "tlog"
+
+
+def test_formats_are_recognised_by_content_not_name(tmp_path: Path) -> None:
+    tlog = write_tlog(tmp_path / "flight.csv", flight_frames(5))
+    csv = _cmu_csv(tmp_path / "flight.tlog", [_cmu_row(0.0, 0.0)])
+    (tmp_path / "a.log").write_bytes(b"\xa3\x95\x80\x80" + bytes(100))
+    (tmp_path / "b.bin").write_bytes(b"ULog\x01\x12\x35" + bytes(100))
+    assert detect_format(tlog) == "tlog"
+    assert detect_format(csv) == "cmu-csv"
+    assert detect_format(tmp_path / "a.log") == "dataflash"
+    assert detect_format(tmp_path / "b.bin") == "ulog"
+
+
+@pytest.mark.parametrize(
+    "content", [b"", b"hello world, this is not a flight log\n" * 10, bytes(range(256)) * 4]
+)
+def test_unrecognised_or_empty_files_are_user_errors(tmp_path: Path, content: bytes) -> None:
+    path = tmp_path / "x.tlog"
+    path.write_bytes(content)
+    with pytest.raises(UserError):
+        load_flights([path])
+
+
+def test_directory_and_missing_file_are_user_errors(tmp_path: Path) -> None:
+    with pytest.raises(UserError, match="directory"):
+        load_flights([tmp_path])
+    with pytest.raises(UserError, match="does not exist"):
+        load_flights([tmp_path / "nope.tlog"])
+
+
+# -- tlog -------------------------------------------------------------------------------------
+
+
+def test_real_iris_log_gives_power_and_velocity_in_autopilot_time() -> None:
+    stream = iter_samples(IRIS_MARCH)
+    samples = list(stream)
+    battery = [s for s in samples if isinstance(s, BatterySample)]
+    velocity = [s for s in samples if isinstance(s, VelocitySample)]
+    assert len(battery) > 100 and len(velocity) > 100
+    assert all(b.current_a is not None for b in battery)
+    # arrival order, as the daemon sees it: stamps only step back by link reordering (< 0.2 s)
+    times = np.array([s.time_s for s in samples])
+    assert np.min(np.diff(times)) > -0.2
+    assert np.all(np.diff([b.time_s for b in battery]) >= 0)
+    assert stream.skipped > 1000  # unused message types passed over unparsed
+    assert not stream.truncated and stream.bad_frames == 0
+    flight = load_flights([IRIS_MARCH])[0]
+    airborne = flight.alt_m > 1.0
+    # March configuration hovers near 135–150 W (source SOURCE.md)
+    assert 120 < np.median(flight.power_w[airborne]) < 160
+    assert np.all(np.isfinite(flight.power_w))
+
+
+def test_header_skipping_gives_the_same_samples_as_parsing_every_frame() -> None:
+    data = IRIS_AUGUST.read_bytes()
+    parser, decoder = FrameParser(), TelemetryDecoder()
+    pos, reference = 0, []
+    while pos + 8 < len(data):
+        length = data[pos + 9] + (8 if data[pos + 8] == 0xFE else 12)
+        reference.extend(decoder.decode_all(parser.feed(data[pos + 8 : pos + 8 + length])))
+        pos += 8 + length
+    assert list(iter_samples(IRIS_AUGUST)) == reference
+
+
+def test_truncated_tlog_reads_up_to_the_damage(tmp_path: Path) -> None:
+    full = list(iter_samples(IRIS_AUGUST))
+    cut = tmp_path / "cut.tlog"
+    cut.write_bytes(IRIS_AUGUST.read_bytes()[:100_003])
+    stream = iter_samples(cut)
+    partial = list(stream)
+    assert stream.truncated
+    assert 0 < len(partial) < len(full)
+    assert partial == full[: len(partial)]
+
+
+def test_corrupt_records_are_counted_and_skipped(tmp_path: Path) -> None:
+    data = bytearray(IRIS_AUGUST.read_bytes())
+    data[50_000:50_040] = b"\x00" * 40
+    bad = tmp_path / "bad.tlog"
+    bad.write_bytes(bytes(data))
+    stream = iter_samples(bad)
+    samples = list(stream)
+    assert stream.bad_frames >= 1
+    assert not stream.truncated
+    assert samples[-1] == list(iter_samples(IRIS_AUGUST))[-1]  # reading resumed after damage
+
+
+def test_mavlink2_frames_are_read(tmp_path: Path) -> None:
+    path = write_tlog(tmp_path / "v2.tlog", flight_frames(10, mavlink1=False))
+    assert path.read_bytes()[8] == 0xFD
+    flight = load_flights([path])[0]
+    assert len(flight) > 10
+    assert flight.power_w[0] == pytest.approx(11.8 * 15.0)
+    assert flight.vn_mps[0] == pytest.approx(3.0)
+
+
+def test_log_without_battery_current_is_a_user_error(tmp_path: Path) -> None:
+    path = write_tlog(tmp_path / "nocurrent.tlog", flight_frames(10, current_ca=-1))
+    with pytest.raises(UserError, match="no battery current"):
+        load_flights([path])
+
+
+def test_log_without_velocity_is_a_user_error(tmp_path: Path) -> None:
+    path = write_tlog(tmp_path / "novel.tlog", flight_frames(10, velocity=False))
+    with pytest.raises(UserError, match="no velocity"):
+        load_flights([path])
+
+
+def test_battery_samples_get_the_previous_velocity_within_the_age_limit(tmp_path: Path) -> None:
+    frames = flight_frames(10)
+    # drop the position reports of the middle 3 seconds: battery rows there have stale velocity
+    kept = []
+    for us, frame in frames:
+        t_s = (us - frames[0][0]) / 1e6
+        is_position = frame[5] == 33  # MAVLink 1 msgid byte: GLOBAL_POSITION_INT
+        if not (is_position and 4.0 < t_s < 7.0):
+            kept.append((us, frame))
+    flight = load_flights([write_tlog(tmp_path / "gap.tlog", kept)])[0]
+    all_rows = load_flights([write_tlog(tmp_path / "full.tlog", frames)])[0]
+    assert len(flight) < len(all_rows)
+    assert np.all(np.diff(flight.time_s) > 0)
+
+
+# -- CMU CSV ----------------------------------------------------------------------------------
+
+CMU_HEADER = (
+    '"","time","wind_speed","wind_angle","position_x","position_y","position_z",'
+    '"orientation_x","orientation_y","orientation_z","orientation_w","twist_linear_x",'
+    '"twist_linear_y","twist_linear_z","angular_x","angular_y","angular_z","acceleration_x",'
+    '"acceleration_y","acceleration_z","y","payload","flight"'
+)
+
+
+def _cmu_row(t: float, yaw_enu_rad: float, flight: int = 268, forward_mps: float = 5.0) -> str:
+    qz, qw = math.sin(yaw_enu_rad / 2), math.cos(yaw_enu_rad / 2)
+    values = [
+        1,
+        t,
+        6.0,
+        80,
+        -79.78,
+        40.45,
+        20.0,
+        0.0,
+        0.0,
+        qz,
+        qw,
+        forward_mps,
+        0.0,
+        0.5,
+        0,
+        0,
+        0,
+        0,
+        0,
+        -9.8,
+        500.0,
+        250,
+        flight,
+    ]
+    return ",".join(str(v) for v in values)
+
+
+def _cmu_csv(path: Path, rows: list[str], header: str = CMU_HEADER) -> Path:
+    path.write_text(header + "\n" + "\n".join(rows) + "\n")
+    return path
+
+
+def test_cmu_body_velocity_becomes_ned_through_the_quaternion(tmp_path: Path) -> None:
+    rows = [_cmu_row(0.0, 0.0), _cmu_row(0.2, math.pi / 2)]
+    flight = load_flights([_cmu_csv(tmp_path / "c.csv", rows)])[0]
+    # ENU yaw 0: nose east → NED (0, 5, -0.5); yaw 90°: nose north → NED (5, 0, -0.5)
+    np.testing.assert_allclose([flight.vn_mps[0], flight.ve_mps[0]], [0.0, 5.0], atol=1e-9)
+    np.testing.assert_allclose([flight.vn_mps[1], flight.ve_mps[1]], [5.0, 0.0], atol=1e-9)
+    np.testing.assert_allclose(flight.vd_mps, -0.5)
+    assert flight.power_w[0] == 500.0
+    assert math.isnan(flight.voltage_v[0])
+    assert flight.extras["payload_kg"][0] == pytest.approx(0.25)
+
+
+def test_cmu_regime_files_join_into_whole_flights(tmp_path: Path) -> None:
+    takeoff = _cmu_csv(tmp_path / "x_takeoff.csv", [_cmu_row(t / 5, 0) for t in range(5)])
+    cruise = _cmu_csv(
+        tmp_path / "x_cruise.csv",
+        [_cmu_row(1 + t / 5, 0) for t in range(5)] + [_cmu_row(t / 5, 0, 269) for t in range(3)],
+    )
+    flights = load_flights([cruise, takeoff])
+    assert [f.flight_id for f in flights] == ["cmu-268", "cmu-269"]
+    assert len(flights[0]) == 10
+    assert np.all(np.diff(flights[0].time_s) > 0)
+    assert list(np.unique(flights[0].extras["regime"])) == [0.0, 1.0]
+
+
+def test_cmu_sample_stream_keeps_power_exact(tmp_path: Path) -> None:
+    path = _cmu_csv(tmp_path / "c.csv", [_cmu_row(t / 5, 0) for t in range(4)])
+    batteries = [s for s in iter_samples(path) if isinstance(s, BatterySample)]
+    assert len(batteries) == 4
+    assert batteries[0].power_w == pytest.approx(500.0)
+
+
+def test_cmu_csv_missing_columns_is_a_user_error(tmp_path: Path) -> None:
+    header = CMU_HEADER.replace('"position_z",', "")
+    row = _cmu_row(0, 0).split(",")
+    del row[6]
+    path = _cmu_csv(tmp_path / "c.csv", [",".join(row)], header)
+    with pytest.raises(UserError, match="position_z"):
+        load_flights([path], fmt="cmu-csv")
+
+
+def test_cmu_csv_with_text_in_numbers_is_a_user_error(tmp_path: Path) -> None:
+    path = _cmu_csv(tmp_path / "c.csv", [_cmu_row(0, 0), _cmu_row(0.2, 0).replace("500.0", "NA?")])
+    with pytest.raises(UserError, match="line 3"):
+        load_flights([path])
+
+
+def test_cmu_csv_header_only_is_a_user_error(tmp_path: Path) -> None:
+    with pytest.raises(UserError, match="no data rows"):
+        load_flights([_cmu_csv(tmp_path / "c.csv", [])])
+
+
+def test_required_cmu_columns_are_in_the_header() -> None:
+    names = {c.strip('"') for c in CMU_HEADER.split(",")}
+    assert set(REQUIRED_COLUMNS) <= names
+
+
+def test_forced_format_on_wrong_content_is_a_user_error(tmp_path: Path) -> None:
+    path = _cmu_csv(tmp_path / "c.csv", [_cmu_row(0, 0)])
+    with pytest.raises(UserError):
+        load_flights([path], fmt="tlog")
+    with pytest.raises(UserError):
+        load_flights([IRIS_MARCH], fmt="cmu-csv")
+
+
+def test_stamp_layout_is_big_endian_microseconds() -> None:
+    data = IRIS_MARCH.read_bytes()
+    (stamp,) = struct.unpack_from(">Q", data, 0)
+    assert 1_457_000_000_000_000 < stamp < 1_460_000_000_000_000  # March 2016
