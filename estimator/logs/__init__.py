@@ -164,7 +164,8 @@ def flights_from_stream(
 
     Each battery sample gets the latest velocity sample not older than
     ``velocity_max_age_s`` (previous-sample alignment, no look-ahead); samples without a recent
-    velocity, or without a newer autopilot time than the previous row, are dropped. Raises UserError when the log has no velocity or no current.
+    velocity, or without a newer autopilot time than the previous row, are dropped. Raises
+    UserError when the log has no velocity or no current.
     """
     segments: list[list[Sample]] = [[]]
     for sample in stream:
