@@ -5,6 +5,8 @@ from __future__ import annotations
 
 import asyncio
 import socket
+import subprocess
+import sys
 from collections import Counter
 from pathlib import Path
 
@@ -301,3 +303,34 @@ def test_write_tlog_puts_the_truth_beside_it(mixed_run: SimRun, tmp_path: Path) 
     assert rows[0].startswith("time_s,armed,")
     assert len(rows) - 1 == pytest.approx(10 * mixed_run.duration_s, abs=2)
     assert path.stat().st_size == sum(8 + len(f) for _, f in tlog_records(mixed_run))
+
+
+def test_sim_command_plays_live_to_a_udp_listener(tmp_path: Path) -> None:
+    listener = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
+    listener.bind(("127.0.0.1", 0))
+    listener.settimeout(0.5)
+    port = listener.getsockname()[1]
+    exe = Path(sys.executable).with_name("uav-energy")
+    args = [str(exe), "sim", "--connect", f"udpout:127.0.0.1:{port}", "--plan", "mixed"]
+    args += ["--duration", "20", "--speedup", "40", "--tlog", str(tmp_path / "live.tlog")]
+    proc = subprocess.Popen(args, stdout=subprocess.PIPE, stderr=subprocess.PIPE)
+    codec = mavlink.MAVLink(None)
+    kinds: Counter[str] = Counter()
+    try:
+        while proc.poll() is None or kinds.total() == 0:
+            try:
+                data = listener.recv(4096)
+            except TimeoutError:
+                if proc.poll() is not None:
+                    break
+                continue
+            kinds.update(m.get_type() for m in codec.parse_buffer(data) or [])
+        _, err = proc.communicate(timeout=30)
+    finally:
+        proc.kill()
+        listener.close()
+    assert proc.returncode == 0, err
+    assert kinds["GLOBAL_POSITION_INT"] == pytest.approx(200, abs=3)
+    assert kinds["HEARTBEAT"] == pytest.approx(20, abs=1)
+    sent = FrameParser().feed((tmp_path / "live.tlog").read_bytes()[8:])
+    assert sent and (tmp_path / "live.truth.csv").exists()
