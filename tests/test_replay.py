@@ -13,9 +13,11 @@ from fixtures.flight import write_bin, write_ulg
 
 from estimator.cli import main
 from estimator.commands.replay import CSV_COLUMNS, flight_names, parse_speed
+from estimator.decode import FrameParser, TelemetryDecoder
 from estimator.logs import iter_samples
 from estimator.pipeline import Pipeline
 from estimator.replay import replay_log, summarize
+from estimator.sim import SimConfig, SimRun, simulate, tlog_records, write_tlog
 from estimator.vehicle import default_vehicle
 
 REPO = Path(__file__).resolve().parent.parent
@@ -32,6 +34,12 @@ def logs(tmp_path_factory: pytest.TempPathFactory) -> dict[str, Path]:
         "ulg": write_ulg(d / "flight.ulg"),
         "tlog": IRIS_LOG,
     }
+
+
+@pytest.fixture(scope="module")
+def sim_run() -> SimRun:
+    """A minute of the simulator's mixed plan; its truth power is the built-in model's."""
+    return simulate(SimConfig(plan="mixed", duration_s=60.0))
 
 
 def _replay_cli(capsys: pytest.CaptureFixture[str], *args: str) -> tuple[int, str, str]:
@@ -52,6 +60,32 @@ def test_replay_equals_feeding_the_same_samples_through_pipeline(
     direct = [e for s in iter_samples(logs[kind]) if (e := pipeline.process(s)) is not None]
     replayed = replay_log(logs[kind], vehicle).estimates
     assert direct and replayed == direct
+
+
+def test_replay_of_a_sim_tlog_equals_the_daemons_path_over_the_same_frames(
+    sim_run: SimRun, tmp_path: Path
+) -> None:
+    vehicle = default_vehicle()
+    # the daemon's path: frames as they arrive → FrameParser → TelemetryDecoder → Pipeline
+    parser, decoder, pipeline = FrameParser(), TelemetryDecoder(), Pipeline(vehicle)
+    live = [
+        estimate
+        for _, frame in tlog_records(sim_run)
+        for sample in decoder.decode_all(parser.feed(frame))
+        if (estimate := pipeline.process(sample)) is not None
+    ]
+    tlog = write_tlog(sim_run, tmp_path / "sim.tlog", truth_csv=False)
+    assert live and replay_log(tlog, vehicle).estimates == live
+
+
+def test_sim_flight_with_the_vehicles_own_power_replays_with_small_error(
+    sim_run: SimRun, tmp_path: Path
+) -> None:
+    tlog = write_tlog(sim_run, tmp_path / "sim.tlog", truth_csv=False)
+    s = summarize([replay_log(tlog, default_vehicle())])
+    assert s.power_points > 100 and s.airborne_s > 40
+    assert s.power_mape_pct is not None and s.power_mape_pct < 5.0
+    assert s.energy_predicted_wh == pytest.approx(s.energy_measured_wh, rel=0.03)
 
 
 def test_dataflash_and_ulog_of_one_flight_replay_alike_and_match_its_power(

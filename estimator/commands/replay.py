@@ -56,6 +56,7 @@ CSV_COLUMNS = (
     "endurance_sigma_s",
 )
 _PROGRESS_EVERY = 500
+_MIN_SLEEP_S = 0.002
 #: Path components kept in a flight's label.
 _NAME_PARTS = 3
 _LOGS_TASK = TaskID(0)  # the first task of :func:`_progress`
@@ -110,7 +111,7 @@ def paced(samples: Iterable[Sample], speed: float) -> Iterator[Sample]:
         if base is None or sample.time_s < last_log_s:
             base = (now, sample.time_s)
         delay = base[0] + (sample.time_s - base[1]) / speed - now
-        if delay > 0:
+        if delay > _MIN_SLEEP_S:  # shorter waits are left to the next sample (no drift)
             time.sleep(delay)
         last_log_s = sample.time_s
         yield sample
