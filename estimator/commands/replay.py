@@ -57,6 +57,7 @@ CSV_COLUMNS = (
 )
 _PROGRESS_EVERY = 500
 _MIN_SLEEP_S = 0.002
+_PIPE_WIDTH = 120
 #: Path components kept in a flight's label.
 _NAME_PARTS = 3
 _LOGS_TASK = TaskID(0)  # the first task of :func:`_progress`
@@ -291,6 +292,8 @@ def _print_table(flights: Sequence[FlightReplay], result: dict[str, Any], vehicl
     if len(flights) > 1:
         table.add_row("all", *_cells(summarize(flights)), style="bold")
     console = Console()
+    if not console.is_terminal:
+        console = Console(width=_PIPE_WIDTH)  # a file or a pipe: room for the flight names
     console.print(table)
     console.print(
         f"{result['messages']} samples in {result['wall_s']:.2f} s "
