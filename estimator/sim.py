@@ -521,6 +521,11 @@ class _Physics:
 def simulate(config: SimConfig) -> SimRun:
     """Fly ``config``'s plan and return the messages an ArduCopter would send and the truth."""
     plan = config.resolved_plan()
+    unknown = set(config.rates_hz) - set(DEFAULT_RATES_HZ)
+    if unknown:
+        raise ValueError(f"the simulator does not send {', '.join(sorted(unknown))}")
+    if not 0.0 < config.initial_soc <= 1.0:
+        raise ValueError("initial_soc must be in (0, 1]")
     physics = _Physics(config)
     pack = physics.pack
     reserve_soc = pack.spec.reserve_fraction
@@ -544,8 +549,9 @@ def simulate(config: SimConfig) -> SimRun:
         chunks.parts.append(out)
         if len(out["soc"]):
             last_v = float(out["voltage_v"][-1])
-        if reserve_time is None and soc <= reserve_soc:
-            reserve_time = _crossing_time(out["time_s"], out["soc"], reserve_soc, ap.t)
+        if soc <= reserve_soc:
+            if reserve_time is None:
+                reserve_time = _crossing_time(out["time_s"], out["soc"], reserve_soc, ap.t)
             if config.duration_s is None:
                 ap.begin_land()
         if ap.phase == "land" and extension is None and reserve_time is None and not ap.cyclic:

@@ -334,3 +334,18 @@ def test_sim_command_plays_live_to_a_udp_listener(tmp_path: Path) -> None:
     assert kinds["HEARTBEAT"] == pytest.approx(20, abs=1)
     sent = FrameParser().feed((tmp_path / "live.tlog").read_bytes()[8:])
     assert sent and (tmp_path / "live.truth.csv").exists()
+
+
+def test_with_a_duration_the_flight_goes_past_the_reserve_until_the_pack_is_empty() -> None:
+    run = simulate(SimConfig(plan="hover-cruise", duration_s=5000.0, initial_soc=0.3))
+    tr = run.truth
+    assert run.reserve_time_s < run.duration_s < 5000.0
+    assert tr.flying[-1] and tr.soc[-1] < 0.001
+    assert tr.energy_remaining_wh[tr.time_s > run.reserve_time_s].max() == 0.0
+
+
+def test_unknown_stream_and_bad_soc_are_rejected() -> None:
+    with pytest.raises(ValueError, match="does not send"):
+        simulate(SimConfig(rates_hz={"GPS_RAW_INT": 5.0}, duration_s=5.0))
+    with pytest.raises(ValueError, match="initial_soc"):
+        simulate(SimConfig(initial_soc=0.0, duration_s=5.0))
