@@ -21,6 +21,7 @@ from estimator.sim import SimConfig, SimRun, simulate, tlog_records, write_tlog
 from estimator.vehicle import default_vehicle
 
 REPO = Path(__file__).resolve().parent.parent
+CMU_CRUISE = REPO.parent / "shared/data/cmu_m100_subset/flights_validation_data_clean_cruise.csv"
 IRIS_LOG = REPO / "replay" / "iris" / "2016-08-03" / "002" / "002.log"
 IRIS_LOG_2 = REPO / "replay" / "iris" / "2016-03-21" / "010" / "010.log"
 
@@ -101,6 +102,17 @@ def test_dataflash_and_ulog_of_one_flight_replay_alike_and_match_its_power(
         assert s.energy_predicted_wh == pytest.approx(s.energy_measured_wh, rel=0.02)
     assert s_bin.energy_measured_wh == pytest.approx(s_ulg.energy_measured_wh, rel=1e-3)
     assert s_bin.power_rmse_w == pytest.approx(s_ulg.power_rmse_w, rel=0.1)
+
+
+@pytest.mark.skipif(not CMU_CRUISE.is_file(), reason="../shared/data is absent")
+def test_cmu_csv_replays_through_the_pipeline(tmp_path: Path) -> None:
+    head = tmp_path / "cmu.csv"  # the first 3000 rows: a few flights
+    with CMU_CRUISE.open() as src:
+        head.write_text("".join(line for _, line in zip(range(3001), src, strict=False)))
+    flight = replay_log(head, default_vehicle())
+    assert flight.format == "cmu-csv" and len(flight.estimates) > 1000
+    assert not flight.estimates[-1].model_only  # the dataset's power is fused
+    assert summarize([flight]).power_points > 500
 
 
 def test_paced_replay_gives_the_same_estimates_as_max_speed(
