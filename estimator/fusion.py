@@ -34,7 +34,8 @@ from estimator.battery import PackModel
 from estimator.model import FloatArray
 from estimator.telemetry import BatterySample
 
-_ENDURANCE_POINTS = 24
+#: Energy levels (fractions of what is left) at which endurance integrates the pack.
+_UNIT_GRID = np.linspace(0.0, 1.0, 24)
 
 
 @dataclass(frozen=True, slots=True)
@@ -50,6 +51,8 @@ class FusionSettings:
     rest_voltage_sigma_v_per_cell: error of the resting cell voltage that gives the start SoC.
     capacity_sigma_fraction: error of the configured capacity (fraction).
     charge_sigma_fraction: error of the autopilot's consumed-charge counter (fraction).
+    current_gain_sigma_fraction: gain error of the current sensor (fraction): it biases the
+    measured drain and the consumed charge alike, so no measurement here removes it.
     internal_resistance_ohm: the pack's resistance; None estimates it (prior 4 mΩ per cell).
     voltage_noise_v: error of one terminal-voltage reading (pack), V.
     resistance_walk_ohm_per_sqrt_s: random walk of the resistance (temperature), Ω/√s.
@@ -57,7 +60,7 @@ class FusionSettings:
     """
 
     bias_prior_sigma: float = 0.10
-    bias_walk_per_sqrt_s: float = 0.01
+    bias_walk_per_sqrt_s: float = 0.003
     model_power_noise_fraction: float = 0.05
     power_noise_fraction: float = 0.03
     power_noise_floor_w: float = 2.0
@@ -69,6 +72,7 @@ class FusionSettings:
     resistance_prior_ohm_per_cell: float = 0.004
     resistance_walk_ohm_per_sqrt_s: float = 1e-5
     ocv_curve_sigma_v_per_cell: float = 0.01
+    current_gain_sigma_fraction: float = 0.01
 
 
 class ResistanceFilter:
@@ -139,6 +143,8 @@ class EnergyFilter:
         self._time_s: float | None = None
         self._soc_ref = 1.0  # SoC when the consumed-charge counter read 0
         self._offset_sigma_wh = 0.0
+        self._initial_wh = 0.0
+        self._reserve_wh = float(pack.energy_wh(pack.spec.reserve_fraction))
         self.voltage: ResistanceFilter | None = None
         self.has_current = False
         self.has_charge = False
@@ -158,13 +164,18 @@ class EnergyFilter:
     def soc(self) -> float:
         """State of charge that the energy state implies."""
         kf = self._require()
-        reserve_wh = float(self.pack.energy_wh(self.pack.spec.reserve_fraction))
-        return float(self.pack.soc_from_energy(max(kf.x[0], 0.0) + reserve_wh))
+        return float(self.pack.soc_from_energy(max(kf.x[0], 0.0) + self._reserve_wh))
 
     def estimate(self) -> EnergyEstimate:
         kf = self._require()
         cov = np.array(kf.P, dtype=float)
         cov[0, 0] += self._offset_sigma_wh**2
+        if self.has_current:
+            # A current-sensor gain error g scales both the measured drain and the bias.
+            sigma_g = self.settings.current_gain_sigma_fraction
+            used_wh = self._initial_wh - float(kf.x[0])
+            j = np.array([-used_wh, float(kf.x[1])])
+            cov += sigma_g**2 * np.outer(j, j)
         return EnergyEstimate(
             energy_wh=max(float(kf.x[0]), 0.0),
             energy_sigma_wh=math.sqrt(cov[0, 0]),
@@ -206,6 +217,7 @@ class EnergyFilter:
         )
         kf = KalmanFilter(dim_x=2, dim_z=1)
         kf.x = np.array([energy_wh, 1.0])
+        self._initial_wh = energy_wh
         kf.P = np.diag([0.0, s.bias_prior_sigma**2])
         self._kf = kf
         self._time_s = sample.time_s
@@ -264,7 +276,13 @@ class EnergyFilter:
 
     # -- endurance --------------------------------------------------------------------------
 
-    def endurance_s(self, terminal_power_w: ArrayLike) -> tuple[FloatArray, FloatArray]:
+    @property
+    def bias(self) -> float:
+        return float(self._require().x[1])
+
+    def endurance_s(
+        self, terminal_power_w: ArrayLike, est: EnergyEstimate | None = None
+    ) -> tuple[FloatArray, FloatArray]:
         """Time (s) until the reserve at each constant terminal power (W), and its 1σ.
 
         Integrates the pack forward: at each energy level the OCV, the sagging terminal
@@ -272,14 +290,13 @@ class EnergyFilter:
         the estimated resistance. σ by first-order propagation of [E, b] (each power is
         ``b`` times a model power, so T scales as 1/b). Non-positive power: infinite time.
         """
-        est = self.estimate()
+        est = est or self.estimate()
         power_w = np.atleast_1d(np.asarray(terminal_power_w, dtype=float))
         if est.energy_wh <= 0:
             return np.zeros_like(power_w), np.zeros_like(power_w)
         assert self.voltage is not None
-        reserve_wh = float(self.pack.energy_wh(self.pack.spec.reserve_fraction))
-        e_grid = np.linspace(0.0, est.energy_wh, _ENDURANCE_POINTS)
-        ocv = self.pack.ocv_v(self.pack.soc_from_energy(reserve_wh + e_grid))
+        e_grid = est.energy_wh * _UNIT_GRID
+        ocv = self.pack.ocv_v(self.pack.soc_from_energy(self._reserve_wh + e_grid))
         positive = np.maximum(power_w, 1e-9)[:, None]
         terminal_v = self.voltage.terminal_voltage_v(ocv[None, :], positive)
         inv_drain = np.maximum(terminal_v, 1e-3) / (positive * ocv[None, :])

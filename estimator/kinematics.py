@@ -136,8 +136,12 @@ class KinematicsFilter:
         else:
             f = np.eye(6)
             f[:3, 3:] = dt * np.eye(3)
-            q_axis = s.jerk_psd * np.array([[dt**3 / 3.0, dt**2 / 2.0], [dt**2 / 2.0, dt]])
-            kf.predict(F=f, Q=np.kron(q_axis, np.eye(3)))
+            q = np.zeros((6, 6))
+            idx = np.arange(3)
+            q[idx, idx] = s.jerk_psd * dt**3 / 3.0
+            q[idx, idx + 3] = q[idx + 3, idx] = s.jerk_psd * dt**2 / 2.0
+            q[idx + 3, idx + 3] = s.jerk_psd * dt
+            kf.predict(F=f, Q=q)
             kf.update(z)
         self._last_time_s = sample.time_s
         vn, ve, vd, an, ae, _ = (float(x) for x in kf.x)

@@ -225,7 +225,7 @@ class Pipeline:
             self.energy.update_charge(sample.consumed_mah)
         current_a = sample.current_a
         if current_a is None:
-            current_a = self.energy.estimate().bias * self._power_model_w / sample.voltage_v
+            current_a = self.energy.bias * self._power_model_w / sample.voltage_v
         assert self.energy.voltage is not None
         dt = 0.0 if previous is None else max(sample.time_s - previous.time_s, 0.0)
         self.energy.voltage.update(dt, self.energy.soc, sample.voltage_v, current_a)
@@ -245,8 +245,7 @@ class Pipeline:
 
     def _advance(self, time_s: float) -> None:
         """Predict the energy state up to ``time_s`` at the current model power."""
-        est = self.energy.estimate()
-        loss = self.energy.loss_factor(est.bias * self._power_model_w)
+        loss = self.energy.loss_factor(self.energy.bias * self._power_model_w)
         self.energy.predict(time_s, self._power_model_w, loss)
         self._time_s = time_s
 
@@ -255,7 +254,7 @@ class Pipeline:
         state = self._state
         steady_w = est.bias * self._steady_power_w
         model_w = np.array([self._steady_power_w, self._p_hover_w, self._p_me_w, self._p_mr_w])
-        times_s, sigmas_s = self.energy.endurance_s(est.bias * model_w)
+        times_s, sigmas_s = self.energy.endurance_s(est.bias * model_w, est)
         endurance_s, hover_s, vme_s, vmr_s = (float(x) for x in times_s)
         endurance_sigma_s = float(sigmas_s[0])
         battery = self._battery
