@@ -418,7 +418,7 @@ def fit_theory(points: Points, priors: Priors | None = Priors()) -> TheoryFit:
     c_cov = c_jac @ theta_cov @ c_jac.T
     c_sd = np.sqrt(np.clip(np.diag(c_cov), 0, None))
     with np.errstate(invalid="ignore", divide="ignore"):
-        corr = c_cov / np.outer(c_sd, c_sd)
+        corr = np.clip(c_cov / np.outer(c_sd, c_sd), -1.0, 1.0)
     hover_sd = _hover_stderr(theta, theta_cov)
     dominated = []
     if prior_sd is not None:

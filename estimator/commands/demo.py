@@ -53,17 +53,23 @@ def run(args: argparse.Namespace) -> int:
         )
         fitted = report.theory.model
         v = np.arange(0.0, 15.0, 2.0)
+        rows = {
+            "truth (W)": truth.power_w(v),
+            "fitted (W)": fitted.power_w(v),
+            "1σ (W)": report.theory.curve_stderr_w(v),
+        }
+        curve_table = "\n".join(
+            ["| V (m/s) | " + " | ".join(f"{x:.0f}" for x in v) + " |", "|---" * (len(v) + 1) + "|"]
+            + [
+                f"| {name} | " + " | ".join(f"{x:.1f}" for x in r) + " |"
+                for name, r in rows.items()
+            ]
+        )
         (args.out / "summary.md").write_text(
             "# Demo: the seed paper's experiments on the built-in vehicle\n\n"
             f"Truth: `{truth}` ({vehicle.name}, {vehicle.mass_kg} kg).\n\n"
             "## Experiment 1: fit\n\nSee [experiment1/summary.md](experiment1/summary.md).\n\n"
-            "| V (m/s) | " + " | ".join(f"{x:.0f}" for x in v) + " |\n"
-            "|---" * (len(v) + 1) + "|\n"
-            "| truth (W) | " + " | ".join(f"{x:.1f}" for x in truth.power_w(v)) + " |\n"
-            "| fitted (W) | " + " | ".join(f"{x:.1f}" for x in fitted.power_w(v)) + " |\n"
-            "| 1σ (W) | "
-            + " | ".join(f"{x:.1f}" for x in report.theory.curve_stderr_w(v))
-            + " |\n\n"
+            f"{curve_table}\n\n"
             "## Experiment 2: circles predicted with eq. (2)\n\n"
             + circles_markdown(checks, radius_of)
             + "\n![experiment 2](experiment2.png)\n"

@@ -14,6 +14,7 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
+import tomli_w
 from rich.console import Console
 
 from estimator.errors import UserError
@@ -50,6 +51,9 @@ def register(subparsers: argparse._SubParsersAction[argparse.ArgumentParser]) ->
     v.add_argument("--capacity-ah", type=float, help="rated battery capacity")
     v.add_argument("--cells", type=int, help="series cells (default: from the peak voltage)")
     v.add_argument("--reserve-fraction", type=float, default=0.2)
+    v.add_argument(
+        "--note", action="append", default=[], help="comment line at the top of the file"
+    )
     g = p.add_argument_group("preprocessing (the paper's values are the defaults)")
     g.add_argument("--rate-hz", type=float, default=d.sample_rate_hz, help="resampling rate")
     g.add_argument("--max-accel", type=float, default=d.max_accel_mps2, help="|a| limit, m/s²")
@@ -103,7 +107,7 @@ def run(args: argparse.Namespace) -> int:
             title = args.title or f"Power model fit: {_describe(args.logs)}"
             write_report(report, args.report, title)
     if args.out is not None:
-        _vehicle(report, flights, args).save(args.out)
+        _save_vehicle(_vehicle(report, flights, args), args.out, args.note)
     summary = report.summary()
     if args.json:
         print(json.dumps(summary, indent=2))
@@ -141,13 +145,15 @@ def _flight_masses(flights: list[FlightSeries], mass_kg: float | None) -> np.nda
 def _vehicle(report: FitReport, flights: list[FlightSeries], args: argparse.Namespace) -> Vehicle:
     cells = args.cells
     if cells is None:
-        peak = max(
-            (float(np.nanmax(f.voltage_v)) for f in flights if np.isfinite(f.voltage_v).any()),
-            default=math.nan,
-        )
-        if not math.isfinite(peak):
+        peaks = [
+            float(np.nanpercentile(f.voltage_v, 99))
+            for f in flights
+            if np.isfinite(f.voltage_v).any()
+        ]
+        if not peaks:
             raise UserError("the logs have no pack voltage: give --cells")
-        cells = max(1, math.ceil(peak / MAX_CELL_VOLTAGE_V))
+        # the typical flight's near-peak voltage: robust to one glitching sensor or log
+        cells = max(1, math.ceil(float(np.median(peaks)) / MAX_CELL_VOLTAGE_V))
     return Vehicle(
         name=args.name or args.logs[0].stem,
         mass_kg=args.mass_kg,
@@ -155,6 +161,13 @@ def _vehicle(report: FitReport, flights: list[FlightSeries], args: argparse.Name
         battery=BatterySpec(args.capacity_ah, cells, args.reserve_fraction),
         model_stderr=dict(report.theory.coeff_stderr),
     )
+
+
+def _save_vehicle(vehicle: Vehicle, path: Path, notes: list[str]) -> None:
+    """Write the vehicle file with ``notes`` as leading TOML comments (sources, assumptions)."""
+    header = "".join(f"# {line}\n" for line in notes)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    path.write_text(header + tomli_w.dumps(vehicle.to_toml()))
 
 
 def _describe(paths: list[Path]) -> str:

@@ -16,6 +16,7 @@ the last two live in their own modules, imported only when such a file is met.
 from __future__ import annotations
 
 import importlib
+import os
 from collections.abc import Iterable, Iterator, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -150,9 +151,19 @@ def load_flights(paths: Sequence[str | Path], fmt: str = "auto") -> list[FlightS
         if hasattr(module, "load_flights"):
             flights.extend(module.load_flights(group))
         else:
-            for path in group:
-                flights.extend(flights_from_stream(iter_samples(path, name), path.stem))
+            for path, flight_name in zip(group, _unique_names(group), strict=True):
+                flights.extend(flights_from_stream(iter_samples(path, name), flight_name))
     return flights
+
+
+def _unique_names(paths: list[Path]) -> list[str]:
+    """Short distinct names: file stems, or paths below the common folder if stems repeat."""
+    stems = [p.stem for p in paths]
+    if len(set(stems)) == len(stems):
+        return stems
+    resolved = [p.resolve() for p in paths]
+    common = Path(os.path.commonpath(resolved))
+    return [p.relative_to(common).with_suffix("").as_posix() for p in resolved]
 
 
 def flights_from_stream(
