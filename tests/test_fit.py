@@ -156,3 +156,13 @@ def test_experiment2_eq2_predicts_circles_better_than_eq1() -> None:
     for check in check_flights(fit, preprocess(circles), min_speed_mps=0.5):
         assert abs(check.eq2_w - check.measured_w) < 5.0
         assert abs(check.eq2_w - check.measured_w) < abs(check.eq1_w - check.measured_w)
+
+
+def test_paper_experiments_reproduction_writes_its_report(tmp_path) -> None:  # type: ignore[no-untyped-def]
+    from estimator.experiments import reproduce
+
+    result = reproduce(tmp_path, seed=2)
+    assert (tmp_path / "summary.md").read_text().count("| 10 |") == 6  # six r = 10 m circles
+    assert (tmp_path / "experiment2.png").stat().st_size > 1000
+    assert (tmp_path / "experiment1" / "curves.png").stat().st_size > 1000
+    assert abs(result.fit.theory.model.hover_power_w - VEHICLE.model.hover_power_w) < 2.0
