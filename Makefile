@@ -21,6 +21,9 @@ test: $(STAMP)
 	$(BIN)/mypy
 	$(BIN)/pytest -q
 
+fit-real: $(STAMP)
+	scripts/fit_real.sh ../shared/data
+
 bench: $(STAMP)
 	$(BIN)/python -m bench
 
