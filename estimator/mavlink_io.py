@@ -28,6 +28,7 @@ import asyncio
 import contextlib
 import logging
 import os
+import socket
 import termios
 import tty
 from collections import Counter, deque
@@ -44,6 +45,7 @@ log = logging.getLogger(__name__)
 #: Most UDP peers a ``udpin`` link answers; the oldest is forgotten beyond this.
 MAX_UDP_PEERS = 16
 TCP_RECONNECT_S = 1.0
+UDP_RECEIVE_BUFFER_BYTES = 1 << 20
 DEFAULT_BAUD = 115200
 _BAUD_RATES = {
     int(name[1:]): getattr(termios, name)
@@ -288,6 +290,9 @@ class _UdpTransport(_Transport):
             transport, _ = await loop.create_datagram_endpoint(
                 lambda: _DatagramProtocol(link, peers), local_addr=(addr.host, addr.port)
             )
+            sock = transport.get_extra_info("socket")
+            if sock is not None:  # absorb bursts while the loop is busy (kernel may cap it)
+                sock.setsockopt(socket.SOL_SOCKET, socket.SO_RCVBUF, UDP_RECEIVE_BUFFER_BYTES)
         else:
             transport, _ = await loop.create_datagram_endpoint(
                 lambda: _DatagramProtocol(link, None), remote_addr=(addr.host, addr.port)

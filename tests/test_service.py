@@ -1,0 +1,291 @@
+"""The daemon end to end on loopback with real sockets, and its bad-input behaviour.
+
+A sender plays a simulated flight into ``Service`` over UDP; an independent pymavlink client
+(a plain socket + the generated codec) and a MAVSDK 4.x ``mavsdk.asyncio`` client receive
+what it publishes. Values must equal what :class:`Pipeline` gives for the same messages.
+"""
+
+from __future__ import annotations
+
+import asyncio
+import contextlib
+import logging
+import socket
+from collections.abc import AsyncIterator, Iterable
+from dataclasses import replace
+from pathlib import Path
+
+import numpy as np
+import pytest
+from pymavlink.dialects.v20 import common as mavlink
+
+from estimator.cli import main as cli_main
+from estimator.config import ServiceConfig
+from estimator.decode import TelemetryDecoder
+from estimator.mavlink_io import MavlinkLink, open_link
+from estimator.pipeline import Estimate, Pipeline
+from estimator.service import Service
+from estimator.sim import SimConfig, simulate
+from estimator.vehicle import default_vehicle
+
+Messages = list[tuple[float, mavlink.MAVLink_message]]
+
+
+@pytest.fixture(scope="module")
+def flight() -> Messages:
+    return simulate(SimConfig(plan="hover-cruise", duration_s=40.0, seed=3)).messages
+
+
+def free_udp_port() -> int:
+    with socket.socket(socket.AF_INET, socket.SOCK_DGRAM) as s:
+        s.bind(("127.0.0.1", 0))
+        return int(s.getsockname()[1])
+
+
+def replay(messages: Iterable[mavlink.MAVLink_message]) -> list[Estimate]:
+    decoder, pipeline = TelemetryDecoder(), Pipeline(default_vehicle())
+    out = []
+    for msg in messages:
+        for sample in decoder.decode(msg):
+            estimate = pipeline.process(sample)
+            if estimate is not None:
+                out.append(estimate)
+    return out
+
+
+class PymavlinkClient(asyncio.DatagramProtocol):
+    """Independent ground station: a UDP socket parsed with pymavlink's generated codec."""
+
+    def __init__(self) -> None:
+        self.codec = mavlink.MAVLink(None)
+        self.codec.robust_parsing = True
+        self.messages: list[mavlink.MAVLink_message] = []
+
+    def datagram_received(self, data: bytes, addr: object) -> None:
+        for msg in self.codec.parse_buffer(data) or []:
+            if not isinstance(msg, mavlink.MAVLink_bad_data):
+                self.messages.append(msg)
+
+    def of_type(self, kind: str) -> list[mavlink.MAVLink_message]:
+        return [m for m in self.messages if m.get_type() == kind]
+
+    def named(self, name: str) -> dict[int, float]:
+        """Last value of a NAMED_VALUE_FLOAT per time_boot_ms."""
+        return {
+            m.time_boot_ms: m.value for m in self.of_type("NAMED_VALUE_FLOAT") if m.name == name
+        }
+
+
+@contextlib.asynccontextmanager
+async def running(config: ServiceConfig) -> AsyncIterator[tuple[Service, MavlinkLink]]:
+    """A Service on udpin:127.0.0.1:<free>, and a sender link (system 1, component 1)."""
+    port = free_udp_port()
+    service = Service(replace(config, connect=f"udpin:127.0.0.1:{port}"), default_vehicle())
+    stop = asyncio.Event()
+    task = asyncio.create_task(service.run(stop))
+    while service.link is None:
+        await asyncio.sleep(0.01)
+    sender = await open_link(f"udpout:127.0.0.1:{port}", source_system=1, source_component=1)
+    try:
+        yield service, sender
+    finally:
+        await sender.close()
+        stop.set()
+        assert await asyncio.wait_for(task, 5) == 0
+
+
+async def play(sender: MavlinkLink, messages: Iterable[mavlink.MAVLink_message]) -> None:
+    for i, msg in enumerate(messages):
+        sender.send(msg)
+        if i % 5 == 4:
+            await asyncio.sleep(0.004)
+
+
+async def wait_for(condition, timeout_s: float = 10.0) -> None:  # type: ignore[no-untyped-def]
+    async with asyncio.timeout(timeout_s):
+        while not condition():
+            await asyncio.sleep(0.02)
+
+
+async def listen() -> tuple[PymavlinkClient, int, asyncio.DatagramTransport]:
+    loop = asyncio.get_running_loop()
+    sock = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
+    sock.setsockopt(socket.SOL_SOCKET, socket.SO_RCVBUF, 4 << 20)
+    sock.bind(("127.0.0.1", 0))
+    transport, client = await loop.create_datagram_endpoint(PymavlinkClient, sock=sock)
+    return client, int(sock.getsockname()[1]), transport
+
+
+async def test_published_values_match_the_pipeline_replay_for_pymavlink_and_mavsdk(
+    flight: Messages,
+) -> None:
+    from mavsdk.asyncio import ComponentType, Configuration, Mavsdk
+    from mavsdk.asyncio.plugins.mavlink_direct import MavlinkDirectAsync
+    from mavsdk.asyncio.plugins.telemetry import TelemetryAsync
+
+    messages = [m for _, m in flight]
+    expected = replay(messages)
+    client, client_port, transport = await listen()
+    sdk_port = free_udp_port()
+    config = ServiceConfig(
+        publish=(f"udpout:127.0.0.1:{client_port}", f"udpout:127.0.0.1:{sdk_port}"),
+        publish_rate_hz=0.0,
+        stale_after_s=30.0,
+    )
+    sdk_config = Configuration.create_with_component_type(ComponentType.GROUND_STATION)
+    async with Mavsdk(sdk_config) as sdk, running(config) as (_service, sender):
+        await sdk.add_any_connection(f"udpin://127.0.0.1:{sdk_port}")
+        half = len(messages) // 2
+        await play(sender, messages[:half])
+        await wait_for(lambda: len(client.of_type("HEARTBEAT")) > 0)
+        system = None
+        async with asyncio.timeout(10):
+            while system is None:
+                systems = await sdk.get_systems()
+                system = systems[0] if systems else None
+                await asyncio.sleep(0.05)
+        direct = MavlinkDirectAsync(system)
+        telemetry = TelemetryAsync(system)
+        sdk_named: list[dict] = []
+        sdk_battery: list = []
+
+        async def collect_named() -> None:
+            import json
+
+            async for msg in direct.subscribe_message("NAMED_VALUE_FLOAT"):
+                sdk_named.append(json.loads(msg.fields_json) | {"component": msg.component_id})
+
+        async def collect_battery() -> None:
+            async for battery in telemetry.subscribe_battery():
+                sdk_battery.append(battery)
+
+        tasks = [asyncio.create_task(collect_named()), asyncio.create_task(collect_battery())]
+        await asyncio.sleep(0.5)
+        await play(sender, messages[half:])
+        await wait_for(lambda: _service.pipeline.counts["estimates"] == len(expected))
+        await asyncio.sleep(0.3)
+        await wait_for(lambda: len(sdk_named) > 0 and len(sdk_battery) > 0)
+        await asyncio.sleep(0.3)
+        for task in tasks:
+            task.cancel()
+        assert sdk_port and system is not None and not await system.has_autopilot()
+    transport.close()
+
+    by_ms: dict[int, Estimate] = {round(e.time_s * 1000): e for e in expected}
+    # pymavlink client: heartbeat, every named value, BATTERY_STATUS.time_remaining
+    heartbeat = client.of_type("HEARTBEAT")[-1]
+    assert (heartbeat.type, heartbeat.autopilot) == (
+        mavlink.MAV_TYPE_ONBOARD_CONTROLLER,
+        mavlink.MAV_AUTOPILOT_INVALID,
+    )
+    assert heartbeat.get_srcComponent() == 191
+    endurance = client.named("ENDUR_S")
+    assert len(endurance) > 0.8 * len(by_ms)
+    last_ms = max(endurance)
+    last = by_ms[last_ms]
+    for ms, value in endurance.items():
+        assert value == pytest.approx(by_ms[ms].endurance_s, rel=1e-6)
+    for name, value in (
+        ("PWR_MODEL", last.power_model_w),
+        ("ENERGY_WH", last.energy_remaining_wh),
+        ("ENDUR_SIG", last.endurance_sigma_s),
+        ("ENDUR_HOV", last.hover_endurance_s),
+        ("BIAS", last.bias),
+        ("RANGE_VMR", last.range_vmr_m),
+    ):
+        assert client.named(name)[last_ms] == pytest.approx(value, rel=1e-6)
+    battery = client.of_type("BATTERY_STATUS")[-1]
+    assert battery.id == 9
+    assert battery.time_remaining == int(expected[-1].endurance_s)
+    assert 0 < battery.battery_remaining <= 100
+    # MAVSDK: sees component 191's NAMED_VALUE_FLOAT (mavlink_direct) and our battery
+    endurance_sdk = [m for m in sdk_named if m["name"] == "ENDUR_S"]
+    assert endurance_sdk and all(m["component"] == 191 for m in endurance_sdk)
+    all_by_ms: dict[int, list[float]] = {}
+    for e in expected:
+        all_by_ms.setdefault(round(e.time_s * 1000), []).append(e.endurance_s)
+    for m in endurance_sdk:  # same time_boot_ms can carry several estimates: match one
+        candidates = all_by_ms[m["time_boot_ms"]]
+        assert min(abs(m["value"] - c) / c for c in candidates) < 1e-6
+    valid_remaining = {int(e.endurance_s) if np.isfinite(e.endurance_s) else 0 for e in expected}
+    assert sdk_battery[-1].id == 9
+    assert int(sdk_battery[-1].time_remaining_s) in valid_remaining
+
+
+async def test_garbage_datagrams_and_a_flood_do_not_stop_the_daemon(flight: Messages) -> None:
+    messages = [m for _, m in flight]
+    async with running(ServiceConfig(stale_after_s=30.0)) as (service, sender):
+        await play(sender, messages[:300])
+        for i in range(200):
+            sender.send_bytes(bytes((i * 7 + k) % 256 for k in range(64)))
+            sender.send_bytes(b"\xfd\x20" + b"\x00" * 5)
+        flood = sender.mav.named_value_float_encode(0, b"FLOOD", 1.0)
+        for _ in range(20_000):
+            sender.send(flood)
+        await asyncio.sleep(0.2)
+        before = service.pipeline.counts["estimates"]
+        await play(sender, messages[300:600])
+        await wait_for(lambda: service.pipeline.counts["estimates"] > before + 50)
+        assert service.link is not None and service.link.bad_frames > 0
+        assert service.decoder.counts["unused"] > 0  # what the kernel let through
+
+
+async def test_silent_link_marks_estimates_stale_then_resumes(
+    flight: Messages, caplog: pytest.LogCaptureFixture
+) -> None:
+    caplog.set_level(logging.INFO, logger="uav_energy.service")
+    messages = [m for _, m in flight]
+    client, port, transport = await listen()
+    config = ServiceConfig(publish=(f"udpout:127.0.0.1:{port}",), stale_after_s=0.5)
+    async with running(config) as (service, sender):
+        await play(sender, messages[:400])
+        await wait_for(lambda: service.latest is not None)
+        await wait_for(lambda: service.stale, timeout_s=5)
+        flags = client.named("FLAGS")
+        await wait_for(lambda: any(int(v) & 2 for v in client.named("FLAGS").values()), 5)
+        await play(sender, messages[400:600])
+        await wait_for(lambda: not service.stale)
+        n_before = len(client.of_type("NAMED_VALUE_FLOAT"))
+        await wait_for(lambda: len(client.of_type("NAMED_VALUE_FLOAT")) > n_before, 5)
+        flags = [m.value for m in client.of_type("NAMED_VALUE_FLOAT") if m.name == "FLAGS"]
+        assert int(flags[-1]) & 2 == 0
+    transport.close()
+    text = caplog.text
+    assert "link silent" in text and "telemetry resumed" in text
+
+
+async def test_autopilot_reboot_keeps_the_energy_state(flight: Messages) -> None:
+    messages = [m for _, m in flight]
+    async with running(ServiceConfig(stale_after_s=30.0)) as (service, sender):
+        await play(sender, messages)
+        await wait_for(lambda: service.pipeline.counts["velocity"] > 300)
+        await asyncio.sleep(0.3)
+        assert service.latest is not None
+        energy_before = service.latest.energy_remaining_wh
+        # the autopilot reboots: the same stream again, its clock starting from 0
+        await play(sender, messages[: len(messages) // 3])
+        await wait_for(lambda: service.decoder.counts["reboots"] == 1)
+        await asyncio.sleep(0.3)
+        assert service.pipeline.counts["reboot"] == 1
+        latest = service.latest
+        assert latest is not None and latest.time_s < 20
+        assert latest.energy_remaining_wh <= energy_before + 0.5
+        assert np.isfinite(latest.endurance_s)
+
+
+def test_broken_config_is_one_line_and_exit_code_2(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    bad = tmp_path / "bad.toml"
+    bad.write_text('[link]\nconnect = "udp:nowhere"\n')
+    assert cli_main(["run", "--config", str(bad)]) == 2
+    err = capsys.readouterr().err.strip()
+    assert len(err.splitlines()) == 1 and "connection string" in err
+    bad.write_text("[link]\nvelocity_rate_hz = -3\n")
+    assert cli_main(["run", "--config", str(bad)]) == 2
+    assert "velocity_rate_hz" in capsys.readouterr().err
+    bad.write_text("[nonsense]\nkey = 1\n")
+    assert cli_main(["run", "--config", str(bad)]) == 2
+    assert "unknown key" in capsys.readouterr().err
+    assert cli_main(["run", "--config", str(tmp_path / "missing.toml")]) == 2
+    assert "does not exist" in capsys.readouterr().err
