@@ -1,0 +1,138 @@
+"""The one pipeline: samples in, estimates out (deterministic, sample-clocked)."""
+
+from __future__ import annotations
+
+import math
+from dataclasses import replace
+
+import pytest
+
+from estimator.battery import PackModel
+from estimator.decode import TelemetryDecoder
+from estimator.pipeline import Estimate, Pipeline, PipelineSettings
+from estimator.sim import SimConfig, simulate
+from estimator.telemetry import ArmedSample, BatterySample, RebootSample, Sample, VelocitySample
+from estimator.vehicle import default_vehicle
+
+VEHICLE = default_vehicle()
+FULL_V = float(PackModel(VEHICLE.battery).ocv_v(1.0))
+
+
+def flight(seconds: float, speed_mps: float = 8.0, current: bool = True, t0: float = 0.0):
+    """Rest, arm, then level flight at ``speed_mps``: 10 Hz velocity, 2 Hz battery."""
+    samples: list[Sample] = [BatterySample(t0, FULL_V, 0.0, 0.0), ArmedSample(t0, True)]
+    power_w = float(VEHICLE.model.power_w(speed_mps))
+    consumed = 0.0
+    for k in range(1, int(seconds * 10)):
+        t = t0 + k * 0.1
+        samples.append(VelocitySample(t, speed_mps, 0.0, 0.0, 20.0))
+        if k % 5 == 0:
+            v = FULL_V - 0.6 - 0.001 * k
+            consumed += power_w / v * 0.5 / 3.6
+            samples.append(
+                BatterySample(t, v, power_w / v if current else None, consumed if current else None)
+            )
+    return samples
+
+
+def run(pipeline: Pipeline, samples: list[Sample]) -> list[Estimate]:
+    return [e for s in samples if (e := pipeline.process(s)) is not None]
+
+
+def test_no_estimate_before_the_first_battery_sample_then_one_per_advance() -> None:
+    p = Pipeline(VEHICLE)
+    assert p.process(VelocitySample(0.0, 1.0, 0.0, 0.0)) is None
+    assert p.process(BatterySample(0.1, FULL_V, 0.0, 0.0)) is None
+    assert p.counts["energy_initialized"] == 1
+    estimate = p.process(VelocitySample(0.2, 1.0, 0.0, 0.0))
+    assert isinstance(estimate, Estimate) and estimate.time_s == 0.2
+    assert p.process(BatterySample(0.3, FULL_V, 1.0, 1.0)) is not None
+
+
+def test_same_samples_give_identical_estimates() -> None:
+    samples = flight(60.0)
+    assert run(Pipeline(VEHICLE), samples) == run(Pipeline(VEHICLE), samples)
+
+
+def test_level_flight_estimate_is_consistent() -> None:
+    estimates = run(Pipeline(VEHICLE), flight(120.0))
+    last = estimates[-1]
+    assert last.speed_mps == pytest.approx(8.0, abs=0.01)
+    assert last.power_model_w == pytest.approx(float(VEHICLE.model.power_w(8.0)), rel=0.01)
+    assert last.bias == pytest.approx(1.0, abs=0.02)
+    assert not last.model_only and not last.stale
+    assert last.hover_endurance_s < last.endurance_s  # hover costs more than 8 m/s
+    assert last.vme_endurance_s >= last.endurance_s * 0.999  # V_me is the best endurance
+    assert 5.0 < last.v_me_mps < 10.0
+    assert last.range_vmr_m > 0
+    assert all(e.energy_remaining_sigma_wh > 0 and e.endurance_sigma_s > 0 for e in estimates)
+
+
+def test_no_current_sensor_runs_on_the_model_with_a_wider_sigma() -> None:
+    fused = run(Pipeline(VEHICLE), flight(120.0))[-1]
+    alone = run(Pipeline(VEHICLE), flight(120.0, current=False))[-1]
+    assert alone.model_only and not fused.model_only
+    assert alone.power_measured_w is None
+    assert alone.endurance_sigma_s > 1.5 * fused.endurance_sigma_s
+    assert alone.endurance_s == pytest.approx(fused.endurance_s, rel=0.05)
+
+
+def test_no_current_sensor_on_the_simulator_stream() -> None:
+    run_ = simulate(SimConfig(plan="hover-cruise", duration_s=90.0, seed=5))
+    decoder, p = TelemetryDecoder(), Pipeline(VEHICLE)
+    estimates = []
+    for _, msg in run_.messages:
+        if msg.get_type() in ("SYS_STATUS", "BATTERY_STATUS"):
+            msg.current_battery = -1  # the autopilot has no current sensor
+            if msg.get_type() == "BATTERY_STATUS":
+                msg.current_consumed = -1
+        for sample in decoder.decode(msg):
+            if (e := p.process(sample)) is not None:
+                estimates.append(e)
+    last = estimates[-1]
+    truth_wh = float(run_.truth.energy_remaining_wh[run_.truth.at(last.time_s)])
+    assert last.model_only
+    assert abs(last.energy_remaining_wh - truth_wh) < 2 * last.energy_remaining_sigma_wh
+
+
+def test_reboot_resets_kinematics_keeps_energy_and_follows_the_new_clock() -> None:
+    p = Pipeline(VEHICLE)
+    before = run(p, flight(100.0))[-1]
+    assert p.process(RebootSample(0.5)) is None
+    after = run(p, flight(30.0, t0=0.5)[2:])  # same vehicle, new clock, counter restarts at 0
+    assert p.counts["reboot"] == 1
+    assert after[0].time_s < 1.0
+    assert after[-1].energy_remaining_wh < before.energy_remaining_wh
+    assert after[-1].energy_remaining_wh > before.energy_remaining_wh - 5.0
+    assert math.isfinite(after[-1].endurance_s)
+
+
+def test_disarmed_vehicle_draws_no_model_power() -> None:
+    p = Pipeline(VEHICLE)
+    run(p, flight(10.0))
+    p.process(ArmedSample(10.0, False))
+    estimate = p.process(VelocitySample(10.1, 0.0, 0.0, 0.0))
+    assert estimate is not None and estimate.power_model_w == 0.0
+    assert math.isinf(estimate.endurance_s)
+
+
+def test_old_battery_data_marks_the_estimate_stale() -> None:
+    p = Pipeline(VEHICLE, PipelineSettings(battery_stale_s=2.0))
+    run(p, flight(10.0))
+    estimate = p.process(VelocitySample(15.0, 8.0, 0.0, 0.0))
+    assert estimate is not None and estimate.stale
+
+
+def test_vehicle_effects_go_through_the_one_power_prediction() -> None:
+    with_load = replace(VEHICLE, effects={"avionics": {"power_w": 50.0}})
+    base = run(Pipeline(VEHICLE), flight(20.0))[-1]
+    loaded = run(Pipeline(with_load), flight(20.0))[-1]
+    assert loaded.power_model_w == pytest.approx(base.power_model_w + 50.0, abs=0.5)
+
+
+def test_out_of_order_samples_are_counted_and_skipped() -> None:
+    p = Pipeline(VEHICLE)
+    run(p, flight(5.0))
+    assert p.process(VelocitySample(1.0, 1.0, 0.0, 0.0)) is None
+    assert p.process(BatterySample(1.0, FULL_V, 1.0, 1.0)) is None
+    assert p.counts["velocity_out_of_order"] == 1 and p.counts["battery_out_of_order"] == 1
