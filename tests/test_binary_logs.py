@@ -124,6 +124,14 @@ def test_dataflash_unknown_values_become_none_and_other_batteries_are_ignored(
     assert [(a.time_s, a.armed) for a in _of(samples, ArmedSample)] == [(0.5, True), (4.0, False)]
 
 
+def test_dataflash_old_curr_message_gives_volts_and_amps(tmp_path: Path) -> None:
+    log = DataFlashWriter()
+    log.define("CURR")  # Copter 3.3: Volt and Curr as integer centivolts / centiamps
+    log.write("CURR", TimeUS=1_000_000, Volt=1187, Curr=1234, Vcc=5000, CurrTot=150.5)
+    samples, _ = _read(log.save(tmp_path / "curr.bin"))
+    assert samples == [BatterySample(1.0, 11.87, 12.34, 150.5, None)]
+
+
 def test_dataflash_truncated_file_reads_up_to_the_damage(tmp_path: Path, truth: Truth) -> None:
     data = write_bin(tmp_path / "f.bin", truth).read_bytes()
     cut = tmp_path / "cut.bin"

@@ -9,7 +9,8 @@ record's ``TimeUS`` (µs since the autopilot's boot) / 1e6. What is used:
   only) with altitude above the first fix;
 - battery: ``BAT`` instance 0: ``Volt`` (V), ``Curr`` (A), ``CurrTot`` (mAh), ``RemPct`` (%);
   ArduPilot logs NaN for values it does not know: they become ``None`` (no usable voltage
-  drops the record);
+  drops the record). Logs older than ``BAT`` (Copter ≤ 3.3) have ``CURR``, whose integer
+  ``Volt``/``Curr`` columns are centivolts / centiamps;
 - armed state: ``ARM.ArmState``, or ``EV`` ids 10 (armed) / 11 (disarmed) in older logs.
 
 Counters, final after iteration: ``skipped`` (records with unusable values, or older than
@@ -48,6 +49,7 @@ REORDER_WINDOW_S = 0.5
 #: Records parsed between yields (pymavlink's stderr diagnostics are silenced per batch).
 _BATCH = 2000
 _BAT_INSTANCE_COLUMNS = ("Inst", "Instance", "I")
+_INTEGER_CHARS = frozenset("bBhHiI")
 FMT_TYPE = 0x80
 
 
@@ -76,7 +78,8 @@ class _Decoder:
         self._ekf_core: int | None = None
         self._gps_alt0_m: float | None = None
         self._armed: bool | None = None
-        self._bat_instance = _column(log, "BAT", _BAT_INSTANCE_COLUMNS)
+        self._battery_type = "BAT" if self._count("BAT") > 0 else "CURR"
+        self._bat_instance = _column(log, self._battery_type, _BAT_INSTANCE_COLUMNS)
 
     # -- reading -------------------------------------------------------------------------------
 
@@ -86,7 +89,7 @@ class _Decoder:
 
     def samples(self) -> Iterator[Sample]:
         self._check_framing()
-        wanted = {t for t in ("BAT", "ARM") if self._count(t) > 0}
+        wanted = {t for t in (self._battery_type, "ARM") if self._count(t) > 0}
         if "ARM" not in wanted and self._count("EV") > 0:
             wanted.add("EV")
         if self._velocity_type is not None:
@@ -171,15 +174,15 @@ class _Decoder:
     def _battery(self, msg: Any) -> Sample | None:
         if self._bat_instance is not None and getattr(msg, self._bat_instance) != 0:
             return None
-        voltage_v = msg.Volt
+        voltage_v = _centi_if_integer(msg, "Volt")
         if not math.isfinite(voltage_v) or voltage_v <= 0.0:
             self._stream.skipped += 1
             return None
-        remaining = getattr(msg, "RemPct", None) if "RemPct" in msg.fmt.colhash else None
+        remaining = msg.RemPct if "RemPct" in msg.fmt.colhash else None
         return BatterySample(
             msg.TimeUS / 1e6,
             voltage_v,
-            _finite(msg.Curr),
+            _finite(_centi_if_integer(msg, "Curr")),
             _finite(msg.CurrTot),
             float(remaining) if remaining is not None and 0 <= remaining <= 100 else None,
         )
@@ -204,6 +207,7 @@ _HANDLERS = {
     "NKF1": _Decoder._ekf,
     "GPS": _Decoder._gps,
     "BAT": _Decoder._battery,
+    "CURR": _Decoder._battery,
     "ARM": _Decoder._arm,
     "EV": _Decoder._event,
 }
@@ -252,6 +256,12 @@ def _column(log: _DataFlashIndex, name: str, candidates: tuple[str, ...]) -> str
         return None
     columns = log.formats[type_id].colhash
     return next((c for c in candidates if c in columns), None)
+
+
+def _centi_if_integer(msg: Any, column: str) -> float:
+    """A volt or amp column: old logs store them as integer centi-units."""
+    value = float(getattr(msg, column))
+    return value / 100.0 if msg.fmt.format[msg.fmt.colhash[column]] in _INTEGER_CHARS else value
 
 
 def _finite(value: float) -> float | None:
