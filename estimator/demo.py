@@ -1,0 +1,459 @@
+"""The live demo: the simulator flies a mission with a hidden wind into the daemon over loopback.
+
+:func:`run_demo` simulates a mission (a built-in plan followed by an endless cruise leg, flown
+for ``duration_s``) with a wind the estimator is not told about, plays it over a real TCP
+socket on 127.0.0.1 (the simulator serves like ArduPilot SITL's tcp:5760) into a
+:class:`~estimator.service.Service` — the daemon itself, in this process — and reads the
+daemon's JSON estimates from a UDP socket, as any onboard consumer would. A rich table on
+stderr shows predicted vs measured power and remaining energy / endurance ± σ against the
+simulator's truth. It ends with a :class:`DemoSummary`:
+
+- power: the model's prediction vs measured V·I while airborne (RMSE, MAPE) and the energies
+  both integrate to, from a replay of the tlog the flight wrote (the definitions of
+  :mod:`estimator.replay`; the replay gives the daemon's numbers, which the SITL tests check);
+- remaining energy vs the truth (error at the end, RMS, share of estimates within 1σ);
+- endurance at a few points of the final cruise vs the truth's time left to the reserve (the
+  simulator continues the cruise past the flight to find it);
+- the wind's cost: energy the model did not predict, and how much earlier the reserve comes
+  than in the same mission without wind (a truth-only simulation).
+
+:func:`serve_flight` and :func:`fly_live` are the loopback plumbing the SITL tests share.
+"""
+
+from __future__ import annotations
+
+import asyncio
+import contextlib
+import json
+import math
+import time
+from collections.abc import Callable
+from dataclasses import dataclass, field, replace
+from pathlib import Path
+from typing import Any, BinaryIO
+
+import numpy as np
+from rich import box
+from rich.console import Console, Group
+from rich.live import Live
+from rich.table import Table
+from rich.text import Text
+
+from estimator.config import ServiceConfig, validate
+from estimator.effects import Wind
+from estimator.logs import iter_samples
+from estimator.mavlink_io import MavlinkLink, open_link
+from estimator.replay import AIRBORNE_ALT_M, replay_stream, summarize
+from estimator.service import OWN_COMPONENT, Service
+from estimator.sim import SimConfig, SimRun, SimTruth, simulate, write_truth_csv
+from estimator.sim_link import SimPlayer
+from estimator.sim_plans import Leg, Plan, builtin_plan
+from estimator.vehicle import Vehicle, default_vehicle
+
+#: The demo's hidden wind: 6 m/s from 030°, a head-wind component on the 045° cruise.
+DEFAULT_WIND = Wind(speed_mps=6.0, from_deg=30.0)
+CRUISE_SPEED_MPS = 10.0
+CRUISE_HEADING_DEG = 45.0
+#: Seconds into the final cruise at which endurance is scored against the truth.
+ENDURANCE_CHECKS_S = (10.0, 30.0, 60.0, 120.0)
+#: Seconds of simulated flight between two history rows of the live table.
+TABLE_ROW_EVERY_S = 30.0
+#: Wall seconds to wait for the daemon's first HEARTBEAT (it reconnects every second).
+DAEMON_WAIT_S = 20.0
+#: Wall seconds without a new estimate after playback that mean the daemon is done.
+QUIET_S = 0.5
+
+Row = dict[str, Any]
+
+
+# -- loopback plumbing (shared with tests/test_sitl.py) ---------------------------------------
+
+
+async def wait_for_daemon(link: MavlinkLink, timeout_s: float = DAEMON_WAIT_S) -> None:
+    """Return once a HEARTBEAT of component 191 arrives on ``link`` (TimeoutError if not)."""
+    async with asyncio.timeout(timeout_s):
+        while True:
+            received = await link.recv()
+            if not received and link.closed:
+                raise ConnectionError("link closed before the daemon connected")
+            if any(
+                m.get_type() == "HEARTBEAT" and m.get_srcComponent() == OWN_COMPONENT
+                for m in received
+            ):
+                return
+
+
+async def serve_flight(
+    run: SimRun,
+    link: MavlinkLink,
+    speedup: float,
+    tlog: Path | None = None,
+    on_progress: Callable[[float], None] | None = None,
+) -> SimPlayer:
+    """Wait for the daemon on ``link`` (opened as system 1 component 1), then play ``run``;
+    ``tlog`` receives the messages actually sent, and the truth beside it (.truth.csv)."""
+    await wait_for_daemon(link)
+    fh: BinaryIO | None = None
+    try:
+        if tlog is not None:
+            tlog.parent.mkdir(parents=True, exist_ok=True)
+            fh = tlog.open("wb")
+        player = SimPlayer(run, link, speedup, fh, on_progress)
+        await player.play()
+    finally:
+        if fh is not None:
+            fh.close()
+    if tlog is not None:
+        write_truth_csv(run, tlog.with_name(tlog.stem + ".truth.csv"))
+    return player
+
+
+class _JsonLines(asyncio.DatagramProtocol):
+    """Collects the daemon's JSON estimates (one per datagram)."""
+
+    def __init__(self, on_row: Callable[[Row], None] | None) -> None:
+        self.rows: list[Row] = []
+        self.last_wall_s = time.monotonic()
+        self.on_row = on_row
+
+    def datagram_received(self, data: bytes, addr: Any) -> None:
+        row = json.loads(data)
+        self.rows.append(row)
+        self.last_wall_s = time.monotonic()
+        if self.on_row is not None:
+            self.on_row(row)
+
+
+@dataclass
+class LiveFlight:
+    """What the daemon published during one loopback flight."""
+
+    estimates: list[Row]
+    counters: dict[str, int]
+    sent: int
+    wall_s: float
+
+
+async def fly_live(
+    run: SimRun,
+    speedup: float,
+    *,
+    vehicle: Vehicle | None = None,
+    tlog: Path | None = None,
+    publish: tuple[str, ...] = (),
+    publish_rate_hz: float = 1.0,
+    on_estimate: Callable[[Row], None] | None = None,
+    on_progress: Callable[[float], None] | None = None,
+) -> LiveFlight:
+    """Simulator (tcpin on an ephemeral port) → in-process daemon (tcp client, as to
+    ArduPilot SITL) → JSON estimates over UDP, all on 127.0.0.1. ``publish`` adds the daemon's
+    MAVLink output links (e.g. towards a test's ground station)."""
+    loop = asyncio.get_running_loop()
+    sim_link = await open_link("tcpin:127.0.0.1:0", source_system=1, source_component=1)
+    json_transport, sink = await loop.create_datagram_endpoint(
+        lambda: _JsonLines(on_estimate), local_addr=("127.0.0.1", 0)
+    )
+    json_port = json_transport.get_extra_info("sockname")[1]
+    sim_address = sim_link.local_address
+    assert sim_address is not None
+    config = ServiceConfig(
+        connect=f"tcp:127.0.0.1:{sim_address[1]}",
+        publish=publish,
+        publish_rate_hz=publish_rate_hz,
+        json=f"udp:127.0.0.1:{json_port}",
+        log_level="warning",
+    )
+    validate(config)
+    service = Service(config, vehicle or default_vehicle())
+    stop = asyncio.Event()
+    daemon = loop.create_task(service.run(stop))
+    start = time.monotonic()
+    try:
+        player = await serve_flight(run, sim_link, speedup, tlog, on_progress)
+        while time.monotonic() - sink.last_wall_s < QUIET_S and not daemon.done():
+            await asyncio.sleep(QUIET_S / 5)
+    finally:
+        stop.set()
+        with contextlib.suppress(asyncio.CancelledError):
+            await daemon
+        await sim_link.close()
+        json_transport.close()
+    return LiveFlight(
+        sink.rows, service.counters(), player.counts["sent"], time.monotonic() - start
+    )
+
+
+# -- the mission and its scoring ----------------------------------------------------------------
+
+
+def demo_plan(base: str = "mixed") -> Plan:
+    """A built-in plan, then an endless cruise at 10 m/s towards 045° (the endurance check)."""
+    plan = builtin_plan(base)
+    cruise = Leg("straight", CRUISE_SPEED_MPS, heading_deg=CRUISE_HEADING_DEG)
+    return replace(plan, name=f"{base}+cruise", legs=(*plan.legs, cruise))
+
+
+def cruise_start_s(truth: SimTruth, speed_mps: float = CRUISE_SPEED_MPS) -> float:
+    """Start (autopilot s) of the final steady flight at ``speed_mps``: the last time the
+    ground speed was more than 0.3 m/s off it. NaN if the flight does not end cruising."""
+    off = np.nonzero(np.abs(truth.speed_mps - speed_mps) > 0.3)[0]
+    if len(off) == 0:
+        return float(truth.time_s[0])
+    if off[-1] >= len(truth.time_s) - 1:
+        return math.nan
+    return float(truth.time_s[off[-1] + 1])
+
+
+@dataclass(frozen=True)
+class EnduranceCheck:
+    """Endurance ``after_s`` into the final cruise: estimate ± 1σ vs the truth, s."""
+
+    after_s: float
+    estimate_s: float
+    sigma_s: float
+    truth_s: float
+
+    @property
+    def error_pct(self) -> float:
+        return 100.0 * (self.estimate_s - self.truth_s) / self.truth_s
+
+
+@dataclass(frozen=True)
+class DemoSummary:
+    """The demo's accuracy figures. Powers W, energies Wh, times s (autopilot clock)."""
+
+    plan: str
+    wind: str
+    speedup: float
+    flight_s: float
+    wall_s: float
+    estimates: int
+    power_rmse_w: float | None
+    power_mape_pct: float | None
+    energy_measured_wh: float
+    energy_predicted_wh: float
+    energy_error_end_wh: float
+    energy_error_rms_wh: float
+    energy_within_1sigma_pct: float
+    final_bias: float
+    endurance: tuple[EnduranceCheck, ...]
+    reserve_s: float
+    reserve_without_wind_s: float
+    counters: dict[str, int] = field(default_factory=dict)
+
+    @property
+    def wind_cost_wh(self) -> float:
+        """Energy drawn beyond what the (windless) model predicted while airborne."""
+        return self.energy_measured_wh - self.energy_predicted_wh
+
+    @property
+    def wind_cost_reserve_s(self) -> float:
+        """How much earlier the reserve is reached than without the wind (truth)."""
+        return self.reserve_without_wind_s - self.reserve_s
+
+
+def score(
+    run: SimRun, rows: list[Row], tlog: Path, vehicle: Vehicle, without_wind: SimRun
+) -> dict[str, Any]:
+    """The summary figures of one live flight (see the module docstring)."""
+    truth = run.truth
+    t = np.array([r["time_s"] for r in rows], dtype=float)
+    k = truth.at(t)
+    energy = np.array([r["energy_remaining_wh"] for r in rows], dtype=float)
+    sigma = np.array([r["energy_remaining_sigma_wh"] for r in rows], dtype=float)
+    error = energy - truth.energy_remaining_wh[k]
+    flight = replay_stream(iter_samples(tlog), vehicle, tlog.stem)
+    power = summarize([flight])
+    start = cruise_start_s(truth)
+    checks = []
+    for after in ENDURANCE_CHECKS_S:
+        at = start + after
+        if not math.isfinite(at) or at > t[-1]:
+            continue
+        i = int(np.searchsorted(t, at))
+        checks.append(
+            EnduranceCheck(
+                after_s=after,
+                estimate_s=float(rows[i]["endurance_s"]),
+                sigma_s=float(rows[i]["endurance_sigma_s"]),
+                truth_s=float(truth.time_to_reserve_s[k[i]]),
+            )
+        )
+    airborne = truth.flying[k] & (truth.alt_m[k] > AIRBORNE_ALT_M)
+    return {
+        "power_rmse_w": power.power_rmse_w,
+        "power_mape_pct": power.power_mape_pct,
+        "energy_measured_wh": power.energy_measured_wh,
+        "energy_predicted_wh": power.energy_predicted_wh,
+        "energy_error_end_wh": float(error[-1]),
+        "energy_error_rms_wh": float(np.sqrt(np.mean(error[airborne] ** 2))),
+        "energy_within_1sigma_pct": float(100.0 * np.mean(np.abs(error) <= sigma)),
+        "final_bias": float(rows[-1]["bias"]),
+        "endurance": tuple(checks),
+        "reserve_s": run.reserve_time_s,
+        "reserve_without_wind_s": without_wind.reserve_time_s,
+    }
+
+
+# -- the live table -----------------------------------------------------------------------------
+
+
+class LiveTable:
+    """Rows every :data:`TABLE_ROW_EVERY_S` of flight plus the latest estimate, with truth."""
+
+    #: Header → meaning: time s; ground speed m/s; centripetal accel m/s²; model power,
+    #: fused (bias × model) and measured V·I in W; remaining energy estimate ± 1σ and truth
+    #: in Wh; endurance at the current power ± 1σ and the truth's time to reserve in min.
+    COLUMNS = ("t s", "V", "a⊥", "P mod", "P fus", "P meas", "E Wh ±σ", "E true", "end min", "true")
+
+    def __init__(self, run: SimRun, title: str) -> None:
+        self.run, self.title = run, title
+        self.history: list[tuple[str, ...]] = []
+        self.latest: Row | None = None
+        self._next_row_s = 0.0
+
+    def add(self, row: Row) -> None:
+        self.latest = row
+        if row["time_s"] >= self._next_row_s:
+            self.history.append(self._cells(row))
+            self._next_row_s = row["time_s"] + TABLE_ROW_EVERY_S
+
+    def _cells(self, r: Row) -> tuple[str, ...]:
+        k = int(self.run.truth.at(r["time_s"]))
+        truth = self.run.truth
+        measured = r["power_measured_w"]
+        return (
+            f"{r['time_s']:.0f}",
+            f"{r['speed_mps']:.1f}",
+            f"{r['accel_centripetal_mps2']:.1f}",
+            f"{r['power_model_w']:.0f}",
+            f"{r['bias'] * r['power_model_w']:.0f}",
+            "—" if measured is None else f"{measured:.0f}",
+            f"{r['energy_remaining_wh']:.1f}±{r['energy_remaining_sigma_wh']:.1f}",
+            f"{truth.energy_remaining_wh[k]:.1f}",
+            _minutes(r["endurance_s"], r["endurance_sigma_s"]),
+            f"{truth.time_to_reserve_s[k] / 60:.1f}",
+        )
+
+    def render(self) -> Group:
+        table = Table(
+            title=self.title,
+            title_justify="left",
+            box=box.SIMPLE_HEAD,
+            pad_edge=False,
+            collapse_padding=True,
+        )
+        for name in self.COLUMNS:
+            table.add_column(name, justify="right", no_wrap=True)
+        for cells in self.history:
+            table.add_row(*cells)
+        if self.latest is not None:
+            table.add_row(*self._cells(self.latest), style="bold")
+        duration = self.run.duration_s
+        now = 0.0 if self.latest is None else self.latest["time_s"]
+        bias = "" if self.latest is None else f"   fused bias {self.latest['bias']:.3f}"
+        return Group(table, Text(f"flight {now:.0f} / {duration:.0f} s{bias}"))
+
+
+def _minutes(value_s: float | None, sigma_s: float | None) -> str:
+    if value_s is None or not math.isfinite(value_s):
+        return "—"
+    if value_s >= 99.5 * 60:
+        return ">99"
+    sigma = "" if sigma_s is None or not math.isfinite(sigma_s) else f"±{sigma_s / 60:.1f}"
+    return f"{value_s / 60:.1f}{sigma}"
+
+
+# -- the demo -----------------------------------------------------------------------------------
+
+
+def run_demo(
+    *,
+    base_plan: str = "mixed",
+    duration_s: float = 600.0,
+    wind: Wind | None = DEFAULT_WIND,
+    speedup: float = 20.0,
+    seed: int = 0,
+    out_dir: Path = Path("out/demo"),
+    console: Console | None = None,
+) -> DemoSummary:
+    """Fly the demo mission live and score it (see the module docstring).
+
+    ``duration_s`` of flight (the plan, then the cruise); ``speedup`` × real time; the tlog
+    and truth go to ``out_dir``/demo.tlog (replay it with ``uav-energy replay``). The live
+    table goes to ``console`` (default: stderr).
+    """
+    console = console or Console(stderr=True)
+    vehicle = default_vehicle()
+    effects = () if wind is None else (wind,)
+    config = SimConfig(
+        vehicle=vehicle,
+        plan=demo_plan(base_plan),
+        effects=effects,
+        duration_s=duration_s,
+        seed=seed,
+    )
+    with console.status("simulating the mission"):
+        run = simulate(config)
+        without_wind = simulate(replace(config, effects=()))
+    wind_text = "none" if wind is None else f"{wind.speed_mps:g} m/s from {wind.from_deg:g}°"
+    table = LiveTable(
+        run, f"uav-energy demo: '{run.plan.name}', hidden wind {wind_text}, ×{speedup:g}"
+    )
+    tlog = out_dir / "demo.tlog"
+    with Live(table.render(), console=console, refresh_per_second=4, transient=False) as live:
+
+        def on_estimate(row: Row) -> None:
+            table.add(row)
+            live.update(table.render())
+
+        flight = asyncio.run(fly_live(run, speedup, tlog=tlog, on_estimate=on_estimate))
+    console.line()
+    if not flight.estimates:
+        raise RuntimeError("the daemon published no estimate")
+    figures = score(run, flight.estimates, tlog, vehicle, without_wind)
+    return DemoSummary(
+        plan=run.plan.name,
+        wind=wind_text,
+        speedup=speedup,
+        flight_s=run.duration_s,
+        wall_s=flight.wall_s,
+        estimates=len(flight.estimates),
+        counters=flight.counters,
+        **figures,
+    )
+
+
+def summary_table(summary: DemoSummary) -> Table:
+    """The accuracy summary as a rich table."""
+    s = summary
+    table = Table(title="accuracy summary", show_header=False, title_justify="left")
+    table.add_column("what")
+    table.add_column("value", justify="right")
+    rmse = "—" if s.power_rmse_w is None else f"{s.power_rmse_w:.1f} W"
+    mape = "—" if s.power_mape_pct is None else f"{s.power_mape_pct:.1f} %"
+    table.add_row("flight / wall time", f"{s.flight_s:.0f} s / {s.wall_s:.1f} s")
+    table.add_row("estimates received", f"{s.estimates}")
+    table.add_row("model power vs measured (airborne): RMSE, MAPE", f"{rmse}, {mape}")
+    table.add_row(
+        "energy: measured / model predicted",
+        f"{s.energy_measured_wh:.1f} / {s.energy_predicted_wh:.1f} Wh",
+    )
+    table.add_row("fused bias (measured / model) at the end", f"{s.final_bias:.3f}")
+    table.add_row(
+        "remaining energy vs truth: end, RMS",
+        f"{s.energy_error_end_wh:+.2f} Wh, {s.energy_error_rms_wh:.2f} Wh",
+    )
+    table.add_row("remaining energy within 1σ of truth", f"{s.energy_within_1sigma_pct:.0f} %")
+    for c in s.endurance:
+        table.add_row(
+            f"endurance {c.after_s:.0f} s into the cruise",
+            f"{c.estimate_s / 60:.2f} ± {c.sigma_s / 60:.2f} min vs {c.truth_s / 60:.2f} "
+            f"({c.error_pct:+.1f} %)",
+        )
+    table.add_row(
+        f"hidden wind ({s.wind}) cost",
+        f"{s.wind_cost_wh:+.1f} Wh unmodelled, reserve {s.wind_cost_reserve_s / 60:.1f} min "
+        "earlier",
+    )
+    return table
