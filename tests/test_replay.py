@@ -3,9 +3,12 @@
 from __future__ import annotations
 
 import argparse
+import asyncio
 import csv
 import json
 import os
+import socket
+from dataclasses import replace
 from pathlib import Path
 
 import pytest
@@ -13,10 +16,13 @@ from fixtures.flight import write_bin, write_ulg
 
 from estimator.cli import main
 from estimator.commands.replay import CSV_COLUMNS, flight_names, parse_speed
+from estimator.config import ServiceConfig
 from estimator.decode import FrameParser, TelemetryDecoder
 from estimator.logs import iter_samples
 from estimator.pipeline import Pipeline
+from estimator.publish import json_line
 from estimator.replay import replay_log, summarize
+from estimator.service import Service
 from estimator.sim import SimConfig, SimRun, simulate, tlog_records, write_tlog
 from estimator.vehicle import default_vehicle
 
@@ -77,6 +83,69 @@ def test_replay_of_a_sim_tlog_equals_the_daemons_path_over_the_same_frames(
     ]
     tlog = write_tlog(sim_run, tmp_path / "sim.tlog", truth_csv=False)
     assert live and replay_log(tlog, vehicle).estimates == live
+
+
+class _Lines(asyncio.DatagramProtocol):
+    """Collects the daemon's JSON-lines datagrams."""
+
+    def __init__(self) -> None:
+        self.lines: list[str] = []
+
+    def datagram_received(self, data: bytes, addr: object) -> None:
+        self.lines.append(data.decode())
+
+
+def _free_udp_port() -> int:
+    with socket.socket(socket.AF_INET, socket.SOCK_DGRAM) as s:
+        s.bind(("127.0.0.1", 0))
+        return int(s.getsockname()[1])
+
+
+def _tlog_frames(path: Path) -> list[bytes]:
+    """The MAVLink frames of a tlog, in order (each record: 8-byte stamp + frame)."""
+    data, frames, pos = path.read_bytes(), [], 0
+    while pos + 8 < len(data):
+        stx = data[pos + 8]
+        length = data[pos + 9] + (8 if stx == 0xFE else 12 + 13 * (data[pos + 10] & 1))
+        frames.append(data[pos + 8 : pos + 8 + length])
+        pos += 8 + length
+    return frames
+
+
+async def test_the_daemon_fed_a_logs_bytes_over_udp_publishes_the_replays_estimates() -> None:
+    """A live run of a recorded IRIS+ flight through the daemon (real UDP sockets on
+    127.0.0.1) gives the same estimates as its replay: every JSON line, byte for byte."""
+    expected = [json_line(e) for e in replay_log(IRIS_LOG, default_vehicle()).estimates]
+    loop = asyncio.get_running_loop()
+    json_port, daemon_port = _free_udp_port(), _free_udp_port()
+    listener, protocol = await loop.create_datagram_endpoint(
+        _Lines, local_addr=("127.0.0.1", json_port)
+    )
+    config = replace(
+        ServiceConfig(),
+        connect=f"udpin:127.0.0.1:{daemon_port}",
+        json=f"udp:127.0.0.1:{json_port}",
+        request_streams=False,
+        publish_rate_hz=0.0,
+    )
+    service = Service(config, default_vehicle())
+    stop = asyncio.Event()
+    task = asyncio.create_task(service.run(stop))
+    while service.link is None:
+        await asyncio.sleep(0.01)
+    with socket.socket(socket.AF_INET, socket.SOCK_DGRAM) as autopilot:
+        for i, frame in enumerate(_tlog_frames(IRIS_LOG)):
+            autopilot.sendto(frame, ("127.0.0.1", daemon_port))
+            if i % 5 == 4:  # paced: no datagram may be lost
+                await asyncio.sleep(0.002)
+        async with asyncio.timeout(20):
+            while len(protocol.lines) < len(expected):
+                await asyncio.sleep(0.02)
+    stop.set()
+    assert await asyncio.wait_for(task, 5) == 0
+    listener.close()
+    assert service.link.counts["dropped"] == 0
+    assert protocol.lines == expected
 
 
 def test_sim_flight_with_the_vehicles_own_power_replays_with_small_error(
