@@ -11,7 +11,6 @@ import math
 from dataclasses import dataclass
 
 import numpy as np
-from filterpy.kalman import KalmanFilter
 from numpy.typing import ArrayLike, NDArray
 
 from estimator.telemetry import VelocitySample
@@ -95,24 +94,45 @@ class KinematicsSettings:
     initial_accel_sigma_mps2: float = 1.0
 
 
+class _Axis:
+    """Constant-acceleration Kalman filter for one velocity axis, state [v, a], scalar math.
+
+    The covariance depends only on the time steps and noise figures, so axes with the same
+    noise could share it; keeping one per axis keeps the filter simple and exact.
+    """
+
+    __slots__ = ("a", "p_aa", "p_va", "p_vv", "v")
+
+    def __init__(self, velocity_mps: float, velocity_var: float, accel_var: float) -> None:
+        self.v, self.a = velocity_mps, 0.0
+        self.p_vv, self.p_va, self.p_aa = velocity_var, 0.0, accel_var
+
+    def step(self, dt_s: float, z_mps: float, jerk_psd: float, r_var: float) -> None:
+        """Predict over ``dt_s`` (F = [[1, dt], [0, 1]], white-jerk Q), then update with z."""
+        v = self.v + dt_s * self.a
+        p_vv = self.p_vv + 2 * dt_s * self.p_va + dt_s * dt_s * self.p_aa + jerk_psd * dt_s**3 / 3
+        p_va = self.p_va + dt_s * self.p_aa + jerk_psd * dt_s * dt_s / 2
+        p_aa = self.p_aa + jerk_psd * dt_s
+        s = p_vv + r_var
+        k_v, k_a = p_vv / s, p_va / s
+        innovation = z_mps - v
+        self.v, self.a = v + k_v * innovation, self.a + k_a * innovation
+        self.p_vv, self.p_va, self.p_aa = (1 - k_v) * p_vv, (1 - k_v) * p_va, p_aa - k_a * p_va
+
+
 class KinematicsFilter:
     """Causal constant-acceleration Kalman filter per axis (north, east, down) on velocity.
 
-    State [vn, ve, vd, an, ae, ad]; measurements are velocity samples at any, irregular rate
+    Each axis has state [v, a]; measurements are velocity samples at any, irregular rate
     (2–50 Hz). The transition and white-jerk process noise are built from each sample's own
     time step, so rates and jitter need no tuning. Gaps longer than ``max_gap_s``, time going
-    backwards, and :meth:`reset` restart the filter from the next sample.
+    backwards, and :meth:`reset` restart the filter from the next sample. Scalar arithmetic
+    per axis (no matrices): a few microseconds per sample on a companion computer.
     """
 
     def __init__(self, settings: KinematicsSettings | None = None) -> None:
         self.settings = settings or KinematicsSettings()
-        s = self.settings
-        kf = KalmanFilter(dim_x=6, dim_z=3)
-        kf.H = np.hstack([np.eye(3), np.zeros((3, 3))])
-        kf.R = np.diag(
-            [s.velocity_noise_mps**2, s.velocity_noise_mps**2, s.vertical_velocity_noise_mps**2]
-        )
-        self._kf = kf
+        self._axes: tuple[_Axis, _Axis, _Axis] | None = None
         self._last_time_s: float | None = None
         self.restarts = 0
 
@@ -123,28 +143,22 @@ class KinematicsFilter:
     def update(self, sample: VelocitySample) -> KinematicState:
         """Fold in one velocity sample and return the filtered state at its time."""
         s = self.settings
-        z = np.array([sample.vn_mps, sample.ve_mps, sample.vd_mps])
+        r_h, r_v = s.velocity_noise_mps**2, s.vertical_velocity_noise_mps**2
+        z = (sample.vn_mps, sample.ve_mps, sample.vd_mps)
         dt = None if self._last_time_s is None else sample.time_s - self._last_time_s
-        kf = self._kf
-        if dt is None or dt <= 0.0 or dt > s.max_gap_s:
+        if self._axes is None or dt is None or dt <= 0.0 or dt > s.max_gap_s:
             if self._last_time_s is not None:
                 self.restarts += 1
-            kf.x = np.concatenate([z, np.zeros(3)])
-            kf.P = np.diag(
-                np.concatenate([np.diag(kf.R), np.full(3, s.initial_accel_sigma_mps2**2)])
-            )
+            a_var = s.initial_accel_sigma_mps2**2
+            self._axes = (_Axis(z[0], r_h, a_var), _Axis(z[1], r_h, a_var), _Axis(z[2], r_v, a_var))
         else:
-            f = np.eye(6)
-            f[:3, 3:] = dt * np.eye(3)
-            q = np.zeros((6, 6))
-            idx = np.arange(3)
-            q[idx, idx] = s.jerk_psd * dt**3 / 3.0
-            q[idx, idx + 3] = q[idx + 3, idx] = s.jerk_psd * dt**2 / 2.0
-            q[idx + 3, idx + 3] = s.jerk_psd * dt
-            kf.predict(F=f, Q=q)
-            kf.update(z)
+            north, east, down = self._axes
+            north.step(dt, z[0], s.jerk_psd, r_h)
+            east.step(dt, z[1], s.jerk_psd, r_h)
+            down.step(dt, z[2], s.jerk_psd, r_v)
         self._last_time_s = sample.time_s
-        vn, ve, vd, an, ae, _ = (float(x) for x in kf.x)
+        north, east, down = self._axes
+        vn, ve, vd, an, ae = north.v, east.v, down.v, north.a, east.a
         return KinematicState(
             time_s=sample.time_s,
             vn_mps=vn,
@@ -157,5 +171,5 @@ class KinematicsFilter:
             accel_centripetal_mps2=float(centripetal_accel_mps2(vn, ve, an, ae)),
             climb_mps=-vd,
             alt_m=sample.alt_m,
-            accel_sigma_mps2=math.sqrt(0.5 * (kf.P[3, 3] + kf.P[4, 4])),
+            accel_sigma_mps2=math.sqrt(0.5 * (north.p_aa + east.p_aa)),
         )

@@ -84,7 +84,10 @@ class Estimate:
     steady_power_w: float = math.nan
 
     def as_dict(self) -> dict[str, float | bool | None]:
-        return {f.name: getattr(self, f.name) for f in fields(self)}
+        return {name: getattr(self, name) for name in _ESTIMATE_FIELDS}
+
+
+_ESTIMATE_FIELDS = tuple(f.name for f in fields(Estimate))
 
 
 class Pipeline:
@@ -108,6 +111,7 @@ class Pipeline:
         self._power_model_w = 0.0
         self._steady_power_w = 0.0
         self._time_s: float | None = None
+        self._loss_factor = 1.0
         self.v_me_mps, self.v_mr_mps, self._p_me_w, self._p_mr_w = self._characteristic_speeds()
         self._p_hover_w = float(self._predict(np.zeros(1))[0])
 
@@ -229,6 +233,7 @@ class Pipeline:
         assert self.energy.voltage is not None
         dt = 0.0 if previous is None else max(sample.time_s - previous.time_s, 0.0)
         self.energy.voltage.update(dt, self.energy.soc, sample.voltage_v, current_a)
+        self._loss_factor = self.energy.loss_factor(self.energy.bias * self._power_model_w)
         return self._emit(sample.time_s)
 
     def _reboot(self, sample: RebootSample) -> None:
@@ -244,9 +249,9 @@ class Pipeline:
         self._battery = None
 
     def _advance(self, time_s: float) -> None:
-        """Predict the energy state up to ``time_s`` at the current model power."""
-        loss = self.energy.loss_factor(self.energy.bias * self._power_model_w)
-        self.energy.predict(time_s, self._power_model_w, loss)
+        """Predict the energy state up to ``time_s`` at the current model power (the pack's
+        loss factor OCV/V is refreshed with each battery sample: it changes slowly)."""
+        self.energy.predict(time_s, self._power_model_w, self._loss_factor)
         self._time_s = time_s
 
     def _emit(self, time_s: float) -> Estimate:
