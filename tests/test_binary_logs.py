@@ -5,6 +5,7 @@ from __future__ import annotations
 import itertools
 import math
 import os
+import random
 from pathlib import Path
 
 import numpy as np
@@ -212,3 +213,40 @@ def test_ulog_with_a_bad_header_is_a_user_error(tmp_path: Path) -> None:
     bad.write_bytes(b"ULog\x00\x00")
     with pytest.raises(UserError, match="not a readable PX4 ULog"):
         iter_samples(bad)
+
+
+# -- damaged files: a counted skip or one UserError, never anything else ------------------------
+
+
+def _damaged(data: bytes, rng: random.Random) -> bytes:
+    """The log cut short, with bytes overwritten, with junk spliced in, or with a zeroed run."""
+    b = bytearray(data)
+    mode = rng.choice(["cut", "flip", "splice", "zero"])
+    at = rng.randrange(1, len(b))
+    if mode == "cut":
+        return bytes(b[:at])
+    if mode == "flip":
+        for _ in range(rng.randrange(1, 50)):
+            b[rng.randrange(len(b))] = rng.randrange(256)
+    elif mode == "splice":
+        b[at:at] = bytes(rng.randrange(256) for _ in range(rng.randrange(1, 300)))
+    else:
+        n = rng.randrange(1, 2000)
+        b[at : at + n] = bytes(len(b[at : at + n]))
+    return bytes(b)
+
+
+@pytest.mark.parametrize("writer", [write_bin, write_ulg], ids=["dataflash", "ulog"])
+def test_damaged_logs_read_in_time_order_or_fail_with_a_user_error(
+    tmp_path: Path, truth: Truth, writer: object
+) -> None:
+    data = writer(tmp_path / "whole", truth).read_bytes()  # type: ignore[operator]
+    rng = random.Random(7)
+    for case in range(40):
+        path = tmp_path / f"damaged{case}"
+        path.write_bytes(_damaged(data, rng))
+        try:
+            samples, _ = _read(path)
+        except UserError:
+            continue
+        assert _in_time_order(samples), case

@@ -25,7 +25,6 @@ import heapq
 import io
 import math
 import os
-import struct
 import sys
 from collections.abc import Iterator
 from pathlib import Path
@@ -100,7 +99,7 @@ class _Decoder:
         done = not wanted
         while not done:
             batch = []
-            with contextlib.redirect_stderr(io.StringIO()):
+            with _quiet_python_output():
                 for _ in range(_BATCH):
                     msg = self._log.recv_match(type=wanted, strict=True)
                     if msg is None:
@@ -108,7 +107,11 @@ class _Decoder:
                         break
                     batch.append(msg)
             for msg in batch:
-                sample = _HANDLERS[msg.get_type()](self, msg)
+                try:
+                    sample = _HANDLERS[msg.get_type()](self, msg)
+                except (AttributeError, KeyError, TypeError, ValueError):
+                    self._stream.bad_frames += 1  # a corrupt FMT left the record unreadable
+                    continue
                 if sample is None:
                     continue
                 if sample.time_s < last_out_s:
@@ -214,16 +217,16 @@ _HANDLERS = {
 
 
 def _open(path: Path) -> _DataFlashIndex:
+    if path.is_dir():
+        raise UserError(f"log {path} is a directory, not a file")
+    if not path.exists():
+        raise UserError(f"log {path} does not exist")
+    if path.stat().st_size == 0:
+        raise UserError(f"log {path} is empty")
     try:
-        if path.is_dir():
-            raise UserError(f"log {path} is a directory, not a file")
-        if path.stat().st_size == 0:
-            raise UserError(f"log {path} is empty")
-        with _quiet_stderr():
+        with _quiet_stderr(), _quiet_python_output():
             log = _DataFlashIndex(str(path))
-    except FileNotFoundError:
-        raise UserError(f"log {path} does not exist") from None
-    except (OSError, ValueError, KeyError, struct.error) as exc:
+    except Exception as exc:  # pymavlink raises plain Exception on corrupt FMT records
         raise UserError(f"cannot read DataFlash log {path}: {exc}") from None
     if not any(log.counts[t] for t in log.formats if t != FMT_TYPE):
         log.close()
@@ -241,12 +244,21 @@ def _quiet_stderr() -> Iterator[None]:
     sys.stderr.flush()
     saved = os.dup(2)
     try:
-        with open(os.devnull, "w") as devnull, contextlib.redirect_stderr(io.StringIO()):
+        with open(os.devnull, "w") as devnull:
             os.dup2(devnull.fileno(), 2)
             yield
     finally:
         os.dup2(saved, 2)
         os.close(saved)
+
+
+@contextlib.contextmanager
+def _quiet_python_output() -> Iterator[None]:
+    """pymavlink's Python diagnostics go to sys.stdout and sys.stderr: keep them out of our
+    output (``--json`` owns stdout). Held only while pymavlink code runs, never across a
+    yield to the caller."""
+    with contextlib.redirect_stdout(io.StringIO()), contextlib.redirect_stderr(io.StringIO()):
+        yield
 
 
 def _column(log: _DataFlashIndex, name: str, candidates: tuple[str, ...]) -> str | None:

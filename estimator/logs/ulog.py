@@ -143,18 +143,31 @@ def _opt(value: float) -> float | None:
     return float(value) if np.isfinite(value) and value >= 0.0 else None
 
 
+#: Fields each topic needs; a topic whose (damaged) format lacks them is not used.
+_NEEDED = {
+    "vehicle_status": ("timestamp", "arming_state"),
+    "vehicle_local_position": ("timestamp", "vx", "vy", "vz", "z"),
+    "battery_status": ("timestamp", "voltage_v"),
+}
+
+
 def _samples(ulog: ULog, stream: SampleStream) -> Iterator[Sample]:
-    parts: list[list[Sample]] = []
-    status = _dataset(ulog, "vehicle_status")
-    if status is not None and "arming_state" in status:
-        parts.append(_arming(status))
-    position = _dataset(ulog, "vehicle_local_position")
-    if position is not None:
-        parts.append(_velocities(position, stream))
-    battery = _dataset(ulog, "battery_status")
-    if battery is not None:
-        parts.append(_batteries(battery, stream))
-    merged = [s for part in parts for s in part]
+    readers = (
+        ("vehicle_status", lambda d: _arming(d)),
+        ("vehicle_local_position", lambda d: _velocities(d, stream)),
+        ("battery_status", lambda d: _batteries(d, stream)),
+    )
+    merged: list[Sample] = []
+    # values of a damaged file may not convert cleanly: they are dropped as non-finite
+    with np.errstate(all="ignore"):
+        for topic, read in readers:
+            data = _dataset(ulog, topic)
+            if data is None:
+                continue
+            if not all(name in data for name in _NEEDED[topic]):
+                stream.bad_frames += 1
+                continue
+            merged.extend(read(data))
     # stable sort: at equal times the arming state comes first, then velocity, then battery
     merged.sort(key=lambda s: s.time_s)
     yield from merged
