@@ -25,7 +25,9 @@ Method
    selected set and scored by its held-out predictions. The held-out squared errors of the
    current and the extended model are summed per evaluation block of ``block_s`` seconds and
    compared pairwise over the blocks (a Diebold–Mariano test: mean block gain over its standard
-   error, blocks being long enough to be nearly independent). A candidate qualifies when
+   error; 5 s blocks are several times the 1–2 s correlation time of telemetry noise, so block
+   gains are nearly independent, and short enough that an effect seen only in turns or in
+   accelerations still spans many blocks). A candidate qualifies when
    z > ``z_threshold`` (3: one-sided p ≈ 0.001, ≈ 1 % family-wise over the candidates) *and*
    it cuts the held-out RMSE by at least ``min_gain_fraction``; the best qualifying one is
    added; selection stops when none qualifies. On clean data nothing qualifies.
@@ -84,7 +86,7 @@ class ResidualOptions:
     """Settings of the analysis (SI units); see the module docstring."""
 
     folds: int = 5
-    block_s: float = 20.0
+    block_s: float = 5.0
     guard_s: float = 5.0
     z_threshold: float = 3.0
     min_gain_fraction: float = 0.01
@@ -448,8 +450,11 @@ class _Problem:
         )
 
 
-def _fit_terms(problem: _Problem, terms: list[Term], f_scale_w: float) -> list[Term]:
-    """Joint least squares of all terms' x (step times held); multi-start where given."""
+def _fit_terms(
+    problem: _Problem, terms: list[Term], f_scale_w: float, warm: frozenset[str] = frozenset()
+) -> list[Term]:
+    """Joint least squares of all terms' x (step times held); multi-start where given,
+    except for terms whose label is in ``warm`` (their x is already a good start)."""
     if not terms:
         return terms
     sizes = [len(t.x) for t in terms]
@@ -468,6 +473,8 @@ def _fit_terms(problem: _Problem, terms: list[Term], f_scale_w: float) -> list[T
 
     starts = [np.concatenate([t.x for t in terms])]
     for i, term in enumerate(terms):
+        if term.candidate.label in warm:
+            continue
         for s in term.candidate.starts:
             x = starts[0].copy()
             k = sum(sizes[:i])
@@ -536,11 +543,21 @@ def _search_step(
     return float(fine[k] if len(before) == 0 else 0.5 * (before[-1] + fine[k]))
 
 
-def fit_design(problem: _Problem, candidates: Sequence[Candidate], f_scale_w: float) -> list[Term]:
-    """Fit ``candidates`` together: continuous ones first, then each step time, then all."""
-    terms = [Term(c, np.asarray(c.x0, dtype=float)) for c in candidates]
+def fit_design(
+    problem: _Problem,
+    candidates: Sequence[Candidate],
+    f_scale_w: float,
+    warm: dict[str, FloatArray] | None = None,
+) -> list[Term]:
+    """Fit ``candidates`` together: continuous ones first, then each step time, then all.
+
+    ``warm``: starting x by candidate label (e.g. from the previous selection step).
+    """
+    warm = warm or {}
+    terms = [Term(c, np.asarray(warm.get(c.label, c.x0), dtype=float)) for c in candidates]
+    known = frozenset(warm)
     steady = [i for i, t in enumerate(terms) if not t.candidate.stepped]
-    fitted = _fit_terms(problem, [terms[i] for i in steady], f_scale_w)
+    fitted = _fit_terms(problem, [terms[i] for i in steady], f_scale_w, known)
     for i, term in zip(steady, fitted, strict=True):
         terms[i] = term
     resolved = list(steady)
@@ -549,7 +566,7 @@ def fit_design(problem: _Problem, candidates: Sequence[Candidate], f_scale_w: fl
             others = [terms[k] for k in resolved]
             term.at_s = _search_step(problem, others, term, f_scale_w)
             resolved.append(i)
-    return _fit_terms(problem, terms, f_scale_w)
+    return _fit_terms(problem, terms, f_scale_w, known)
 
 
 # -- selection --------------------------------------------------------------------------------
@@ -707,6 +724,7 @@ def _held_out(
     candidates: Sequence[Candidate],
     opt: ResidualOptions,
     f_scale_w: float,
+    warm: dict[str, FloatArray],
 ) -> tuple[FloatArray, list[list[Term]]]:
     """Held-out predictions of the design ``candidates`` and the terms fitted in each fold."""
     predicted = np.empty(len(samples))
@@ -716,7 +734,7 @@ def _held_out(
         if not test.any():
             continue
         train = samples.train_rows(j, opt.guard_s)
-        terms = fit_design(_Problem(vehicle, samples, train), candidates, f_scale_w)
+        terms = fit_design(_Problem(vehicle, samples, train), candidates, f_scale_w, warm)
         predicted[test] = _Problem(vehicle, samples, test).predict([t.effect() for t in terms])
         per_fold.append(terms)
     return predicted, per_fold
@@ -751,6 +769,7 @@ def analyze(
     f_scale_w = _robust_scale_w(samples.power_w - before)
     remaining = candidates_for(vehicle, samples, opt.candidates)
     chosen: list[Candidate] = []
+    warm: dict[str, FloatArray] = {}
     current = before
     selected: list[Selected] = []
     table: list[CandidateScore] = []
@@ -762,7 +781,7 @@ def analyze(
         for k, cand in enumerate(remaining):
             if progress is not None:
                 progress(f"step {step}: {cand.label} ({k + 1}/{len(remaining)})")
-            predicted, folds = _held_out(vehicle, samples, [*chosen, cand], opt, f_scale_w)
+            predicted, folds = _held_out(vehicle, samples, [*chosen, cand], opt, f_scale_w, warm)
             rmse = float(np.sqrt(np.mean((samples.power_w - predicted) ** 2)))
             gain = 1.0 - rmse / rmse_now if rmse_now > 0 else 0.0
             z = _block_gain_z(samples, samples.power_w - current, samples.power_w - predicted)
@@ -776,7 +795,8 @@ def analyze(
         rmse, z, _, cand, predicted, folds = min(good, key=lambda t: t[0])
         chosen.append(cand)
         current = predicted
-        final = fit_design(_Problem(vehicle, samples, everything), chosen, f_scale_w)
+        final = fit_design(_Problem(vehicle, samples, everything), chosen, f_scale_w, warm)
+        warm = {t.candidate.label: t.x for t in final}
         fold_effects = [terms[-1].effect() for terms in folds]
         selected.append(
             Selected(cand.name, final[-1].effect(), rmse, z, _fold_sd(fold_effects, final[-1]))
