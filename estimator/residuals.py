@@ -71,6 +71,7 @@ from estimator.errors import UserError
 from estimator.kinematics import centripetal_accel_mps2, tangential_accel_mps2
 from estimator.logs import FlightSeries
 from estimator.model import SEA_LEVEL_DENSITY_KGPM3
+from estimator.online_effects import wind_from_vector
 from estimator.vehicle import Vehicle
 
 FloatArray = NDArray[np.float64]
@@ -329,9 +330,7 @@ class Candidate:
 
 def _wind(x: FloatArray, _at: float | None) -> Effect:
     """x = air-mass velocity over ground (north, east), m/s."""
-    speed = float(math.hypot(x[0], x[1]))
-    from_deg = float(math.degrees(math.atan2(-x[1], -x[0])) % 360.0) if speed > 0 else 0.0
-    return Wind(speed_mps=speed, from_deg=from_deg)
+    return wind_from_vector(float(x[0]), float(x[1]))
 
 
 def candidates_for(vehicle: Vehicle, samples: Samples, names: Sequence[str]) -> list[Candidate]:

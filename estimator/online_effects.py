@@ -1,0 +1,292 @@
+"""Online tracking of the effects that change during a flight: wind and mass.
+
+:class:`OnlineEffects` is a small causal unscented Kalman filter (filterpy) over the state
+
+    x = [w_n, w_e, δm]   air-mass velocity over ground (NED north/east, m/s) and the mass
+                          difference from the vehicle file (kg),
+
+each a random walk, observed through the measured electrical power: z = P(state; x) with
+:func:`estimator.effects.predict_power_w` (the vehicle's model, its other effects, and
+``Wind``/``Mass`` built from x). It starts from the vehicle file's ``[effects.wind]`` and
+``[effects.mass]`` (as written by ``uav-energy residuals --write``) and follows them as the
+flight goes on: a changing wind, a payload picked up or dropped.
+
+Robustness: the measurement noise is an absolute floor plus a fraction of the power plus the
+kinetic term's uncertainty (m·V·σ_a from the kinematics filter); an innovation beyond
+``gate_sigma`` standard deviations is not used (counted in ``rejected``); when the recent
+normalised innovations keep one sign (their mean over ``change_window`` samples is more than
+``change_sigma`` standard errors from 0) the state uncertainty is widened so the filter can
+follow a step (``changes`` counts these).
+
+Identifiability: wind direction needs flight in more than one direction; in hover only the
+wind speed is seen, and a hover power offset is shared between wind and mass until the vehicle
+moves. The filter carries this in its covariance (``sigma``).
+"""
+
+from __future__ import annotations
+
+import math
+from collections import deque
+from collections.abc import Iterable, Sequence
+from dataclasses import dataclass
+
+import numpy as np
+from filterpy.kalman import MerweScaledSigmaPoints, UnscentedKalmanFilter
+
+from estimator.effects import Effect, FlightState, Mass, Wind, effects_from_tables, predict_power_w
+from estimator.kinematics import KinematicsFilter, KinematicState
+from estimator.model import PowerModel
+from estimator.telemetry import ArmedSample, BatterySample, RebootSample, Sample, VelocitySample
+from estimator.vehicle import Vehicle
+
+#: Below this height over home (m) the vehicle is on the ground (no update).
+AIRBORNE_ALT_M = 1.0
+
+
+def wind_from_vector(wn_mps: float, we_mps: float) -> Wind:
+    """The :class:`Wind` whose air mass moves over ground at (north, east) m/s."""
+    speed = math.hypot(wn_mps, we_mps)
+    from_deg = math.degrees(math.atan2(-we_mps, -wn_mps)) % 360.0 if speed > 0 else 0.0
+    return Wind(speed_mps=speed, from_deg=from_deg)
+
+
+@dataclass(frozen=True)
+class OnlineSettings:
+    """Tuning (SI units). Process noises are random-walk densities per √s."""
+
+    wind_walk_mps_per_sqrt_s: float = 0.03
+    mass_walk_kg_per_sqrt_s: float = 0.002
+    initial_wind_sigma_mps: float = 3.0
+    initial_mass_sigma_fraction: float = 0.15
+    power_noise_w: float = 5.0
+    power_noise_fraction: float = 0.03
+    gate_sigma: float = 5.0
+    change_window: int = 10
+    change_sigma: float = 4.0
+    #: Mass may not drop below this fraction of the vehicle file's.
+    min_mass_fraction: float = 0.3
+
+
+class OnlineEffects:
+    """Causal tracker of wind and mass from flight state and measured power.
+
+    ``update`` takes one power measurement with the flight state at that instant and returns
+    the effects to use now: ``effects`` minus any wind/mass, plus the tracked ``Wind`` and
+    ``Mass`` (in the stage order of :mod:`estimator.effects`).
+    """
+
+    def __init__(
+        self,
+        model: PowerModel,
+        mass_kg: float,
+        effects: Sequence[Effect] = (),
+        settings: OnlineSettings | None = None,
+    ) -> None:
+        self.model, self.mass_kg = model, float(mass_kg)
+        self.settings = s = settings or OnlineSettings()
+        wind = next((e for e in effects if isinstance(e, Wind)), Wind())
+        mass = next((e for e in effects if isinstance(e, Mass)), Mass())
+        self.others = tuple(e for e in effects if not isinstance(e, Wind | Mass))
+        wn, we = wind.vector_ne_mps()
+        # a stepped mass from the file has not happened yet at take-off
+        delta0 = mass.delta_kg if mass.at_s is None else 0.0
+        points = MerweScaledSigmaPoints(3, alpha=1.0, beta=2.0, kappa=0.0)
+        self._ukf = UnscentedKalmanFilter(3, 1, 1.0, hx=self._hx, fx=_identity, points=points)
+        self._ukf.x = np.array([wn, we, delta0])
+        self._ukf.P = np.diag(
+            [
+                s.initial_wind_sigma_mps**2,
+                s.initial_wind_sigma_mps**2,
+                (s.initial_mass_sigma_fraction * self.mass_kg) ** 2,
+            ]
+        )
+        self._time_s: float | None = None
+        self._recent: deque[float] = deque(maxlen=s.change_window)
+        self.updates = 0
+        self.rejected = 0
+        self.changes = 0
+
+    @classmethod
+    def from_vehicle(
+        cls, vehicle: Vehicle, extra: Sequence[Effect] = (), settings: OnlineSettings | None = None
+    ) -> OnlineEffects:
+        """Start from the vehicle file's model, mass and effects (plus ``extra`` ones, e.g. the
+        pipeline's default climb)."""
+        effects = [*effects_from_tables(vehicle.effects), *extra]
+        return cls(vehicle.model, vehicle.mass_kg, effects, settings)
+
+    # -- current estimate ----------------------------------------------------------------------
+
+    @property
+    def wind(self) -> Wind:
+        return wind_from_vector(float(self._ukf.x[0]), float(self._ukf.x[1]))
+
+    @property
+    def mass_delta_kg(self) -> float:
+        return float(self._ukf.x[2])
+
+    @property
+    def mass_ratio(self) -> float:
+        """Actual over the vehicle file's mass."""
+        return (self.mass_kg + self.mass_delta_kg) / self.mass_kg
+
+    @property
+    def sigma(self) -> dict[str, float]:
+        """1σ of the wind components (m/s) and of the mass difference (kg)."""
+        sd = np.sqrt(np.clip(np.diag(self._ukf.P), 0.0, None))
+        return {"wind_n_mps": float(sd[0]), "wind_e_mps": float(sd[1]), "mass_kg": float(sd[2])}
+
+    @property
+    def effects(self) -> tuple[Effect, ...]:
+        """Effects to predict power with now (frame effects first)."""
+        return self._effects(self._ukf.x)
+
+    def _effects(self, x: np.ndarray) -> tuple[Effect, ...]:
+        return (wind_from_vector(float(x[0]), float(x[1])), Mass(float(x[2])), *self.others)
+
+    # -- filter --------------------------------------------------------------------------------
+
+    def _hx(self, x: np.ndarray, state: FlightState) -> np.ndarray:
+        return predict_power_w(self.model, self.mass_kg, state, self._effects(x))
+
+    def update(
+        self,
+        time_s: float,
+        vn_mps: float,
+        ve_mps: float,
+        vd_mps: float,
+        an_mps2: float,
+        ae_mps2: float,
+        measured_power_w: float,
+        voltage_v: float = math.nan,
+        accel_sigma_mps2: float = 0.0,
+    ) -> tuple[Effect, ...]:
+        """Fold in one airborne power measurement (W) with the state then (NED, m/s, m/s²).
+
+        Returns :attr:`effects` after the update. Non-finite input or time going backwards
+        leaves the estimate as it was.
+        """
+        values = (time_s, vn_mps, ve_mps, vd_mps, an_mps2, ae_mps2, measured_power_w)
+        if not all(math.isfinite(v) for v in values) or (
+            self._time_s is not None and time_s < self._time_s
+        ):
+            self.rejected += 1
+            return self.effects
+        s = self.settings
+        ukf = self._ukf
+        dt = 0.0 if self._time_s is None else time_s - self._time_s
+        self._time_s = time_s
+        if dt > 0:
+            ukf.Q = np.diag(
+                [
+                    s.wind_walk_mps_per_sqrt_s**2 * dt,
+                    s.wind_walk_mps_per_sqrt_s**2 * dt,
+                    s.mass_walk_kg_per_sqrt_s**2 * dt,
+                ]
+            )
+            ukf.predict(dt=dt)
+        row = (time_s, vn_mps, ve_mps, vd_mps, an_mps2, ae_mps2, 0.0, voltage_v)
+        state = FlightState(*(np.array([x], dtype=float) for x in row))
+        speed = math.hypot(vn_mps, ve_mps)
+        kinetic_sd = self.mass_kg * speed * accel_sigma_mps2
+        r = s.power_noise_w**2 + (s.power_noise_fraction * measured_power_w) ** 2 + kinetic_sd**2
+        x_prior, p_prior = ukf.x.copy(), ukf.P.copy()
+        ukf.update(np.array([measured_power_w]), R=np.array([[r]]), state=state)
+        nu = float(ukf.y[0] / math.sqrt(ukf.S[0, 0]))
+        if abs(nu) > s.gate_sigma:
+            ukf.x, ukf.P = x_prior, p_prior
+            self.rejected += 1
+        else:
+            self.updates += 1
+        self._recent.append(nu)
+        self._check_change()
+        ukf.x[2] = max(ukf.x[2], (s.min_mass_fraction - 1.0) * self.mass_kg)
+        return self.effects
+
+    def update_kinematics(
+        self, state: KinematicState, measured_power_w: float, voltage_v: float = math.nan
+    ) -> tuple[Effect, ...]:
+        """:meth:`update` from the pipeline's filtered kinematic state."""
+        return self.update(
+            state.time_s,
+            state.vn_mps,
+            state.ve_mps,
+            state.vd_mps,
+            state.an_mps2,
+            state.ae_mps2,
+            measured_power_w,
+            voltage_v,
+            state.accel_sigma_mps2,
+        )
+
+    def _check_change(self) -> None:
+        """Widen the state uncertainty when recent innovations keep one sign (a step)."""
+        s = self.settings
+        if len(self._recent) < s.change_window:
+            return
+        mean = float(np.mean(self._recent))
+        if abs(mean) * math.sqrt(len(self._recent)) > s.change_sigma:
+            self._ukf.P = self._ukf.P + np.diag(
+                [
+                    s.initial_wind_sigma_mps**2,
+                    s.initial_wind_sigma_mps**2,
+                    (s.initial_mass_sigma_fraction * self.mass_kg) ** 2,
+                ]
+            )
+            self._recent.clear()
+            self.changes += 1
+
+
+def _identity(x: np.ndarray, dt: float) -> np.ndarray:
+    return x
+
+
+# -- offline runner ---------------------------------------------------------------------------
+
+
+@dataclass(frozen=True)
+class TrackPoint:
+    """The tracker's estimate after one update: time (s), wind (m/s, deg from), mass (kg)."""
+
+    time_s: float
+    wind_speed_mps: float
+    wind_from_deg: float
+    mass_delta_kg: float
+    mass_sigma_kg: float
+
+
+def track_samples(samples: Iterable[Sample], tracker: OnlineEffects) -> list[TrackPoint]:
+    """Run ``tracker`` over a log's samples the way the daemon would: the causal kinematics
+    filter on velocity, an update at each airborne battery sample with a current reading."""
+    kinematics = KinematicsFilter()
+    state: KinematicState | None = None
+    armed: bool | None = None
+    out: list[TrackPoint] = []
+    for sample in samples:
+        if isinstance(sample, VelocitySample):
+            state = kinematics.update(sample)
+        elif isinstance(sample, ArmedSample):
+            armed = sample.armed
+        elif isinstance(sample, RebootSample):
+            kinematics.reset()
+            state, armed = None, None
+        elif isinstance(sample, BatterySample):
+            power = sample.power_w
+            if power is None or state is None or armed is False:
+                continue
+            if state.alt_m is not None and state.alt_m < AIRBORNE_ALT_M:
+                continue
+            if sample.time_s - state.time_s > 1.0:
+                continue
+            tracker.update_kinematics(state, power, sample.voltage_v)
+            wind = tracker.wind
+            out.append(
+                TrackPoint(
+                    sample.time_s,
+                    wind.speed_mps,
+                    wind.from_deg,
+                    tracker.mass_delta_kg,
+                    tracker.sigma["mass_kg"],
+                )
+            )
+    return out
