@@ -53,6 +53,7 @@ class FusionSettings:
     charge_sigma_fraction: error of the autopilot's consumed-charge counter (fraction).
     current_gain_sigma_fraction: gain error of the current sensor (fraction): it biases the
     measured drain and the consumed charge alike, so no measurement here removes it.
+    state_change_step, state_change_bias_sigma: see :meth:`EnergyFilter.flight_state_changed`.
     internal_resistance_ohm: the pack's resistance; None estimates it (prior 4 mΩ per cell).
     voltage_noise_v: error of one terminal-voltage reading (pack), V.
     resistance_walk_ohm_per_sqrt_s: random walk of the resistance (temperature), Ω/√s.
@@ -73,6 +74,8 @@ class FusionSettings:
     resistance_walk_ohm_per_sqrt_s: float = 1e-5
     ocv_curve_sigma_v_per_cell: float = 0.01
     current_gain_sigma_fraction: float = 0.01
+    state_change_step: float = 0.05
+    state_change_bias_sigma: float = 1.0
 
 
 class ResistanceFilter:
@@ -144,6 +147,7 @@ class EnergyFilter:
         self._soc_ref = 1.0  # SoC when the consumed-charge counter read 0
         self._offset_sigma_wh = 0.0
         self._initial_wh = 0.0
+        self._anchor_power_w: float | None = None
         self._reserve_wh = float(pack.energy_wh(pack.spec.reserve_fraction))
         self.voltage: ResistanceFilter | None = None
         self.has_current = False
@@ -247,6 +251,22 @@ class EnergyFilter:
         q_e = (s.model_power_noise_fraction * drain_wh) ** 2
         q_b = s.bias_walk_per_sqrt_s**2 * dt
         kf.predict(F=f, Q=np.diag([q_e, q_b]))
+
+    def flight_state_changed(self, steady_power_w: float) -> None:
+        """The model's steady power moved: the bias learned at the old flight state transfers
+        only partly to the new one (the model's error depends on the state, e.g. unknown
+        wind matters more in cruise than in hover). Each move of more than
+        ``state_change_step`` (fraction) since the last one adds variance to the bias of
+        (``state_change_bias_sigma`` × relative move)²."""
+        kf = self._require()
+        s = self.settings
+        if self._anchor_power_w is None or self._anchor_power_w <= 0:
+            self._anchor_power_w = steady_power_w
+            return
+        move = abs(steady_power_w - self._anchor_power_w) / self._anchor_power_w
+        if move > s.state_change_step:
+            kf.P[1, 1] += (s.state_change_bias_sigma * move) ** 2
+            self._anchor_power_w = steady_power_w
 
     def update_power(
         self, measured_w: float, power_model_w: float, model_sigma_w: float = 0.0

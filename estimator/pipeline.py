@@ -252,6 +252,8 @@ class Pipeline:
         """Predict the energy state up to ``time_s`` at the current model power (the pack's
         loss factor OCV/V is refreshed with each battery sample: it changes slowly)."""
         self.energy.predict(time_s, self._power_model_w, self._loss_factor)
+        if self._steady_power_w > 0:
+            self.energy.flight_state_changed(self._steady_power_w)
         self._time_s = time_s
 
     def _emit(self, time_s: float) -> Estimate:
