@@ -289,3 +289,65 @@ def test_broken_config_is_one_line_and_exit_code_2(
     assert "unknown key" in capsys.readouterr().err
     assert cli_main(["run", "--config", str(tmp_path / "missing.toml")]) == 2
     assert "does not exist" in capsys.readouterr().err
+
+
+@pytest.mark.parametrize("sig", ["SIGTERM", "SIGINT"])
+async def test_cli_daemon_streams_json_and_stops_cleanly_on_signals(
+    flight: Messages, sig: str
+) -> None:
+    """``uav-energy run`` as a real process: JSON lines on stdout, exit 0 on the signal."""
+    import json
+    import signal
+    import sys
+
+    port = free_udp_port()
+    proc = await asyncio.create_subprocess_exec(
+        sys.executable,
+        "-m",
+        "estimator.cli",
+        "run",
+        "--connect",
+        f"udpin:127.0.0.1:{port}",
+        "--json",
+        "-",
+        "--log-level",
+        "info",
+        stdout=asyncio.subprocess.PIPE,
+        stderr=asyncio.subprocess.PIPE,
+    )
+    assert proc.stdout is not None and proc.stderr is not None
+    sender = await open_link(f"udpout:127.0.0.1:{port}", source_system=1, source_component=1)
+    try:
+        lines: list[dict] = []
+        async with asyncio.timeout(30):
+            while not lines:
+                await play(sender, [m for _, m in flight[:200]])
+                with contextlib.suppress(TimeoutError):
+                    async with asyncio.timeout(1.0):
+                        lines.append(json.loads(await proc.stdout.readline()))
+        assert {"time_s", "endurance_s", "energy_remaining_wh", "model_only"} <= set(lines[0])
+    finally:
+        await sender.close()
+        proc.send_signal(getattr(signal, sig))
+        code = await asyncio.wait_for(proc.wait(), 10)
+    log_text = (await proc.stderr.read()).decode()
+    assert code == 0
+    assert "autopilot found" in log_text and "stopped:" in log_text
+    assert "Traceback" not in log_text
+
+
+async def test_configured_target_ignores_other_autopilots(flight: Messages) -> None:
+    messages = [m for _, m in flight[:600]]
+    config = ServiceConfig(target_system=7, target_component=1, stale_after_s=30.0)
+    async with running(config) as (service, sender):
+        await play(sender, messages)  # system 1 is not ours to watch
+        impostor = await open_link(
+            f"udpout:127.0.0.1:{service.link.local_address[1]}",  # type: ignore[union-attr]
+            source_system=7,
+            source_component=1,
+        )
+        await play(impostor, messages)
+        await wait_for(lambda: service.latest is not None)
+        await impostor.close()
+        assert service.decoder.target == (7, 1)
+        assert service.decoder.counts["other_source"] >= len(messages) - 5
