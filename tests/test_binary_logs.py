@@ -199,6 +199,20 @@ def test_ulog_unknown_current_and_invalid_velocity(tmp_path: Path) -> None:
     assert stream.skipped == 2
 
 
+def test_ulog_takes_the_battery_instance_with_a_connected_pack(tmp_path: Path) -> None:
+    log = ULogWriter()
+    log.add_format("battery_status")
+    log.subscribe("battery_status", multi_id=0)  # logged, but no pack connected
+    log.subscribe("battery_status", multi_id=1)
+    for k in range(3):
+        t = 1_000_000 * (k + 1)
+        log.write("battery_status", 0, timestamp=t, voltage_v=0.0, connected=False)
+        log.write("battery_status", 1, timestamp=t + 10, voltage_v=15.5, current_a=9.0,
+                  connected=True)  # fmt: skip
+    samples, _ = _read(log.save(tmp_path / "two.ulg"))
+    assert [(b.voltage_v, b.current_a) for b in _of(samples, BatterySample)] == [(15.5, 9.0)] * 3
+
+
 def test_ulog_truncated_file_reads_up_to_the_damage(tmp_path: Path, truth: Truth) -> None:
     data = write_ulg(tmp_path / "f.ulg", truth).read_bytes()
     cut = tmp_path / "cut.ulg"

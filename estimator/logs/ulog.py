@@ -1,12 +1,14 @@
 """PX4 ULog (.ulg) logs → :mod:`estimator.telemetry` samples, read with pyulog.
 
-Topics used (instance 0), time from each record's ``timestamp`` (µs since boot) / 1e6:
+Topics used (instance 0 unless said), time from each record's ``timestamp`` (µs since
+boot) / 1e6:
 
 - ``vehicle_local_position``: ``vx, vy, vz`` (NED, m/s), altitude ``−z`` (m above the
   local origin); records flagged ``v_xy_valid``/``v_z_valid`` false are skipped;
-- ``battery_status``: ``voltage_v`` (V), ``current_a`` (A, −1 = unknown), ``discharged_mah``
-  (mAh, negative = unknown), ``remaining`` (fraction 0–1, negative = unknown → percent);
-  records with ``connected`` false or no usable voltage are skipped;
+- ``battery_status``, the instance with the most readings of a connected pack:
+  ``voltage_v`` (V), ``current_a`` (A, −1 = unknown), ``discharged_mah`` (mAh, negative =
+  unknown), ``remaining`` (fraction 0–1, negative = unknown → percent); records with
+  ``connected`` false or no usable voltage are skipped;
 - ``vehicle_status``: ``arming_state`` (2 = armed), as changes.
 
 Counters: ``skipped`` (records with unusable values), ``bad_frames`` (1 when pyulog detected
@@ -24,7 +26,6 @@ from typing import Any
 
 import numpy as np
 from pyulog import ULog
-from pyulog.core import ULogException
 
 from estimator.errors import UserError
 from estimator.logs import SampleStream
@@ -70,7 +71,7 @@ def _load(path: Path) -> tuple[ULog, bool]:
         # pyulog reports corruption with print(); our counters report it instead
         with contextlib.redirect_stdout(io.StringIO()):
             ulog = ULog(probe, message_name_filter_list=list(TOPICS))
-    except (ULogException, ValueError, OSError) as exc:
+    except Exception as exc:  # pyulog on a damaged file: ULogException, struct/index errors
         raise UserError(f"{path} is not a readable PX4 ULog: {exc}") from None
     finally:
         probe.close()
@@ -78,12 +79,25 @@ def _load(path: Path) -> tuple[ULog, bool]:
 
 
 def _dataset(ulog: ULog, topic: str) -> dict[str, Any] | None:
-    """The lowest instance of ``topic`` as a dict of arrays, or None if not logged."""
-    instances = [d for d in ulog.data_list if d.name == topic]
+    """One instance of ``topic`` as a dict of arrays, or None if not logged: the lowest
+    instance, except for batteries: the one with the most readings of a connected pack."""
+    instances = sorted((d for d in ulog.data_list if d.name == topic), key=lambda d: d.multi_id)
     if not instances:
         return None
-    data: dict[str, Any] = min(instances, key=lambda d: d.multi_id).data
-    return data
+    if topic == "battery_status":
+        best = max(instances, key=_connected_readings)  # max keeps the first of equals
+        return dict(best.data)
+    return dict(instances[0].data)
+
+
+def _connected_readings(dataset: Any) -> int:
+    data = dataset.data
+    if "voltage_v" not in data:
+        return 0
+    with np.errstate(all="ignore"):
+        volt = np.asarray(data["voltage_v"], dtype=float)
+        ok = np.isfinite(volt) & (volt > 0.0) & _flag(data, "connected", len(volt))
+    return int(np.count_nonzero(ok))
 
 
 def _flag(data: dict[str, Any], name: str, n: int) -> np.ndarray:
