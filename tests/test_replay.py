@@ -12,6 +12,7 @@ from dataclasses import replace
 from pathlib import Path
 
 import pytest
+from fixtures.dataflash_writer import DataFlashWriter
 from fixtures.flight import write_bin, write_ulg
 
 from estimator.cli import main
@@ -255,6 +256,24 @@ def test_report_writes_the_plots_and_a_summary(
     assert all((report / p).read_bytes().startswith(b"\x89PNG") for p in pngs)
     summary = (report / "summary.md").read_text()
     assert "| flight |" in summary and "flight-power.png" in summary
+
+
+def test_a_log_without_battery_telemetry_is_reported_not_fatal(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    log = DataFlashWriter()
+    log.define("XKF1")
+    for k in range(50):
+        log.write("XKF1", TimeUS=100_000 * k, C=0, VN=1.0)
+    path = log.save(tmp_path / "velocity_only.bin")
+    report = tmp_path / "report"
+    code, out, err = _replay_cli(capsys, str(path), "--json", "--report", str(report))
+    result = json.loads(out)
+    assert code == 0 and "gave no estimates" in err
+    assert result["messages"] == 50 and result["power_points"] == 0
+    assert result["power_rmse_w"] is None and result["power_mape_pct"] is None
+    assert "No estimates" in (report / "summary.md").read_text()
+    assert not list(report.glob("*.png"))
 
 
 def test_flight_names_are_the_paths_below_the_common_folder() -> None:

@@ -45,7 +45,7 @@ EVENT_ARMED, EVENT_DISARMED = 10, 11
 GPS_FIX_3D = 3
 #: Records are re-sorted by time within this window (ArduPilot logs from several threads).
 REORDER_WINDOW_S = 0.5
-#: Records parsed between yields (pymavlink's stderr diagnostics are silenced per batch).
+#: Records parsed between yields (pymavlink's diagnostics are silenced per batch).
 _BATCH = 2000
 _BAT_INSTANCE_COLUMNS = ("Inst", "Instance", "I")
 _INTEGER_CHARS = frozenset("bBhHiI")
