@@ -17,7 +17,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Callable, Iterable
-from dataclasses import dataclass, field
+from dataclasses import asdict, dataclass, field
 from pathlib import Path
 
 import numpy as np
@@ -38,16 +38,44 @@ MAX_GAP_S = 5.0
 FloatArray = NDArray[np.float64]
 
 
+class _FlightPhase:
+    """Tracks the armed state and the height over home from the samples."""
+
+    def __init__(self) -> None:
+        self.armed = math.nan
+        self.alt_m = math.nan
+
+    def observe(self, sample: Sample) -> None:
+        if isinstance(sample, ArmedSample):
+            self.armed = float(sample.armed)
+        elif isinstance(sample, VelocitySample):
+            self.alt_m = math.nan if sample.alt_m is None else sample.alt_m
+        elif isinstance(sample, RebootSample):
+            self.armed = self.alt_m = math.nan
+
+
 @dataclass
 class PowerTrace:
-    """At each battery sample with a current reading: time (s), measured and model power (W),
-    the armed state then (1/0, NaN unknown) and the height over home (m, NaN unknown)."""
+    """At each battery sample with a current reading that gave an estimate: time (s), measured
+    and model power (W), the armed state then (1/0, NaN unknown) and the height over home (m,
+    NaN unknown)."""
 
     time_s: list[float] = field(default_factory=list)
     measured_w: list[float] = field(default_factory=list)
     model_w: list[float] = field(default_factory=list)
     armed: list[float] = field(default_factory=list)
     alt_m: list[float] = field(default_factory=list)
+
+    def add(self, sample: BatterySample, estimate: Estimate, phase: _FlightPhase) -> None:
+        """The point of a battery sample and the estimate it produced (if it has a current)."""
+        measured_w = sample.power_w
+        if measured_w is None or not math.isfinite(estimate.power_model_w):
+            return
+        self.time_s.append(sample.time_s)
+        self.measured_w.append(measured_w)
+        self.model_w.append(estimate.power_model_w)
+        self.armed.append(phase.armed)
+        self.alt_m.append(phase.alt_m)
 
     def airborne(self) -> NDArray[np.bool_]:
         """Armed and above :data:`AIRBORNE_ALT_M`. A log that never gives the armed state
@@ -100,32 +128,7 @@ class Summary:
     energy_predicted_wh: float
 
     def as_dict(self) -> dict[str, float | int | None]:
-        return {
-            "messages": self.messages,
-            "duration_s": self.duration_s,
-            "airborne_s": self.airborne_s,
-            "power_points": self.power_points,
-            "power_rmse_w": self.power_rmse_w,
-            "power_mape_pct": self.power_mape_pct,
-            "energy_measured_wh": self.energy_measured_wh,
-            "energy_predicted_wh": self.energy_predicted_wh,
-        }
-
-
-class _FlightPhase:
-    """Tracks the armed state and the height over home from the samples."""
-
-    def __init__(self) -> None:
-        self.armed = math.nan
-        self.alt_m = math.nan
-
-    def observe(self, sample: Sample) -> None:
-        if isinstance(sample, ArmedSample):
-            self.armed = float(sample.armed)
-        elif isinstance(sample, VelocitySample):
-            self.alt_m = math.nan if sample.alt_m is None else sample.alt_m
-        elif isinstance(sample, RebootSample):
-            self.armed = self.alt_m = math.nan
+        return asdict(self)
 
 
 def run(
@@ -140,22 +143,14 @@ def run(
     estimates: list[Estimate] = []
     power = PowerTrace()
     phase = _FlightPhase()
-    latest: Estimate | None = None
     count = 0
     for sample in samples:
         estimate = pipeline.process(sample)
         phase.observe(sample)
         if estimate is not None:
             estimates.append(estimate)
-            latest = estimate
-        if isinstance(sample, BatterySample) and latest is not None:
-            measured_w = sample.power_w
-            if measured_w is not None and math.isfinite(latest.power_model_w):
-                power.time_s.append(sample.time_s)
-                power.measured_w.append(measured_w)
-                power.model_w.append(latest.power_model_w)
-                power.armed.append(phase.armed)
-                power.alt_m.append(phase.alt_m)
+            if isinstance(sample, BatterySample):
+                power.add(sample, estimate, phase)
         count += 1
         if on_sample is not None:
             on_sample(count)
