@@ -106,11 +106,11 @@ def main() -> int:
         print(f"  pymavlink recv_match loop : {t_pymavlink:6.2f} s  ({n_messages} messages)")
         print(
             f"  uav-energy reader         : {t_decode:6.2f} s  ({n_samples} samples)"
-            f"  → {t_pymavlink / t_decode:5.1f}× faster than pymavlink"
+            f"  ratio pymavlink/reader = {t_pymavlink / t_decode:.1f}"
         )
         print(
-            f"  uav-energy replay (+pipeline): {t_replay:6.2f} s"
-            f"  → {t_pymavlink / t_replay:5.1f}× faster than pymavlink"
+            f"  uav-energy replay (reader + pipeline): {t_replay:6.2f} s"
+            f"  ratio pymavlink/replay = {t_pymavlink / t_replay:.1f}"
         )
         logs = {"tlog (IRIS+)": tlog, **synthetic_logs(Path(tmp))}
         if CMU_CRUISE.is_file():
