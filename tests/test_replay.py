@@ -7,6 +7,7 @@ import asyncio
 import csv
 import json
 import os
+import random
 import socket
 from dataclasses import replace
 from pathlib import Path
@@ -329,6 +330,31 @@ def test_truncated_tlog_replays_up_to_the_damage_and_says_so(
     assert code == 0 and result["truncated"] == 1
     whole = summarize([replay_log(IRIS_LOG, default_vehicle())])
     assert 0.3 * whole.messages < result["messages"] < 0.7 * whole.messages
+
+
+def test_damaged_tlogs_replay_or_fail_with_one_line_never_a_traceback(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    data = IRIS_LOG.read_bytes()
+    rng = random.Random(5)
+    for case in range(12):
+        b = bytearray(data)
+        at = rng.randrange(9, len(b))
+        if case % 3 == 0:
+            b = b[:at]
+        elif case % 3 == 1:
+            for _ in range(40):
+                b[rng.randrange(9, len(b))] = rng.randrange(256)
+        else:
+            b[at:at] = os.urandom(rng.randrange(1, 400))
+        path = tmp_path / f"damaged{case}.tlog"
+        path.write_bytes(bytes(b))
+        code, out, err = _replay_cli(capsys, str(path), "--json")
+        assert code in (0, 2), case
+        if code == 0:
+            assert json.loads(out)["messages"] > 0
+        else:
+            assert err.count("\n") == 1
 
 
 def test_a_bad_log_among_several_is_skipped_and_counted(
