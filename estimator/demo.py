@@ -3,8 +3,9 @@
 :func:`run_demo` simulates a mission (a built-in plan followed by an endless cruise leg, flown
 for ``duration_s``) with a wind the estimator is not told about, plays it over a real TCP
 socket on 127.0.0.1 (the simulator serves like ArduPilot SITL's tcp:5760) into a
-:class:`~estimator.service.Service` — the daemon itself, in this process — and reads the
-daemon's JSON estimates from a UDP socket, as any onboard consumer would. A rich table on
+:class:`~estimator.service.Service` — the daemon itself, in this process — and reads every
+estimate from the daemon's JSON-lines output (``json = "-"``, captured from stdout while it
+runs). A rich table on
 stderr shows predicted vs measured power and remaining energy / endurance ± σ against the
 simulator's truth. It ends with a :class:`DemoSummary`:
 
@@ -24,6 +25,7 @@ from __future__ import annotations
 
 import asyncio
 import contextlib
+import io
 import json
 import math
 import time
@@ -60,8 +62,10 @@ ENDURANCE_CHECKS_S = (10.0, 30.0, 60.0, 120.0)
 TABLE_ROW_EVERY_S = 30.0
 #: Wall seconds to wait for the daemon's first HEARTBEAT (it reconnects every second).
 DAEMON_WAIT_S = 20.0
-#: Wall seconds without a new estimate after playback that mean the daemon is done.
-QUIET_S = 0.5
+#: Wall seconds between checks whether the daemon has caught up after playback.
+POLL_S = 0.05
+#: Wall seconds without a frame read by the daemon that mean it is stuck.
+STALL_S = 10.0
 
 Row = dict[str, Any]
 
@@ -108,20 +112,25 @@ async def serve_flight(
     return player
 
 
-class _JsonLines(asyncio.DatagramProtocol):
-    """Collects the daemon's JSON estimates (one per datagram)."""
+class _JsonLines(io.TextIOBase):
+    """A text stream that parses the daemon's JSON lines (``--json -``) as they are written."""
 
     def __init__(self, on_row: Callable[[Row], None] | None) -> None:
         self.rows: list[Row] = []
-        self.last_wall_s = time.monotonic()
         self.on_row = on_row
+        self._partial = ""
 
-    def datagram_received(self, data: bytes, addr: Any) -> None:
-        row = json.loads(data)
-        self.rows.append(row)
-        self.last_wall_s = time.monotonic()
-        if self.on_row is not None:
-            self.on_row(row)
+    def writable(self) -> bool:
+        return True
+
+    def write(self, text: str) -> int:
+        *lines, self._partial = (self._partial + text).split("\n")
+        for line in lines:
+            row = json.loads(line)
+            self.rows.append(row)
+            if self.on_row is not None:
+                self.on_row(row)
+        return len(text)
 
 
 @dataclass
@@ -146,41 +155,55 @@ async def fly_live(
     on_progress: Callable[[float], None] | None = None,
 ) -> LiveFlight:
     """Simulator (tcpin on an ephemeral port) → in-process daemon (tcp client, as to
-    ArduPilot SITL) → JSON estimates over UDP, all on 127.0.0.1. ``publish`` adds the daemon's
+    ArduPilot SITL), all on 127.0.0.1; every estimate from the daemon's JSON lines (stdout is
+    captured meanwhile: lossless, unlike a socket under bursts). ``publish`` adds the daemon's
     MAVLink output links (e.g. towards a test's ground station)."""
     loop = asyncio.get_running_loop()
     sim_link = await open_link("tcpin:127.0.0.1:0", source_system=1, source_component=1)
-    json_transport, sink = await loop.create_datagram_endpoint(
-        lambda: _JsonLines(on_estimate), local_addr=("127.0.0.1", 0)
-    )
-    json_port = json_transport.get_extra_info("sockname")[1]
     sim_address = sim_link.local_address
     assert sim_address is not None
     config = ServiceConfig(
         connect=f"tcp:127.0.0.1:{sim_address[1]}",
         publish=publish,
         publish_rate_hz=publish_rate_hz,
-        json=f"udp:127.0.0.1:{json_port}",
+        json="-",
         log_level="warning",
     )
     validate(config)
     service = Service(config, vehicle or default_vehicle())
+    sink = _JsonLines(on_estimate)
     stop = asyncio.Event()
-    daemon = loop.create_task(service.run(stop))
     start = time.monotonic()
-    try:
-        player = await serve_flight(run, sim_link, speedup, tlog, on_progress)
-        while time.monotonic() - sink.last_wall_s < QUIET_S and not daemon.done():
-            await asyncio.sleep(QUIET_S / 5)
-    finally:
-        stop.set()
-        with contextlib.suppress(asyncio.CancelledError):
-            await daemon
-        await sim_link.close()
-        json_transport.close()
+    with contextlib.redirect_stdout(sink):
+        daemon = loop.create_task(service.run(stop))
+        try:
+            player = await serve_flight(run, sim_link, speedup, tlog, on_progress)
+            await _caught_up(service, sim_link, daemon)
+        finally:
+            stop.set()
+            with contextlib.suppress(asyncio.CancelledError):
+                await daemon
+            await sim_link.close()
     return LiveFlight(
         sink.rows, service.counters(), player.counts["sent"], time.monotonic() - start
     )
+
+
+async def _caught_up(service: Service, sim_link: MavlinkLink, daemon: asyncio.Task[int]) -> None:
+    """Return once the daemon has read every frame the simulator sent (RuntimeError when it
+    makes no progress for :data:`STALL_S`)."""
+    last, stalled_s = -1, 0.0
+    while not daemon.done():
+        received = 0 if service.link is None else service.link.counts["rx_messages"]
+        if received >= sim_link.counts["tx_messages"]:
+            return
+        stalled_s = 0.0 if received != last else stalled_s + POLL_S
+        if stalled_s > STALL_S:
+            raise RuntimeError(
+                f"the daemon read {received} of {sim_link.counts['tx_messages']} frames"
+            )
+        last = received
+        await asyncio.sleep(POLL_S)
 
 
 # -- the mission and its scoring ----------------------------------------------------------------
