@@ -43,6 +43,7 @@ from rich.text import Text
 
 from estimator.config import ServiceConfig, validate
 from estimator.effects import Wind
+from estimator.errors import UserError
 from estimator.logs import iter_samples
 from estimator.mavlink_io import MavlinkLink, open_link
 from estimator.replay import AIRBORNE_ALT_M, replay_stream, summarize
@@ -177,7 +178,14 @@ async def fly_live(
     with contextlib.redirect_stdout(sink):
         daemon = loop.create_task(service.run(stop))
         try:
-            player = await serve_flight(run, sim_link, speedup, tlog, on_progress)
+            flight = loop.create_task(serve_flight(run, sim_link, speedup, tlog, on_progress))
+            await asyncio.wait([flight, daemon], return_when=asyncio.FIRST_COMPLETED)
+            if not flight.done():  # the daemon stopped (a signal): stop playing
+                flight.cancel()
+                with contextlib.suppress(asyncio.CancelledError):
+                    await flight
+                raise UserError("interrupted: the daemon stopped before the flight ended")
+            player = flight.result()
             await _caught_up(service, sim_link, daemon)
         finally:
             stop.set()
@@ -209,11 +217,14 @@ async def _caught_up(service: Service, sim_link: MavlinkLink, daemon: asyncio.Ta
 # -- the mission and its scoring ----------------------------------------------------------------
 
 
-def demo_plan(base: str = "mixed") -> Plan:
-    """A built-in plan, then an endless cruise at 10 m/s towards 045° (the endurance check)."""
-    plan = builtin_plan(base)
+def demo_plan(base: str | Plan = "mixed") -> Plan:
+    """A plan (built-in name or Plan), then an endless cruise at 10 m/s towards 045° (the
+    endurance check)."""
+    plan = builtin_plan(base) if isinstance(base, str) else base
+    if plan.endless:
+        raise UserError(f"plan '{plan.name}' never ends: the demo appends its own cruise")
     cruise = Leg("straight", CRUISE_SPEED_MPS, heading_deg=CRUISE_HEADING_DEG)
-    return replace(plan, name=f"{base}+cruise", legs=(*plan.legs, cruise))
+    return replace(plan, name=f"{plan.name}+cruise", legs=(*plan.legs, cruise))
 
 
 def cruise_start_s(truth: SimTruth, speed_mps: float = CRUISE_SPEED_MPS) -> float:
@@ -392,7 +403,7 @@ def _minutes(value_s: float | None, sigma_s: float | None) -> str:
 
 def run_demo(
     *,
-    base_plan: str = "mixed",
+    base_plan: str | Plan = "mixed",
     duration_s: float = 600.0,
     wind: Wind | None = DEFAULT_WIND,
     speedup: float = 20.0,
@@ -406,6 +417,10 @@ def run_demo(
     and truth go to ``out_dir``/demo.tlog (replay it with ``uav-energy replay``). The live
     table goes to ``console`` (default: stderr).
     """
+    if not (math.isfinite(speedup) and speedup > 0):
+        raise UserError(f"the demo's speedup must be a positive number, got {speedup}")
+    if not (math.isfinite(duration_s) and duration_s > 0):
+        raise UserError(f"the demo's duration must be a positive number of s, got {duration_s}")
     console = console or Console(stderr=True)
     vehicle = default_vehicle()
     effects = () if wind is None else (wind,)
