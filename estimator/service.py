@@ -59,6 +59,7 @@ class Service:
         self.decoder = TelemetryDecoder(target=target, own=(config.system_id, OWN_COMPONENT))
         self.latest: Estimate | None = None
         self.stale = False
+        self.internal_errors = 0
         self.link: MavlinkLink | None = None
         self.outputs: list[MavlinkLink] = []
         self._json_transport: asyncio.DatagramTransport | None = None
@@ -138,7 +139,17 @@ class Service:
             if not messages:
                 return
             for msg in messages:
-                self._handle(msg, loop.time())
+                try:
+                    self._handle(msg, loop.time())
+                except Exception as exc:  # never die on one message: log it, count, go on
+                    self.internal_errors += 1
+                    if self.internal_errors <= 10 or self.internal_errors % 1000 == 0:
+                        log.error(
+                            "internal error #%d on %s skipped: %r",
+                            self.internal_errors,
+                            msg.get_type(),
+                            exc,
+                        )
 
     def _handle(self, msg: mavlink.MAVLink_message, now_s: float) -> None:
         had_target = self.decoder.target is not None

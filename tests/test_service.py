@@ -351,3 +351,25 @@ async def test_configured_target_ignores_other_autopilots(flight: Messages) -> N
         await impostor.close()
         assert service.decoder.target == (7, 1)
         assert service.decoder.counts["other_source"] >= len(messages) - 5
+
+
+async def test_an_exception_on_one_message_is_logged_and_skipped(
+    flight: Messages, caplog: pytest.LogCaptureFixture, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    messages = [m for _, m in flight[:600]]
+    async with running(ServiceConfig(stale_after_s=30.0)) as (service, sender):
+        real = service.pipeline.process
+        calls = {"n": 0}
+
+        def flaky(sample):  # type: ignore[no-untyped-def]
+            calls["n"] += 1
+            if calls["n"] == 50:
+                raise ValueError("unexpected")
+            return real(sample)
+
+        monkeypatch.setattr(service.pipeline, "process", flaky)
+        await play(sender, messages)
+        await wait_for(lambda: calls["n"] > 120)
+        assert service.internal_errors == 1
+        assert service.latest is not None
+    assert "internal error #1" in caplog.text
