@@ -34,6 +34,8 @@ OWN_COMPONENT = mavlink.MAV_COMP_ID_ONBOARD_COMPUTER
 REQUEST_RETRY_S = 5.0
 #: Seconds between "bad input" log lines.
 COUNTER_LOG_S = 10.0
+#: JSON lines waiting for a slow stdout reader beyond this are dropped (counted).
+JSON_BUFFER_LIMIT_BYTES = 1 << 20
 _STREAMS = (
     (mavlink.MAVLINK_MSG_ID_GLOBAL_POSITION_INT, "velocity"),
     (mavlink.MAVLINK_MSG_ID_LOCAL_POSITION_NED, "velocity"),
@@ -62,7 +64,9 @@ class Service:
         self.internal_errors = 0
         self.link: MavlinkLink | None = None
         self.outputs: list[MavlinkLink] = []
-        self._json_transport: asyncio.DatagramTransport | None = None
+        self._json_udp: asyncio.DatagramTransport | None = None
+        self._json_pipe: asyncio.WriteTransport | None = None
+        self.json_dropped = 0
         self._last_rx_s: float | None = None
         self._last_json_s = -1e9
         self._last_request_s = -1e9
@@ -89,9 +93,11 @@ class Service:
                 self.outputs.append(await open_link(url, source_system=cfg.system_id))
             if cfg.json.startswith("udp:"):
                 addr = parse_url("udpout:" + cfg.json[4:])
-                self._json_transport, _ = await loop.create_datagram_endpoint(
+                self._json_udp, _ = await loop.create_datagram_endpoint(
                     asyncio.DatagramProtocol, remote_addr=(addr.host, addr.port)
                 )
+            elif cfg.json == "-":
+                self._json_pipe = await _stdout_transport()
             log.info(
                 "started: autopilot link %s, %d output(s), vehicle %s",
                 cfg.connect,
@@ -113,8 +119,10 @@ class Service:
         finally:
             for link in [self.link, *self.outputs]:
                 await link.close()
-            if self._json_transport is not None:
-                self._json_transport.close()
+            if self._json_udp is not None:
+                self._json_udp.close()
+            if self._json_pipe is not None:
+                self._json_pipe.close()
             for sig in installed:
                 loop.remove_signal_handler(sig)
         log.info("stopped: %s", _format_counts(self.counters()))
@@ -127,6 +135,7 @@ class Service:
             out.update({f"link_{k}": v for k, v in self.link.counts.items()})
         out.update({f"decode_{k}": v for k, v in self.decoder.counts.items()})
         out.update({f"pipeline_{k}": v for k, v in self.pipeline.counts.items()})
+        out.update(internal_errors=self.internal_errors, json_dropped=self.json_dropped)
         return out
 
     # -- receive ----------------------------------------------------------------------------
@@ -250,11 +259,17 @@ class Service:
                 )
 
     def _write_json(self, estimate: Estimate) -> None:
-        line = publish.json_line(estimate)
-        if self._json_transport is not None:
-            self._json_transport.sendto(line.encode())
-        else:
-            sys.stdout.write(line + "\n")
+        line = publish.json_line(estimate) + "\n"
+        if self._json_udp is not None:
+            self._json_udp.sendto(line.encode())
+        elif self._json_pipe is not None:
+            # never block the loop on a slow reader: drop lines beyond the buffer limit
+            if self._json_pipe.get_write_buffer_size() > JSON_BUFFER_LIMIT_BYTES:
+                self.json_dropped += 1
+                return
+            self._json_pipe.write(line.encode())
+        else:  # stdout is a regular file: a blocking write, but a file never stalls long
+            sys.stdout.write(line)
             sys.stdout.flush()
 
     async def _publish_loop(self) -> None:
@@ -298,6 +313,16 @@ class Service:
             if value != logged_value and now_s - logged_s >= COUNTER_LOG_S:
                 log.warning("%d %s so far (input skipped)", value, what)
                 self._logged[key] = (value, now_s)
+
+
+async def _stdout_transport() -> asyncio.WriteTransport | None:
+    """A non-blocking transport on stdout (pipe, socket, tty); None for a regular file."""
+    loop = asyncio.get_running_loop()
+    try:
+        transport, _ = await loop.connect_write_pipe(asyncio.Protocol, sys.stdout)
+    except (ValueError, OSError, AttributeError):
+        return None
+    return transport
 
 
 async def _drain(link: MavlinkLink) -> None:
