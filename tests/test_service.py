@@ -373,3 +373,39 @@ async def test_an_exception_on_one_message_is_logged_and_skipped(
         assert service.internal_errors == 1
         assert service.latest is not None
     assert "internal error #1" in caplog.text
+
+
+async def test_daemon_as_tcp_client_like_ardupilot_sitl(flight: Messages) -> None:
+    """The autopilot listens on TCP (SITL's tcp:127.0.0.1:5760 style); the daemon connects,
+    requests streams, and estimates."""
+    autopilot = await open_link("tcpin:127.0.0.1:0", source_system=1, source_component=1)
+    assert autopilot.local_address is not None
+    config = ServiceConfig(connect=f"tcp:127.0.0.1:{autopilot.local_address[1]}")
+    service = Service(config, default_vehicle())
+    stop = asyncio.Event()
+    task = asyncio.create_task(service.run(stop))
+    try:
+        requests: list[mavlink.MAVLink_message] = []
+        messages = [m for _, m in flight[:400]]
+        async with asyncio.timeout(15):
+            while service.latest is None:
+                await play(autopilot, messages[:100])
+                with contextlib.suppress(TimeoutError):
+                    async with asyncio.timeout(0.2):
+                        requests.extend(await autopilot.recv())
+            await play(autopilot, messages[100:])
+            while not {"COMMAND_LONG", "HEARTBEAT"} <= {m.get_type() for m in requests}:
+                requests.extend(await autopilot.recv())
+        kinds = {m.get_type() for m in requests}
+        assert {"HEARTBEAT", "REQUEST_DATA_STREAM", "COMMAND_LONG"} <= kinds
+        intervals = [m for m in requests if m.get_type() == "COMMAND_LONG"]
+        assert all(m.command == mavlink.MAV_CMD_SET_MESSAGE_INTERVAL for m in intervals)
+        assert {int(m.param1) for m in intervals} >= {
+            mavlink.MAVLINK_MSG_ID_GLOBAL_POSITION_INT,
+            mavlink.MAVLINK_MSG_ID_BATTERY_STATUS,
+        }
+        assert all(m.get_srcComponent() == 191 for m in requests)
+    finally:
+        stop.set()
+        await asyncio.wait_for(task, 5)
+        await autopilot.close()
