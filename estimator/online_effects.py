@@ -12,11 +12,18 @@ each a random walk, observed through the measured electrical power: z = P(state;
 flight goes on: a changing wind, a payload picked up or dropped.
 
 Robustness: the measurement noise is an absolute floor plus a fraction of the power plus the
-kinetic term's uncertainty (m·V·σ_a from the kinematics filter); an innovation beyond
-``gate_sigma`` standard deviations is not used (counted in ``rejected``); when the recent
+kinetic term's uncertainty (m·V·σ_a from the kinematics filter) plus a learnt excess (the
+squared innovations' surplus over their predicted variance, followed with gain
+``noise_gain``: real power telemetry is noisier than a current sensor's datasheet says, and
+model error looks like noise to the filter); an innovation beyond
+``gate_sigma`` standard deviations is not used (counted in ``rejected``), nor are samples in
+fast vertical motion (|v_z| > ``max_vertical_speed_mps``: take-off, landing, where the climb
+term is the least certain part of the model; counted in ``vertical``) and readings below
+``min_power_fraction_of_hover`` of the model's hover power (idle motors on the ground,
+``idle``); when the recent
 normalised innovations keep one sign (their mean over ``change_window`` samples is more than
-``change_sigma`` standard errors from 0) the state uncertainty is widened so the filter can
-follow a step (``changes`` counts these).
+``change_sigma`` standard errors from 0) the mass uncertainty is widened back to its initial
+value so the filter can follow a payload step (``changes`` counts these).
 
 Identifiability: wind direction needs flight in more than one direction; in hover only the
 wind speed is seen, and a hover power offset is shared between wind and mass until the vehicle
@@ -35,6 +42,7 @@ from filterpy.kalman import MerweScaledSigmaPoints, UnscentedKalmanFilter
 
 from estimator.effects import Effect, FlightState, Mass, Wind, effects_from_tables, predict_power_w
 from estimator.kinematics import KinematicsFilter, KinematicState
+from estimator.logs import FlightSeries
 from estimator.model import PowerModel
 from estimator.telemetry import ArmedSample, BatterySample, RebootSample, Sample, VelocitySample
 from estimator.vehicle import Vehicle
@@ -61,8 +69,13 @@ class OnlineSettings:
     power_noise_w: float = 5.0
     power_noise_fraction: float = 0.03
     gate_sigma: float = 5.0
-    change_window: int = 10
-    change_sigma: float = 4.0
+    max_vertical_speed_mps: float = 1.0
+    #: Power below this fraction of the model's hover power is not flight (idle motors).
+    min_power_fraction_of_hover: float = 0.3
+    #: Gain of the adaptive measurement-noise estimate (per power sample).
+    noise_gain: float = 0.02
+    change_window: int = 30
+    change_sigma: float = 5.0
     #: Mass may not drop below this fraction of the vehicle file's.
     min_mass_fraction: float = 0.3
 
@@ -93,16 +106,22 @@ class OnlineEffects:
         points = MerweScaledSigmaPoints(3, alpha=1.0, beta=2.0, kappa=0.0)
         self._ukf = UnscentedKalmanFilter(3, 1, 1.0, hx=self._hx, fx=_identity, points=points)
         self._ukf.x = np.array([wn, we, delta0])
-        self._ukf.P = np.diag(
+        self._initial_var = np.array(
             [
                 s.initial_wind_sigma_mps**2,
                 s.initial_wind_sigma_mps**2,
                 (s.initial_mass_sigma_fraction * self.mass_kg) ** 2,
             ]
         )
+        self._ukf.P = np.diag(self._initial_var)
         self._time_s: float | None = None
         self._recent: deque[float] = deque(maxlen=s.change_window)
+        #: Measurement noise beyond the configured one, learnt from the innovations, W².
+        self.extra_noise_var_w2 = 0.0
+        self._hover_w = model.hover_power_w
         self.updates = 0
+        self.idle = 0
+        self.vertical = 0
         self.rejected = 0
         self.changes = 0
 
@@ -147,6 +166,8 @@ class OnlineEffects:
     # -- filter --------------------------------------------------------------------------------
 
     def _hx(self, x: np.ndarray, state: FlightState) -> np.ndarray:
+        x = x.copy()
+        x[2] = max(x[2], (self.settings.min_mass_fraction - 1.0) * self.mass_kg)
         return predict_power_w(self.model, self.mass_kg, state, self._effects(x))
 
     def update(
@@ -173,26 +194,32 @@ class OnlineEffects:
             self.rejected += 1
             return self.effects
         s = self.settings
+        if abs(vd_mps) > s.max_vertical_speed_mps:
+            self.vertical += 1
+            return self.effects
+        if measured_power_w < s.min_power_fraction_of_hover * self._hover_w:
+            self.idle += 1
+            return self.effects
         ukf = self._ukf
         dt = 0.0 if self._time_s is None else time_s - self._time_s
         self._time_s = time_s
         if dt > 0:
-            ukf.Q = np.diag(
-                [
-                    s.wind_walk_mps_per_sqrt_s**2 * dt,
-                    s.wind_walk_mps_per_sqrt_s**2 * dt,
-                    s.mass_walk_kg_per_sqrt_s**2 * dt,
-                ]
-            )
+            wind_q = s.wind_walk_mps_per_sqrt_s**2 * dt
+            ukf.Q = np.diag([wind_q, wind_q, s.mass_walk_kg_per_sqrt_s**2 * dt])
             ukf.predict(dt=dt)
         row = (time_s, vn_mps, ve_mps, vd_mps, an_mps2, ae_mps2, 0.0, voltage_v)
         state = FlightState(*(np.array([x], dtype=float) for x in row))
         speed = math.hypot(vn_mps, ve_mps)
         kinetic_sd = self.mass_kg * speed * accel_sigma_mps2
         r = s.power_noise_w**2 + (s.power_noise_fraction * measured_power_w) ** 2 + kinetic_sd**2
+        r += self.extra_noise_var_w2
         x_prior, p_prior = ukf.x.copy(), ukf.P.copy()
         ukf.update(np.array([measured_power_w]), R=np.array([[r]]), state=state)
-        nu = float(ukf.y[0] / math.sqrt(ukf.S[0, 0]))
+        y2, s_var = float(ukf.y[0]) ** 2, float(ukf.S[0, 0])
+        nu = float(ukf.y[0]) / math.sqrt(s_var)
+        # adaptive measurement noise: drive E[y²] towards S (outliers clipped at the gate)
+        excess = min(y2, s.gate_sigma**2 * s_var) - s_var
+        self.extra_noise_var_w2 = max(0.0, self.extra_noise_var_w2 + s.noise_gain * excess)
         if abs(nu) > s.gate_sigma:
             ukf.x, ukf.P = x_prior, p_prior
             self.rejected += 1
@@ -220,19 +247,16 @@ class OnlineEffects:
         )
 
     def _check_change(self) -> None:
-        """Widen the state uncertainty when recent innovations keep one sign (a step)."""
+        """Widen the mass uncertainty back to the initial one when recent innovations keep one
+        sign (a payload step); never beyond it."""
         s = self.settings
         if len(self._recent) < s.change_window:
             return
         mean = float(np.mean(self._recent))
         if abs(mean) * math.sqrt(len(self._recent)) > s.change_sigma:
-            self._ukf.P = self._ukf.P + np.diag(
-                [
-                    s.initial_wind_sigma_mps**2,
-                    s.initial_wind_sigma_mps**2,
-                    (s.initial_mass_sigma_fraction * self.mass_kg) ** 2,
-                ]
-            )
+            # only the mass steps (payload); wind changes slowly and follows its random walk
+            raise_by = max(self._initial_var[2] - float(self._ukf.P[2, 2]), 0.0)
+            self._ukf.P[2, 2] += raise_by
             self._recent.clear()
             self.changes += 1
 
@@ -255,38 +279,78 @@ class TrackPoint:
     mass_sigma_kg: float
 
 
+class _Runner:
+    """Feeds a tracker the daemon's way: causal kinematics on velocity, an update per
+    airborne power reading with the latest state (not older than ``max_age_s``)."""
+
+    def __init__(self, tracker: OnlineEffects, max_age_s: float = 1.0) -> None:
+        self.tracker = tracker
+        self.max_age_s = max_age_s
+        self.kinematics = KinematicsFilter()
+        self.state: KinematicState | None = None
+        self.armed: bool | None = None
+        self.points: list[TrackPoint] = []
+
+    def velocity(self, sample: VelocitySample) -> None:
+        self.state = self.kinematics.update(sample)
+
+    def reboot(self) -> None:
+        self.kinematics.reset()
+        self.state, self.armed = None, None
+
+    def power(self, time_s: float, power_w: float, voltage_v: float) -> None:
+        state = self.state
+        if state is None or self.armed is False or time_s - state.time_s > self.max_age_s:
+            return
+        if state.alt_m is not None and state.alt_m < AIRBORNE_ALT_M:
+            return
+        tracker = self.tracker
+        tracker.update_kinematics(state, power_w, voltage_v)
+        wind = tracker.wind
+        self.points.append(
+            TrackPoint(
+                time_s,
+                wind.speed_mps,
+                wind.from_deg,
+                tracker.mass_delta_kg,
+                tracker.sigma["mass_kg"],
+            )
+        )
+
+
 def track_samples(samples: Iterable[Sample], tracker: OnlineEffects) -> list[TrackPoint]:
     """Run ``tracker`` over a log's samples the way the daemon would: the causal kinematics
     filter on velocity, an update at each airborne battery sample with a current reading."""
-    kinematics = KinematicsFilter()
-    state: KinematicState | None = None
-    armed: bool | None = None
-    out: list[TrackPoint] = []
+    runner = _Runner(tracker)
     for sample in samples:
         if isinstance(sample, VelocitySample):
-            state = kinematics.update(sample)
+            runner.velocity(sample)
         elif isinstance(sample, ArmedSample):
-            armed = sample.armed
+            runner.armed = sample.armed
         elif isinstance(sample, RebootSample):
-            kinematics.reset()
-            state, armed = None, None
-        elif isinstance(sample, BatterySample):
-            power = sample.power_w
-            if power is None or state is None or armed is False:
-                continue
-            if state.alt_m is not None and state.alt_m < AIRBORNE_ALT_M:
-                continue
-            if sample.time_s - state.time_s > 1.0:
-                continue
-            tracker.update_kinematics(state, power, sample.voltage_v)
-            wind = tracker.wind
-            out.append(
-                TrackPoint(
-                    sample.time_s,
-                    wind.speed_mps,
-                    wind.from_deg,
-                    tracker.mass_delta_kg,
-                    tracker.sigma["mass_kg"],
-                )
+            runner.reboot()
+        elif isinstance(sample, BatterySample) and sample.power_w is not None:
+            runner.power(sample.time_s, sample.power_w, sample.voltage_v)
+    return runner.points
+
+
+def track_series(series: FlightSeries, tracker: OnlineEffects) -> list[TrackPoint]:
+    """:func:`track_samples` over a flight already read into arrays (one row = a velocity
+    then a power reading; rows flagged disarmed in ``extras['armed']`` are skipped)."""
+    runner = _Runner(tracker)
+    armed = series.extras.get("armed", np.full(len(series), np.nan))
+    for k in range(len(series)):
+        vn, ve = float(series.vn_mps[k]), float(series.ve_mps[k])
+        if not (math.isfinite(vn) and math.isfinite(ve)):
+            continue
+        alt = float(series.alt_m[k])
+        vd = float(series.vd_mps[k])
+        t = float(series.time_s[k])
+        runner.velocity(
+            VelocitySample(
+                t, vn, ve, vd if math.isfinite(vd) else 0.0, alt if math.isfinite(alt) else None
             )
-    return out
+        )
+        runner.armed = None if not math.isfinite(armed[k]) else bool(armed[k])
+        runner.power(t, float(series.power_w[k]), float(series.voltage_v[k]))
+    return runner.points

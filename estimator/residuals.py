@@ -8,11 +8,13 @@ Method
 ------
 1. **Samples** (:func:`prepare`): each flight's rows (one per power sample) while airborne
    (armed or unknown, above ``min_alt_m`` when the altitude is known, measured power above
-   ``min_power_w``). Ground velocity is smoothed with a Gaussian kernel of ``smooth_s`` (s, 1σ)
-   inside gap-free stretches and differentiated for the horizontal acceleration (NED). Channels
-   for the structure and the attribution: flight time, ground speed, heading, a⊥, tangential
-   acceleration, climb rate, altitude, battery voltage, energy drawn so far (a state-of-charge
-   proxy from the measured power), and the log's own numeric extras (CMU: payload, airflow).
+   ``min_power_w`` and above ``min_power_fraction`` of the flight's median: motors at idle on
+   touch-down are not flight). Ground velocity is smoothed with a Gaussian kernel of
+   ``smooth_s`` (s, 1σ) inside gap-free stretches and differentiated for the horizontal
+   acceleration (NED). Channels for the structure and the attribution: flight time, ground
+   speed, heading, a⊥, tangential acceleration, climb rate, altitude, battery voltage, energy
+   drawn so far (a state-of-charge proxy from the measured power), and the log's own numeric
+   extras (CMU: payload, airflow).
 2. **Held-out split**: each flight is cut into ``folds`` contiguous time chunks; fold j holds
    out chunk j of every flight and trains on the rest minus a guard of ``guard_s`` seconds on
    both sides of the held-out chunk (correlated noise must not leak). Never random samples.
@@ -94,6 +96,8 @@ class ResidualOptions:
     smooth_s: float = 0.5
     min_alt_m: float = 1.0
     min_power_w: float = 1.0
+    #: Rows below this fraction of the flight's median power are not airborne (touch-down).
+    min_power_fraction: float = 0.25
     max_gap_s: float = 2.0
     min_flight_s: float = 30.0
     candidates: tuple[str, ...] = tuple(EFFECT_TYPES)
@@ -244,6 +248,8 @@ def _flight_rows(f: FlightSeries, opt: ResidualOptions) -> dict[str, FloatArray]
         ok &= ~(armed == 0.0)
     ok &= ~(f.alt_m < opt.min_alt_m)
     ok &= f.power_w >= opt.min_power_w
+    if ok.any():
+        ok &= f.power_w >= opt.min_power_fraction * float(np.median(f.power_w[ok]))
     rows = np.flatnonzero(ok)
     if len(rows) < 10 or t[rows[-1]] - t[rows[0]] < opt.min_flight_s:
         return None
@@ -593,6 +599,8 @@ class Selected:
     rmse_after_w: float
     z: float
     params_fold_sd: dict[str, float]
+    #: Qualifying candidates as good on held-out data (label, RMSE W, z of chosen vs it).
+    ties: list[tuple[str, float, float]] = field(default_factory=list)
 
     def as_dict(self) -> dict[str, Any]:
         return {
@@ -601,6 +609,10 @@ class Selected:
             "rmse_after_w": round(self.rmse_after_w, 3),
             "z": round(self.z, 2),
             "params_fold_sd": {k: round(v, 4) for k, v in self.params_fold_sd.items()},
+            "indistinguishable_from": [
+                {"candidate": label, "rmse_w": round(r, 3), "z": round(z, 2)}
+                for label, r, z in self.ties
+            ],
         }
 
 
@@ -659,7 +671,10 @@ class ResidualResult:
                 "no candidate effect explains the residual; the telemetry channel that best "
                 f"predicts it is {where}"
             )
-        names = ", ".join(s.name for s in self.selected)
+        names = ", ".join(
+            s.name + (f" (as good held out: {', '.join(t[0] for t in s.ties)})" if s.ties else "")
+            for s in self.selected
+        )
         if where is None:
             return f"added {names}; the remaining residual is not predicted by any channel"
         return f"added {names}; the remaining residual is best predicted by {where}"
@@ -792,13 +807,26 @@ def analyze(
         if not good:
             break
         rmse, z, _, cand, predicted, folds = min(good, key=lambda t: t[0])
+        # qualifying rivals the held-out data cannot tell from the chosen one
+        rivals = [
+            (
+                t[3].label,
+                t[0],
+                _block_gain_z(samples, samples.power_w - t[4], samples.power_w - predicted),
+            )
+            for t in good
+            if t[3] is not cand
+        ]
+        ties = [(label, r, zz) for label, r, zz in rivals if zz < opt.z_threshold]
         chosen.append(cand)
         current = predicted
         final = fit_design(_Problem(vehicle, samples, everything), chosen, f_scale_w, warm)
         warm = {t.candidate.label: t.x for t in final}
         fold_effects = [terms[-1].effect() for terms in folds]
         selected.append(
-            Selected(cand.name, final[-1].effect(), rmse, z, _fold_sd(fold_effects, final[-1]))
+            Selected(
+                cand.name, final[-1].effect(), rmse, z, _fold_sd(fold_effects, final[-1]), ties
+            )
         )
         # earlier effects are refitted jointly with the new one
         for i, term in enumerate(final[:-1]):

@@ -155,15 +155,21 @@ def _markdown(result: ResidualResult, title: str, files: list[Path]) -> str:
     ]
     if s["effects"]:
         lines += [
-            "| order | effect | parameters | ±1σ over folds | RMSE after (W) | z |",
-            "|---|---|---|---|---|---|",
+            "| order | effect | parameters | ±1σ over folds | RMSE after (W) | z "
+            "| as good held out (RMSE W, z) |",
+            "|---|---|---|---|---|---|---|",
         ]
         for i, e in enumerate(s["effects"], 1):
             params = ", ".join(f"{k} = {v}" for k, v in e["params"].items())
             spread = ", ".join(f"{k} {v}" for k, v in e["params_fold_sd"].items())
             lines.append(
                 f"| {i} | {e['name']} | {params} | {spread} | {e['rmse_after_w']:.2f} | "
-                f"{e['z']:.1f} |"
+                f"{e['z']:.1f} | "
+                + ", ".join(
+                    f"{t['candidate']} ({t['rmse_w']:.2f}, {t['z']:.1f})"
+                    for t in e["indistinguishable_from"]
+                )
+                + " |"
             )
     else:
         lines.append("None.")

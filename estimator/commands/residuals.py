@@ -16,11 +16,13 @@ import math
 from pathlib import Path
 from typing import Any
 
+import numpy as np
 from rich.console import Console
 
-from estimator.effects import EFFECT_TYPES, effects_to_tables
+from estimator.effects import EFFECT_TYPES, Climb, effects_to_tables
 from estimator.errors import UserError
-from estimator.logs import FORMATS, load_flights
+from estimator.logs import FORMATS, FlightSeries, load_flights
+from estimator.online_effects import OnlineEffects, track_series
 from estimator.residuals import ResidualOptions, ResidualResult, analyze
 from estimator.vehicle import Vehicle, load_vehicle
 
@@ -56,6 +58,19 @@ def register(subparsers: argparse._SubParsersAction[argparse.ArgumentParser]) ->
         help="comma-separated effect names to try (default: all)",
     )
     g.add_argument("--min-alt", type=float, default=d.min_alt_m, help="airborne above this, m")
+    p.add_argument(
+        "--flight",
+        action="append",
+        default=[],
+        metavar="ID",
+        help="analyse only this flight (repeatable; ids as in the output's 'flights')",
+    )
+    p.add_argument(
+        "--online",
+        action="store_true",
+        help="also run the daemon's online wind/mass tracker over each flight, starting from "
+        "the given vehicle file (an independent check), and report its final estimate",
+    )
     p.set_defaults(func=run)
 
 
@@ -102,7 +117,7 @@ def run(args: argparse.Namespace) -> int:
     if args.write is not None and args.write.is_dir():
         raise UserError(f"--write {args.write} is a directory")
     with console.status("reading logs") as status:
-        flights = load_flights(args.logs, args.format)
+        flights = _select(load_flights(args.logs, args.format), args.flight)
         status.update(f"analysing {len(flights)} flight(s)")
         result = analyze(
             flights, vehicle, options, progress=lambda m: status.update(f"residuals: {m}")
@@ -113,16 +128,66 @@ def run(args: argparse.Namespace) -> int:
             status.update("writing the report")
             write_report(result, args.report, _title(args.logs, vehicle))
     summary = result.summary()
+    improved = with_effects(vehicle, result)
+    if args.online:
+        with console.status("online tracking"):
+            summary["online"] = online_summary(flights, vehicle)
     if args.write is not None:
-        with_effects(vehicle, result).save(args.write)
+        improved.save(args.write)
+    if args.json:
+        print(json.dumps(summary, indent=2), flush=True)
+    else:
+        print(format_summary(summary), flush=True)
+    if args.write is not None:
         console.print(f"wrote {args.write}")
     if args.report is not None:
         console.print(f"wrote {args.report}/summary.md and plots")
-    if args.json:
-        print(json.dumps(summary, indent=2))
-    else:
-        print(format_summary(summary))
     return 0
+
+
+def _select(flights: list[FlightSeries], ids: list[str]) -> list[FlightSeries]:
+    if not ids:
+        return flights
+    chosen = [f for f in flights if f.flight_id in ids]
+    missing = sorted(set(ids) - {f.flight_id for f in chosen})
+    if missing:
+        known = ", ".join(f.flight_id for f in flights)
+        raise UserError(f"--flight {', '.join(missing)} not in the logs (flights: {known})")
+    return chosen
+
+
+def online_summary(flights: list[FlightSeries], vehicle: Vehicle) -> list[dict[str, Any]]:
+    """Per flight, the online tracker's final wind and mass (started from ``vehicle``), and
+    their medians over the second half of the flight. Like the daemon's pipeline, a default
+    climb effect is added when the vehicle file has none."""
+    extra = () if "climb" in vehicle.effects else (Climb(),)
+    out = []
+    for flight in flights:
+        points = track_series(flight, OnlineEffects.from_vehicle(vehicle, extra))
+        if not points:
+            continue
+        last = points[-1]
+        late = points[len(points) // 2 :]
+        rad = np.radians([p.wind_from_deg for p in late])
+        speed = np.array([p.wind_speed_mps for p in late])
+        # median wind vector over the second half (blowing-from components)
+        wn, we = float(np.median(speed * np.cos(rad))), float(np.median(speed * np.sin(rad)))
+        out.append(
+            {
+                "flight": flight.flight_id,
+                "updates": len(points),
+                "wind_speed_mps": round(last.wind_speed_mps, 3),
+                "wind_from_deg": round(last.wind_from_deg, 1),
+                "mass_delta_kg": round(last.mass_delta_kg, 4),
+                "mass_sigma_kg": round(last.mass_sigma_kg, 4),
+                "late_median": {
+                    "wind_speed_mps": round(math.hypot(wn, we), 3),
+                    "wind_from_deg": round(math.degrees(math.atan2(we, wn)) % 360.0, 1),
+                    "mass_delta_kg": round(float(np.median([p.mass_delta_kg for p in late])), 4),
+                },
+            }
+        )
+    return out
 
 
 def _title(paths: list[Path], vehicle: Vehicle) -> str:
@@ -144,5 +209,14 @@ def format_summary(s: dict[str, Any]) -> str:
     for e in s["effects"]:
         params = ", ".join(f"{k}={v}" for k, v in e["params"].items())
         lines.append(f"  + {e['name']:<13} {params}  → RMSE {e['rmse_after_w']:.2f} W")
+        for t in e["indistinguishable_from"]:
+            lines.append(f"      as good held out: {t['candidate']} (RMSE {t['rmse_w']:.2f} W)")
     lines.append(s["attribution"]["verdict"])
+    for o in s.get("online", []):
+        lines.append(
+            f"  online {o['flight']}: final wind {o['wind_speed_mps']:.1f} m/s from "
+            f"{o['wind_from_deg']:.0f}°, mass {o['mass_delta_kg']:+.3f} ± "
+            f"{o['mass_sigma_kg']:.3f} kg; second-half median mass "
+            f"{o['late_median']['mass_delta_kg']:+.3f} kg"
+        )
     return "\n".join(lines)
