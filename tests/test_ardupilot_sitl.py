@@ -10,7 +10,6 @@ mixed in. SITL's battery is "unlimited": 12.6 V (3S) throughout, current linear 
 
 from __future__ import annotations
 
-import contextlib
 import json
 import os
 import socket
@@ -191,45 +190,45 @@ needs_sitl = pytest.mark.skipif(
 )
 
 
-def _guided_flight(sim_time_s: float) -> dict[str, object]:
+def _guided_flight(sim_time_s: float) -> float:
     """As a second ground station on SERIAL1 (tcp:5762): GUIDED, arm, take off to 20 m, fly
-    north at 8 m/s for ``sim_time_s`` / 2 and hover; returns what it saw."""
+    north at 8 m/s for half of ``sim_time_s``, hover the rest, LAND. Returns the height
+    reached (m)."""
     from pymavlink import mavutil
 
     conn = mavutil.mavlink_connection("tcp:127.0.0.1:5762", source_system=250)
     try:
         assert conn.wait_heartbeat(timeout=60), "no HEARTBEAT on SERIAL1"
-        conn.mav.request_data_stream_send(
-            conn.target_system, conn.target_component, mavlink.MAV_DATA_STREAM_ALL, 4, 1
-        )
+        sysid, compid = conn.target_system, conn.target_component
+        conn.mav.request_data_stream_send(sysid, compid, mavlink.MAV_DATA_STREAM_ALL, 4, 1)
+        said: list[str] = []
         deadline = time.monotonic() + 180  # EKF and GPS need a while after boot
         while not conn.motors_armed():
-            assert time.monotonic() < deadline, "SITL never became armable"
+            assert time.monotonic() < deadline, f"SITL never armed: {said[-5:]}"
             conn.set_mode("GUIDED")
             conn.arducopter_arm()
-            conn.recv_match(type="HEARTBEAT", blocking=True, timeout=2)
+            msg = conn.recv_match(type=["HEARTBEAT", "STATUSTEXT"], blocking=True, timeout=2)
+            if msg is not None and msg.get_type() == "STATUSTEXT":
+                said.append(msg.text)
         conn.mav.command_long_send(
-            conn.target_system, conn.target_component,
-            mavlink.MAV_CMD_NAV_TAKEOFF, 0, 0, 0, 0, 0, 0, 0, 20,
-        )  # fmt: skip
-        alt_m = 0.0
-        deadline = time.monotonic() + 60
+            sysid, compid, mavlink.MAV_CMD_NAV_TAKEOFF, 0, 0, 0, 0, 0, 0, 0, 20
+        )
+        alt_m, deadline = 0.0, time.monotonic() + 60
         while alt_m < 18.0:
-            assert time.monotonic() < deadline, "take-off did not reach 18 m"
+            assert time.monotonic() < deadline, f"take-off stopped at {alt_m:.1f} m"
             msg = conn.recv_match(type="GLOBAL_POSITION_INT", blocking=True, timeout=2)
             if msg is not None:
                 alt_m = msg.relative_alt / 1000
         leg_end = time.monotonic() + sim_time_s / 2 / SITL_SPEEDUP
-        while time.monotonic() < leg_end:
+        while time.monotonic() < leg_end:  # velocity only: position, accel, yaw ignored
             conn.mav.set_position_target_local_ned_send(
-                0, conn.target_system, conn.target_component,
-                mavlink.MAV_FRAME_LOCAL_NED, 0b0000_1111_1100_0111,
+                0, sysid, compid, mavlink.MAV_FRAME_LOCAL_NED, 0b0000_1101_1100_0111,
                 0, 0, 0, 8.0, 0, 0, 0, 0, 0, 0, 0,
             )  # fmt: skip
             time.sleep(0.2)
         time.sleep(sim_time_s / 2 / SITL_SPEEDUP)
         conn.set_mode("LAND")
-        return {"alt_m": alt_m}
+        return alt_m
     finally:
         conn.close()
 
@@ -237,6 +236,8 @@ def _guided_flight(sim_time_s: float) -> dict[str, object]:
 @needs_sitl
 @pytest.mark.slow
 def test_live_arducopter_sitl_flight_reaches_the_ground_station(tmp_path: Path) -> None:
+    """SITL serves tcp:5760 (SERIAL0) to the daemon; a client on SERIAL1 flies it; the daemon
+    publishes to a UDP ground station; estimates arrive and follow the flight."""
     if not (_port_free(5760) and _port_free(5762)):
         pytest.skip("tcp 5760/5762 are in use (another SITL running?)")
     vehicle = tmp_path / "sitl.toml"
@@ -245,38 +246,40 @@ def test_live_arducopter_sitl_flight_reaches_the_ground_station(tmp_path: Path) 
     sitl_args += ["--home", SITL_HOME, "-I0"]
     if os.environ.get("ARDUPILOT_SITL_DEFAULTS"):
         sitl_args += ["--defaults", os.environ["ARDUPILOT_SITL_DEFAULTS"]]
-    sitl = subprocess.Popen(
-        sitl_args, cwd=tmp_path, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE
-    )
+    daemon_args = [str(EXE), "run", "--connect", "tcp:127.0.0.1:5760", "--json", "-"]
+    daemon_args += ["--vehicle", str(vehicle), "--rate", "5"]
     gcs = GroundStation()
-    gcs.start()
-    daemon = None
-    try:
-        time.sleep(1.0)  # SITL binds 5760 and waits for its first client: the daemon
-        daemon_args = [str(EXE), "run", "--connect", "tcp:127.0.0.1:5760", "--json", "-"]
-        daemon_args += ["--vehicle", str(vehicle), "--rate", "5"]
-        daemon_args += ["--publish", f"udpout:127.0.0.1:{gcs.port}"]
-        daemon = subprocess.Popen(daemon_args, stdout=subprocess.PIPE, stderr=subprocess.PIPE)
-        flown = _guided_flight(sim_time_s=40.0)
-        time.sleep(2.0)
-    finally:
-        if daemon is not None:
-            daemon.terminate()
-        out, err = (b"", b"") if daemon is None else daemon.communicate(timeout=20)
-        sitl.terminate()
-        with contextlib.suppress(subprocess.TimeoutExpired):
-            sitl.wait(timeout=20)
-        gcs.close()
-    log = err.decode()
-    assert flown["alt_m"] >= 18.0
-    assert "autopilot found: system 1 component 1" in log, log
-    estimates = [json.loads(line) for line in out.decode().splitlines()]
+    daemon_args += ["--publish", f"udpout:127.0.0.1:{gcs.port}"]
+    out, log = tmp_path / "estimates.jsonl", tmp_path / "daemon.log"
+    with (
+        (tmp_path / "sitl.log").open("wb") as sitl_log,
+        out.open("wb") as out_fh,
+        log.open("wb") as log_fh,
+    ):
+        sitl = subprocess.Popen(sitl_args, cwd=tmp_path, stdout=sitl_log, stderr=sitl_log)
+        daemon = subprocess.Popen(daemon_args, stdout=out_fh, stderr=log_fh)
+        gcs.start()
+        try:
+            alt_m = _guided_flight(sim_time_s=40.0)
+            time.sleep(2.0)
+        finally:
+            for proc in (daemon, sitl):
+                proc.terminate()
+                try:
+                    proc.wait(timeout=20)
+                except subprocess.TimeoutExpired:
+                    proc.kill()
+            gcs.close()
+    assert alt_m >= 18.0
+    daemon_log = log.read_text()
+    assert daemon.returncode == 0, daemon_log
+    assert "autopilot found: system 1 component 1" in daemon_log, daemon_log
+    estimates = [json.loads(line) for line in out.read_text().splitlines()]
     flying = [e for e in estimates if e["power_measured_w"] and e["power_measured_w"] > 100]
     assert flying, "no estimate with measured flight power"
     assert max(e["speed_mps"] for e in flying) > 6.0  # the leg north
     assert all(e["voltage_v"] == pytest.approx(12.6, abs=0.5) for e in flying)
-    times = np.array([e["time_s"] for e in estimates])
-    assert np.all(np.diff(times) >= 0)
+    assert np.all(np.diff([e["time_s"] for e in estimates]) >= 0)
     kinds = Counter(m.get_type() for m in gcs.messages)
     assert kinds["HEARTBEAT"] and kinds["NAMED_VALUE_FLOAT"] and kinds["BATTERY_STATUS"]
     ours = [m for m in gcs.messages if m.get_type() == "BATTERY_STATUS" and m.id == 9]
