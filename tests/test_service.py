@@ -409,3 +409,25 @@ async def test_daemon_as_tcp_client_like_ardupilot_sitl(flight: Messages) -> Non
         stop.set()
         await asyncio.wait_for(task, 5)
         await autopilot.close()
+
+
+def test_shipped_default_config_matches_the_built_in_defaults() -> None:
+    from estimator.config import build_config, load_config_file
+
+    path = Path(__file__).resolve().parent.parent / "config" / "default.toml"
+    assert build_config(load_config_file(path), {}) == ServiceConfig()
+
+
+def test_flags_override_the_config_file(tmp_path: Path) -> None:
+    from estimator.cli import build_parser
+    from estimator.commands.run import config_from_args
+
+    conf = tmp_path / "c.toml"
+    conf.write_text('[publish]\nrate_hz = 5.0\nurls = ["udpout:127.0.0.1:14551"]\n')
+    args = build_parser().parse_args(
+        ["run", "--config", str(conf), "--rate", "2", "--target", "3:1", "--connect", "tcp:h:5760"]
+    )
+    config = config_from_args(args)
+    assert config.publish_rate_hz == 2.0 and config.publish == ("udpout:127.0.0.1:14551",)
+    assert (config.target_system, config.target_component) == (3, 1)
+    assert config.connect == "tcp:h:5760"
