@@ -251,6 +251,7 @@ class EnergyFilter:
         q_e = (s.model_power_noise_fraction * drain_wh) ** 2
         q_b = s.bias_walk_per_sqrt_s**2 * dt
         kf.predict(F=f, Q=np.diag([q_e, q_b]))
+        self._cap_bias_variance()
 
     def flight_state_changed(self, steady_power_w: float) -> None:
         """The model's steady power moved: the bias learned at the old flight state transfers
@@ -267,6 +268,18 @@ class EnergyFilter:
         if move > s.state_change_step:
             kf.P[1, 1] += (s.state_change_bias_sigma * move) ** 2
             self._anchor_power_w = steady_power_w
+            self._cap_bias_variance()
+
+    def _cap_bias_variance(self) -> None:
+        """The bias is never less known than the prior says the model is: without
+        measurements its variance stops at ``bias_prior_sigma²`` (row and column scaled
+        together, so P stays positive semi-definite)."""
+        kf = self._require()
+        cap = self.settings.bias_prior_sigma**2
+        if kf.P[1, 1] > cap:
+            factor = math.sqrt(cap / kf.P[1, 1])
+            kf.P[1, :] *= factor
+            kf.P[:, 1] *= factor
 
     def update_power(
         self, measured_w: float, power_model_w: float, model_sigma_w: float = 0.0

@@ -120,3 +120,16 @@ def test_reboot_rebase_keeps_energy_and_restarts_the_charge_counter() -> None:
     f.rebase(1.0)
     f.update_charge(0.0)  # the new counter starts at zero
     assert f.estimate().energy_wh == pytest.approx(before, abs=0.3)
+
+
+def test_model_only_bias_uncertainty_never_exceeds_the_prior() -> None:
+    f = EnergyFilter(PackModel(SPEC), FusionSettings(bias_prior_sigma=0.1))
+    f.initialize(BatterySample(0.0, 25.2, None, None), 400.0)
+    initial_wh = f.estimate().energy_wh
+    for k in range(1, 2000):  # 30 min of manoeuvres, no current sensor
+        f.predict(k * 1.0, 400.0 + 100.0 * (k % 2), 1.0)
+        f.flight_state_changed(400.0 + 100.0 * (k % 2))
+    est = f.estimate()
+    assert est.bias_sigma == pytest.approx(0.1, rel=1e-6)
+    assert np.all(np.linalg.eigvalsh(est.covariance) >= -1e-9)
+    assert est.energy_sigma_wh < 0.2 * (initial_wh - est.energy_wh) + 5.0
