@@ -7,8 +7,9 @@ Connection strings follow ArduPilot/mavutil usage:
 - ``udpout:HOST:PORT`` send to HOST:PORT; replies arrive on our ephemeral port;
 - ``tcp:HOST:PORT``    TCP client that reconnects (1 s back-off) when the peer goes away;
 - ``tcpin:HOST:PORT``  TCP server; sends go to every connected client (used by simulators);
-- ``DEV[:BAUD]``       a serial device (``/dev/ttyACM0:115200``), raw mode, non-blocking fd;
-  ``serial:DEV[:BAUD]`` is accepted too.
+- ``DEV[:BAUD]``       a serial device (``/dev/ttyACM0:115200``), raw mode, non-blocking fd,
+  reopened every second after a failure (a USB autopilot rebooting); ``serial:DEV[:BAUD]``
+  is accepted too.
 
 A link parses what it receives into pymavlink messages (bad frames are counted, never
 raised) and queues them for :meth:`MavlinkLink.recv`; a flood beyond ``max_pending``
@@ -44,6 +45,7 @@ log = logging.getLogger(__name__)
 
 #: Most UDP peers a ``udpin`` link answers; the oldest is forgotten beyond this.
 MAX_UDP_PEERS = 16
+#: Seconds between attempts to reconnect a TCP client or reopen a serial device.
 TCP_RECONNECT_S = 1.0
 UDP_RECEIVE_BUFFER_BYTES = 1 << 20
 DEFAULT_BAUD = 115200
@@ -418,51 +420,87 @@ class _TcpServerTransport(_Transport):
             await self.server.wait_closed()
 
 
+def _open_tty(device: str, baud: int) -> int:
+    """Open ``device`` raw, non-blocking, at ``baud``; OSError when it is not a tty."""
+    fd = os.open(device, os.O_RDWR | os.O_NOCTTY | os.O_NONBLOCK)
+    try:
+        tty.setraw(fd)
+        attrs = termios.tcgetattr(fd)
+        attrs[4] = attrs[5] = _BAUD_RATES[baud]  # ispeed, ospeed
+        attrs[2] |= termios.CLOCAL | termios.CREAD
+        termios.tcsetattr(fd, termios.TCSANOW, attrs)
+    except termios.error as exc:
+        os.close(fd)
+        raise OSError(f"{device} is not a serial port ({exc})") from None
+    return fd
+
+
 class _SerialTransport(_Transport):
-    """A tty in raw mode on a non-blocking fd, read with ``loop.add_reader``."""
+    """A tty in raw mode on a non-blocking fd, read with ``loop.add_reader``.
+
+    When the device fails or hangs up (a USB autopilot rebooting), it is closed and reopened
+    every second until it is back (``counts['reconnects']``)."""
 
     def __init__(self, link: MavlinkLink, fd: int) -> None:
         self.link = link
-        self.fd = fd
+        self.fd: int | None = None
         self.parser = FrameParser()
         self.out = bytearray()
         self.loop = asyncio.get_running_loop()
+        self.reopen_task: asyncio.Task[None] | None = None
+        self._attach(fd)
 
     @classmethod
     async def open(cls, link: MavlinkLink) -> _SerialTransport:
-        addr = link.address
-        fd = os.open(addr.device, os.O_RDWR | os.O_NOCTTY | os.O_NONBLOCK)
-        try:
-            tty.setraw(fd)
-            attrs = termios.tcgetattr(fd)
-            speed = _BAUD_RATES[addr.baud]
-            attrs[4] = attrs[5] = speed  # ispeed, ospeed
-            attrs[2] |= termios.CLOCAL | termios.CREAD
-            termios.tcsetattr(fd, termios.TCSANOW, attrs)
-        except termios.error as exc:
-            os.close(fd)
-            raise OSError(f"{addr.device} is not a serial port ({exc})") from None
-        self = cls(link, fd)
+        return cls(link, _open_tty(link.address.device, link.address.baud))
+
+    def _attach(self, fd: int) -> None:
+        self.fd = fd
+        self.parser = FrameParser()
         self.loop.add_reader(fd, self._readable)
-        return self
+
+    def _detach(self, reason: str) -> None:
+        """Drop the fd after a failure and start reopening the device."""
+        if self.fd is None:
+            return
+        log.warning("serial %s: %s, reopening", self.link.address.device, reason)
+        self.link.counts["socket_errors"] += 1
+        self._close_fd()
+        if not self.link.closed:
+            self.reopen_task = self.loop.create_task(self._reopen())
+
+    async def _reopen(self) -> None:
+        addr = self.link.address
+        while not self.link.closed:
+            await asyncio.sleep(TCP_RECONNECT_S)
+            try:
+                fd = _open_tty(addr.device, addr.baud)
+            except OSError:
+                continue
+            self.link.counts["reconnects"] += 1
+            log.info("serial %s: reopened", addr.device)
+            self._attach(fd)
+            return
 
     def _readable(self) -> None:
+        assert self.fd is not None
         try:
             data = os.read(self.fd, 4096)
         except BlockingIOError:
             return
         except OSError as exc:
-            log.error("serial %s: read failed (%s), closing", self.link.address.device, exc)
-            self.loop.remove_reader(self.fd)
-            self.link.counts["socket_errors"] += 1
+            self._detach(f"read failed ({exc.strerror or exc})")
             return
         if not data:
+            self._detach("hung up")
             return
         before = self.parser.bad_frames
         messages = self.parser.feed(data)
         self.link._deliver(messages, self.parser.bad_frames - before)
 
     def write(self, data: bytes) -> bool:
+        if self.fd is None:
+            return False
         if self.out:
             self.out.extend(data)
             return True
@@ -478,6 +516,7 @@ class _SerialTransport(_Transport):
         return True
 
     def _writable(self) -> None:
+        assert self.fd is not None
         try:
             n = os.write(self.fd, self.out)
         except BlockingIOError:
@@ -489,8 +528,19 @@ class _SerialTransport(_Transport):
         if not self.out:
             self.loop.remove_writer(self.fd)
 
-    async def close(self) -> None:
+    def _close_fd(self) -> None:
+        if self.fd is None:
+            return
         self.loop.remove_reader(self.fd)
         if self.out:
             self.loop.remove_writer(self.fd)
+            self.out.clear()
         os.close(self.fd)
+        self.fd = None
+
+    async def close(self) -> None:
+        if self.reopen_task is not None:
+            self.reopen_task.cancel()
+            with contextlib.suppress(asyncio.CancelledError):
+                await self.reopen_task
+        self._close_fd()

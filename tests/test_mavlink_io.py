@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import asyncio
 import os
+from pathlib import Path
 
 import pytest
 from pymavlink.dialects.v20 import common as mavlink
@@ -150,3 +151,33 @@ async def test_serial_link_over_a_pseudo_terminal() -> None:
 async def test_opening_a_missing_serial_device_is_a_user_error() -> None:
     with pytest.raises(UserError, match="cannot open"):
         await open_link("/dev/does-not-exist-uav:115200")
+
+
+async def test_serial_device_that_disappears_is_reopened(tmp_path: Path) -> None:
+    """A USB autopilot reboots: the device hangs up, then comes back (here: a symlink moved
+    to a new pseudo-terminal)."""
+    device = tmp_path / "ttyAP"
+    first_controller, first_worker = os.openpty()
+    device.symlink_to(os.ttyname(first_worker))
+    link = await open_link(f"{device}:115200")
+    encoder = mavlink.MAVLink(None, srcSystem=1, srcComponent=1)
+    try:
+        os.write(first_controller, heartbeat(link).pack(encoder))
+        assert (await recv_n(link, 1))[0].get_type() == "HEARTBEAT"
+        os.close(first_controller)  # the device hangs up
+        os.close(first_worker)
+        async with asyncio.timeout(5):
+            while link.counts["socket_errors"] == 0:
+                await asyncio.sleep(0.02)
+        controller, worker = os.openpty()
+        device.unlink()
+        device.symlink_to(os.ttyname(worker))
+        async with asyncio.timeout(5):
+            while link.counts["reconnects"] == 0:
+                await asyncio.sleep(0.05)
+        os.write(controller, heartbeat(link).pack(encoder))
+        assert (await recv_n(link, 1))[0].get_srcComponent() == 1
+        os.close(controller)
+        os.close(worker)
+    finally:
+        await link.close()
