@@ -106,7 +106,11 @@ def _options(args: argparse.Namespace) -> ResidualOptions:
 def with_effects(vehicle: Vehicle, result: ResidualResult) -> Vehicle:
     """``vehicle`` with the selected effects added to its ``[effects.NAME]`` tables."""
     tables = dict(vehicle.effects)
-    tables.update(effects_to_tables(result.effects))
+    for name, params in effects_to_tables(result.effects).items():
+        # six significant digits: far below the parameters' uncertainty, readable files
+        tables[name] = {
+            k: (v if v is None else float(f"{float(v):.6g}")) for k, v in params.items()
+        }
     return dataclasses.replace(vehicle, effects=tables)
 
 
