@@ -55,6 +55,7 @@ class Estimate:
     range_vmr_m: distance over ground (no wind) at V_mr until the reserve.
     bias: measured over modelled power (1 = the model is right).
     model_only: no measured current fused (uncertainty is wider).
+    *_sigma_*: 1σ of the quantity named before it (first-order propagation).
     stale: battery telemetry older than the configured limit (or, in the daemon, a silent
     link).
     """
@@ -82,6 +83,9 @@ class Estimate:
     voltage_v: float = math.nan
     resistance_ohm: float = math.nan
     steady_power_w: float = math.nan
+    hover_endurance_sigma_s: float = math.nan
+    vme_endurance_sigma_s: float = math.nan
+    range_vmr_sigma_m: float = math.nan
 
     def as_dict(self) -> dict[str, float | bool | None]:
         return {name: getattr(self, name) for name in _ESTIMATE_FIELDS}
@@ -263,7 +267,7 @@ class Pipeline:
         model_w = np.array([self._steady_power_w, self._p_hover_w, self._p_me_w, self._p_mr_w])
         times_s, sigmas_s = self.energy.endurance_s(est.bias * model_w, est)
         endurance_s, hover_s, vme_s, vmr_s = (float(x) for x in times_s)
-        endurance_sigma_s = float(sigmas_s[0])
+        endurance_sigma_s, hover_sigma_s, vme_sigma_s, vmr_sigma_s = (float(x) for x in sigmas_s)
         battery = self._battery
         stale = battery is None or time_s - battery.time_s > self.settings.battery_stale_s
         voltage = self.energy.voltage
@@ -291,6 +295,9 @@ class Pipeline:
             voltage_v=math.nan if battery is None else battery.voltage_v,
             resistance_ohm=math.nan if voltage is None else voltage.resistance_ohm,
             steady_power_w=steady_w,
+            hover_endurance_sigma_s=hover_sigma_s,
+            vme_endurance_sigma_s=vme_sigma_s,
+            range_vmr_sigma_m=self.v_mr_mps * vmr_sigma_s,
         )
         self.last = estimate
         self.counts["estimates"] += 1

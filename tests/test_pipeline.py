@@ -66,6 +66,10 @@ def test_level_flight_estimate_is_consistent() -> None:
     assert 5.0 < last.v_me_mps < 10.0
     assert last.range_vmr_m > 0
     assert all(e.energy_remaining_sigma_wh > 0 and e.endurance_sigma_s > 0 for e in estimates)
+    assert last.hover_endurance_sigma_s > 0 and last.vme_endurance_sigma_s > 0
+    assert last.range_vmr_sigma_m == pytest.approx(
+        last.range_vmr_m * last.vme_endurance_sigma_s / last.vme_endurance_s, rel=0.2
+    )
 
 
 def test_no_current_sensor_runs_on_the_model_with_a_wider_sigma() -> None:

@@ -431,3 +431,12 @@ def test_flags_override_the_config_file(tmp_path: Path) -> None:
     assert config.publish_rate_hz == 2.0 and config.publish == ("udpout:127.0.0.1:14551",)
     assert (config.target_system, config.target_component) == (3, 1)
     assert config.connect == "tcp:h:5760"
+
+
+def test_named_value_names_fit_mavlink_and_are_documented() -> None:
+    from estimator.publish import NAMED_VALUES
+
+    doc = (Path(__file__).resolve().parent.parent / "docs" / "daemon.md").read_text()
+    for name in NAMED_VALUES:
+        assert 0 < len(name) <= 10 and name.isupper()
+        assert f"`{name}`" in doc
