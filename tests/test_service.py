@@ -440,3 +440,25 @@ def test_named_value_names_fit_mavlink_and_are_documented() -> None:
     for name in NAMED_VALUES:
         assert 0 < len(name) <= 10 and name.isupper()
         assert f"`{name}`" in doc
+
+
+@pytest.mark.parametrize("battery_to_autopilot", [False, True])
+async def test_battery_status_goes_towards_the_autopilot_only_when_configured(
+    flight: Messages, battery_to_autopilot: bool
+) -> None:
+    config = ServiceConfig(
+        values_to_autopilot=True,
+        battery_status_to_autopilot=battery_to_autopilot,
+        publish_rate_hz=20.0,
+        stale_after_s=30.0,
+    )
+    async with running(config) as (service, sender):
+        await play(sender, [m for _, m in flight[:400]])
+        await wait_for(lambda: service.latest is not None)
+        received: list[mavlink.MAVLink_message] = []
+        async with asyncio.timeout(5):
+            while sum(m.get_type() == "NAMED_VALUE_FLOAT" for m in received) < 32:
+                received.extend(await sender.recv())
+        kinds = {m.get_type() for m in received if m.get_srcComponent() == 191}
+        assert "NAMED_VALUE_FLOAT" in kinds
+        assert ("BATTERY_STATUS" in kinds) == battery_to_autopilot
