@@ -601,6 +601,8 @@ class Selected:
     params_fold_sd: dict[str, float]
     #: Qualifying candidates as good on held-out data (label, RMSE W, z of chosen vs it).
     ties: list[tuple[str, float, float]] = field(default_factory=list)
+    #: The best other candidate of that step (label, RMSE W, z of chosen vs it), if any.
+    runner_up: tuple[str, float, float] | None = None
 
     def as_dict(self) -> dict[str, Any]:
         return {
@@ -613,6 +615,13 @@ class Selected:
                 {"candidate": label, "rmse_w": round(r, 3), "z": round(z, 2)}
                 for label, r, z in self.ties
             ],
+            "runner_up": None
+            if self.runner_up is None
+            else {
+                "candidate": self.runner_up[0],
+                "rmse_w": round(self.runner_up[1], 3),
+                "z": round(self.runner_up[2], 2),
+            },
         }
 
 
@@ -807,17 +816,22 @@ def analyze(
         if not good:
             break
         rmse, z, _, cand, predicted, folds = min(good, key=lambda t: t[0])
-        # qualifying rivals the held-out data cannot tell from the chosen one
+        # the other candidates of this step, best first (z: chosen vs it); qualifying ones
+        # the held-out data cannot tell from the chosen one are ties
+        others = [t for t in sorted(trials, key=lambda t: t[0]) if t[3] is not cand]
         rivals = [
             (
                 t[3].label,
                 t[0],
                 _block_gain_z(samples, samples.power_w - t[4], samples.power_w - predicted),
             )
-            for t in good
-            if t[3] is not cand
+            for t in others
         ]
-        ties = [(label, r, zz) for label, r, zz in rivals if zz < opt.z_threshold]
+        ties = [
+            rival
+            for rival, t in zip(rivals, others, strict=True)
+            if t[2] and rival[2] < opt.z_threshold
+        ]
         chosen.append(cand)
         current = predicted
         final = fit_design(_Problem(vehicle, samples, everything), chosen, f_scale_w, warm)
@@ -825,7 +839,13 @@ def analyze(
         fold_effects = [terms[-1].effect() for terms in folds]
         selected.append(
             Selected(
-                cand.name, final[-1].effect(), rmse, z, _fold_sd(fold_effects, final[-1]), ties
+                cand.name,
+                final[-1].effect(),
+                rmse,
+                z,
+                _fold_sd(fold_effects, final[-1]),
+                ties,
+                rivals[0] if rivals else None,
             )
         )
         # earlier effects are refitted jointly with the new one
