@@ -116,6 +116,7 @@ def test_payload_picked_up_mid_flight_is_a_mass_step(tmp_path: Path) -> None:
     assert rmse_fitted < 1.15 * noise_rmse_w(flights, (mass,)) + 0.5
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize(
     ("name", "plan", "seed", "effect", "kw"),
     [

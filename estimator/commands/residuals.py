@@ -179,7 +179,7 @@ def online_summary(flights: list[FlightSeries], vehicle: Vehicle) -> list[dict[s
         out.append(
             {
                 "flight": flight.flight_id,
-                "updates": len(points),
+                "samples": len(points),
                 "wind_speed_mps": round(last.wind_speed_mps, 3),
                 "wind_from_deg": round(last.wind_from_deg, 1),
                 "mass_delta_kg": round(last.mass_delta_kg, 4),
