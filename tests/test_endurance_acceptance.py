@@ -19,7 +19,7 @@ from estimator.decode import TelemetryDecoder
 from estimator.effects import Avionics, Wind
 from estimator.fusion import FusionSettings
 from estimator.pipeline import Estimate, Pipeline, PipelineSettings
-from estimator.sim import SimConfig, SimRun, simulate
+from estimator.sim import SensorNoise, SimConfig, SimRun, simulate
 from estimator.sim_plans import builtin_plan
 from estimator.telemetry import BatterySample
 from estimator.vehicle import default_vehicle
@@ -81,7 +81,9 @@ def fly(config: SimConfig, settings: PipelineSettings | None = None) -> Flown:
     truth = run.truth
     moving = np.nonzero((truth.speed_mps > 0.5) & truth.flying & (truth.alt_m > 15.0))[0]
     spec = config.vehicle.battery
-    px4 = px4_style_endurance_s(battery, spec.capacity_ah, spec.reserve_fraction, 1.0)
+    px4 = px4_style_endurance_s(
+        battery, spec.capacity_ah, spec.reserve_fraction, config.initial_soc
+    )
     return Flown(run, estimates, px4, float(truth.time_s[moving[0]]))
 
 
@@ -183,6 +185,90 @@ def report() -> None:
         )
     fast = builtin_plan("hover-cruise", cruise_speed_mps=14.0)
     table(fly(SimConfig(plan=fast, effects=HIDDEN, seed=0)), "hover-cruise at 14 m/s, same")
+    ensemble()
+
+
+#: The ensemble's noise figures: the simulator's OCV curve and capacity are the configured
+#: ones (no curve or capacity error), its resting voltage reads with 20 mV pack noise; the
+#: current-sensor gain is drawn with the default 1 % spread.
+ENSEMBLE_MATCHED = PipelineSettings(
+    fusion=FusionSettings(rest_voltage_sigma_v_per_cell=0.02 / 6, capacity_sigma_fraction=0.0)
+)
+
+
+def ensemble_configs(flights: int) -> list[SimConfig]:
+    """Short hover→cruise flights with drawn conditions: start SoC U(0.5, 1), current-sensor
+    gain N(1, 1 %), pack resistance U(15, 40) mΩ, wind U(0, 6) m/s from any direction,
+    avionics U(0, 30) W, cruise U(6, 14) m/s (seeded: always the same flights)."""
+    rng = np.random.default_rng(2026)
+    configs = []
+    for k in range(flights):
+        plan = builtin_plan("hover-cruise", cruise_speed_mps=float(rng.uniform(6.0, 14.0)))
+        configs.append(
+            SimConfig(
+                plan=plan,
+                effects=(
+                    Wind(speed_mps=float(rng.uniform(0, 6)), from_deg=float(rng.uniform(0, 360))),
+                    Avionics(power_w=float(rng.uniform(0, 30))),
+                ),
+                internal_resistance_ohm=float(rng.uniform(0.015, 0.04)),
+                initial_soc=float(rng.uniform(0.5, 1.0)),
+                noise=SensorNoise(current_scale=float(rng.normal(1.0, 0.01))),
+                duration_s=200.0,
+                seed=k,
+            )
+        )
+    return configs
+
+
+def ensemble_errors(
+    configs: list[SimConfig], settings: PipelineSettings | None
+) -> tuple[np.ndarray, dict[tuple[str, float], list[float]]]:
+    """|error|/σ at 10 s, 30 s and 2 min after each change, and relative errors (ours and
+    PX4-style) per check time."""
+    z: list[float] = []
+    rel: dict[tuple[str, float], list[float]] = {}
+    for config in configs:
+        flown = fly(config, settings)
+        for after_s in CHECK_AFTER_CHANGE_S:
+            e = flown.estimate_at(flown.change_s + after_s)
+            truth_s = flown.truth_left_s(e.time_s)
+            z.append(abs(e.endurance_s - truth_s) / e.endurance_sigma_s)
+            rel.setdefault(("state-aware", after_s), []).append(
+                abs(e.endurance_s - truth_s) / truth_s
+            )
+            px4_s = flown.px4_at(flown.change_s + after_s)
+            rel.setdefault(("PX4-style", after_s), []).append(abs(px4_s - truth_s) / truth_s)
+    return np.array(z), rel
+
+
+@pytest.mark.slow
+def test_one_sigma_covers_about_68_percent_when_the_noise_figures_are_right() -> None:
+    """Over drawn flights, with noise figures describing the simulator, the 1σ band holds
+    the truth about as often as it claims (binomial ±2σ for n = 30 around 68 %)."""
+    z, _ = ensemble_errors(ensemble_configs(10), ENSEMBLE_MATCHED)
+    assert len(z) == 30
+    assert 0.50 <= np.mean(z <= 1.0) <= 0.86
+    assert np.mean(z <= 2.0) >= 0.85
+
+
+def ensemble(flights: int = 30) -> None:
+    """Print coverage and error figures over ``flights`` drawn flights (docs/daemon.md)."""
+    configs = ensemble_configs(flights)
+    z_default, rel = ensemble_errors(configs, None)
+    z_matched, _ = ensemble_errors(configs, ENSEMBLE_MATCHED)
+    for (name, after_s), errors in rel.items():
+        arr = 100 * np.array(errors)
+        print(
+            f"  {name:11s} +{after_s:3.0f} s: |error| median {np.median(arr):.2f} %, "
+            f"max {arr.max():.2f} %, within 3 %: {np.mean(arr <= 3):.0%}"
+        )
+    for name, arr in (("default settings", z_default), ("OCV/capacity exact", z_matched)):
+        print(
+            f"ensemble of {flights} flights, {name}: {np.mean(arr <= 1):.0%} within 1σ, "
+            f"{np.mean(arr <= 2):.0%} within 2σ (n = {len(arr)}), mean |error|/σ "
+            f"{np.mean(arr):.2f}"
+        )
 
 
 def table(flown: Flown, title: str) -> None:
