@@ -10,6 +10,7 @@ mixed in. SITL's battery is "unlimited": 12.6 V (3S) throughout, current linear 
 
 from __future__ import annotations
 
+import asyncio
 import json
 import os
 import socket
@@ -24,11 +25,14 @@ from pathlib import Path
 import numpy as np
 import pytest
 from pymavlink.dialects.v20 import common as mavlink
-from test_sitl import GroundStation
+from test_sitl import GroundStation, daemon_subprocess
 
 from estimator.decode import FrameParser, TelemetryDecoder
+from estimator.demo import wait_for_daemon
 from estimator.logs import iter_samples
 from estimator.logs.tlog import STAMP_BYTES, frame_length
+from estimator.mavlink_io import MavlinkLink
+from estimator.publish import json_line
 from estimator.replay import replay_log, summarize
 from estimator.telemetry import ArmedSample, BatterySample, RebootSample, VelocitySample
 from estimator.vehicle import BatterySpec, Vehicle, default_vehicle
@@ -284,3 +288,41 @@ def test_live_arducopter_sitl_flight_reaches_the_ground_station(tmp_path: Path) 
     assert kinds["HEARTBEAT"] and kinds["NAMED_VALUE_FLOAT"] and kinds["BATTERY_STATUS"]
     ours = [m for m in gcs.messages if m.get_type() == "BATTERY_STATUS" and m.id == 9]
     assert any(m.time_remaining > 0 for m in ours)
+
+
+# -- the recording played live into the daemon ---------------------------------------------------
+
+#: Playback speed of the recording (362 s, 45 667 frames) into the daemon.
+TLOG_SPEEDUP = 80.0
+
+
+@needs_tlog
+@pytest.mark.slow
+def test_recording_played_live_into_the_daemon_equals_its_replay(tmp_path: Path) -> None:
+    """The SITL recording sent frame by frame, at its own pace × 80, over TCP into
+    ``uav-energy run`` (as from SITL's tcp:5760) gives exactly the replay's estimates."""
+    records = tlog_records(SITL_TLOG)
+    vehicle = tmp_path / "sitl.toml"
+    sitl_vehicle().save(vehicle)
+
+    async def serve(link: MavlinkLink) -> None:
+        await wait_for_daemon(link)
+        loop = asyncio.get_running_loop()
+        start_wall, first_us = loop.time(), records[0][0]
+        for stamp_us, frame in records:
+            delay = start_wall + (stamp_us - first_us) / 1e6 / TLOG_SPEEDUP - loop.time()
+            if delay > 0:
+                await asyncio.sleep(delay)
+            link.send_bytes(frame)
+
+    def replay() -> list[dict]:
+        estimates = replay_log(SITL_TLOG, sitl_vehicle()).estimates
+        return [json.loads(json_line(e)) for e in estimates]
+
+    live, replayed, log = asyncio.run(
+        daemon_subprocess(serve, replay, tmp_path, "--vehicle", str(vehicle))
+    )
+    assert "autopilot found: system 1 component 1" in log
+    assert "link_bad_frames=" not in log and "link_dropped=" not in log
+    assert len(live) == len(replayed) > 5000
+    assert live == replayed
