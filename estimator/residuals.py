@@ -34,7 +34,8 @@ Method
    it cuts the held-out RMSE by at least ``min_gain_fraction``; the best qualifying one is
    added; selection stops when none qualifies. On clean data nothing qualifies.
 5. **Attribution**: the held-out residual left after selection is regressed on each channel
-   alone with a k-nearest-neighbour regressor (sklearn, same folds); the channel with the
+   alone with a k-nearest-neighbour regressor (sklearn, same folds; the mean per value for
+   channels with at most 16 distinct values, like a payload column); the channel with the
    highest held-out R² is where the remaining structure lives. When nothing was selected and a
    channel still predicts the residual, no candidate explains it and that channel is where to
    look.
@@ -906,12 +907,27 @@ def _features(values: FloatArray, circular: bool) -> FloatArray:
     return (values / sd).reshape(-1, 1)
 
 
+_MAX_DISCRETE_VALUES = 16
+
+
+def _group_means(x_train: FloatArray, y_train: FloatArray, x_test: FloatArray) -> FloatArray:
+    """Mean of ``y_train`` per distinct ``x_train`` value, at ``x_test`` (NaN if unseen)."""
+    keys, inverse = np.unique(x_train, return_inverse=True)
+    means = np.bincount(inverse, weights=y_train) / np.bincount(inverse)
+    idx = np.clip(np.searchsorted(keys, x_test), 0, len(keys) - 1)
+    return np.where(keys[idx] == x_test, means[idx], np.nan)
+
+
 def attribute(samples: Samples, resid: FloatArray, opt: ResidualOptions) -> list[ChannelScore]:
-    """Held-out R² of a k-NN regression of ``resid`` on each channel alone, best first."""
+    """Held-out R² of ``resid`` predicted from each channel alone, best first: k-NN
+    regression (sklearn), or the mean per value for channels with few distinct values."""
     scores = []
     for name, values in samples.channels.items():
         finite = np.isfinite(values)
         x = _features(np.where(finite, values, 0.0), name.endswith("_deg"))
+        # a few distinct values (payload, flight regime): k-NN would break the many exact
+        # ties by sample order; the mean residual per value is the nonparametric answer
+        discrete = len(np.unique(values[finite])) <= _MAX_DISCRETE_VALUES
         predicted = np.full(len(resid), np.nan)
         baseline = np.full(len(resid), np.nan)
         for j in range(opt.folds):
@@ -919,11 +935,17 @@ def attribute(samples: Samples, resid: FloatArray, opt: ResidualOptions) -> list
             train = samples.train_rows(j, opt.guard_s) & finite
             if test.sum() == 0 or train.sum() < 20:
                 continue
+            baseline[test] = float(np.mean(resid[train]))
+            if discrete:
+                predicted[test] = _group_means(values[train], resid[train], values[test])
+                predicted[test] = np.where(
+                    np.isnan(predicted[test]), baseline[test], predicted[test]
+                )
+                continue
             k = int(np.clip(round(math.sqrt(train.sum())), 10, 200))
             k = min(k, int(train.sum()))
             knn = KNeighborsRegressor(n_neighbors=k).fit(x[train], resid[train])
             predicted[test] = knn.predict(x[test])
-            baseline[test] = float(np.mean(resid[train]))
         ok = np.isfinite(predicted)
         if ok.sum() < 20:
             continue
