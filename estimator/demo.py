@@ -463,35 +463,43 @@ def run_demo(
 
 
 def summary_table(summary: DemoSummary) -> Table:
-    """The accuracy summary as a rich table."""
+    """The accuracy summary as a rich table (fits 80 columns)."""
     s = summary
-    table = Table(title="accuracy summary", show_header=False, title_justify="left")
+    table = Table(
+        title=f"accuracy summary ('{s.plan}', hidden wind {s.wind})",
+        show_header=False,
+        title_justify="left",
+    )
     table.add_column("what")
     table.add_column("value", justify="right")
     rmse = "—" if s.power_rmse_w is None else f"{s.power_rmse_w:.1f} W"
     mape = "—" if s.power_mape_pct is None else f"{s.power_mape_pct:.1f} %"
     table.add_row("flight / wall time", f"{s.flight_s:.0f} s / {s.wall_s:.1f} s")
-    table.add_row("estimates received", f"{s.estimates}")
-    table.add_row("model power vs measured (airborne): RMSE, MAPE", f"{rmse}, {mape}")
+    table.add_row("estimates from the daemon", f"{s.estimates}")
+    table.add_row("model vs measured power: RMSE, MAPE", f"{rmse}, {mape}")
     table.add_row(
-        "energy: measured / model predicted",
-        f"{s.energy_measured_wh:.1f} / {s.energy_predicted_wh:.1f} Wh",
+        "energy measured / model", f"{s.energy_measured_wh:.1f} / {s.energy_predicted_wh:.1f} Wh"
     )
     table.add_row("fused bias (measured / model) at the end", f"{s.final_bias:.3f}")
     table.add_row(
-        "remaining energy vs truth: end, RMS",
+        "energy left vs truth: at the end, RMS",
         f"{s.energy_error_end_wh:+.2f} Wh, {s.energy_error_rms_wh:.2f} Wh",
     )
-    table.add_row("remaining energy within 1σ of truth", f"{s.energy_within_1sigma_pct:.0f} %")
+    table.add_row("energy left within 1σ of truth", f"{s.energy_within_1sigma_pct:.0f} %")
     for c in s.endurance:
         table.add_row(
             f"endurance {c.after_s:.0f} s into the cruise",
-            f"{c.estimate_s / 60:.2f} ± {c.sigma_s / 60:.2f} min vs {c.truth_s / 60:.2f} "
+            f"{c.estimate_s / 60:.2f}±{c.sigma_s / 60:.2f} min, true {c.truth_s / 60:.2f} "
             f"({c.error_pct:+.1f} %)",
         )
+    measured = s.energy_measured_wh
+    share = 100.0 * s.wind_cost_wh / measured if measured > 0 else math.nan
     table.add_row(
-        f"hidden wind ({s.wind}) cost",
-        f"{s.wind_cost_wh:+.1f} Wh unmodelled, reserve {s.wind_cost_reserve_s / 60:.1f} min "
-        "earlier",
+        "hidden wind: energy not in the model", f"{s.wind_cost_wh:+.1f} Wh ({share:+.0f} %)"
+    )
+    table.add_row(
+        "hidden wind: reserve reached earlier",
+        f"{s.wind_cost_reserve_s / 60:.1f} min ({s.reserve_s / 60:.1f} vs "
+        f"{s.reserve_without_wind_s / 60:.1f})",
     )
     return table
