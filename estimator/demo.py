@@ -480,7 +480,7 @@ def summary_table(summary: DemoSummary) -> Table:
     table.add_row(
         "energy measured / model", f"{s.energy_measured_wh:.1f} / {s.energy_predicted_wh:.1f} Wh"
     )
-    table.add_row("fused bias (measured / model) at the end", f"{s.final_bias:.3f}")
+    table.add_row("fused bias (measured/model) at the end", f"{s.final_bias:.3f}")
     table.add_row(
         "energy left vs truth: at the end, RMS",
         f"{s.energy_error_end_wh:+.2f} Wh, {s.energy_error_rms_wh:.2f} Wh",
