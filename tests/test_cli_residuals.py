@@ -56,6 +56,30 @@ def test_json_has_the_issue_keys_and_effects_in_order(
     assert doc["attribution"]["verdict"].startswith("added wind")
 
 
+def test_online_flag_reports_the_tracked_wind_per_flight(
+    windy_tlog: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    code, out, _ = run_cli(
+        capsys, str(windy_tlog), "--vehicle", str(DEFAULT_VEHICLE), "--json", "--online"
+    )
+    assert code == 0
+    (online,) = json.loads(out)["online"]
+    assert online["flight"] == "windy"
+    assert abs(online["wind_speed_mps"] - WIND.speed_mps) < 1.0
+    assert abs((online["wind_from_deg"] - WIND.from_deg + 180) % 360 - 180) < 20.0
+    assert abs(online["mass_delta_kg"]) < 0.1
+
+
+def test_flight_filter_rejects_unknown_ids(
+    windy_tlog: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    code, _, err = run_cli(
+        capsys, str(windy_tlog), "--vehicle", str(DEFAULT_VEHICLE), "--flight", "nope"
+    )
+    assert code == 2
+    assert "--flight nope not in the logs (flights: windy)" in err
+
+
 def test_clean_flight_gives_an_empty_effect_list(
     clean_tlog: Path, capsys: pytest.CaptureFixture[str]
 ) -> None:
