@@ -449,7 +449,8 @@ def run_demo(
     console.line()
     if not flight.estimates:
         raise RuntimeError("the daemon published no estimate")
-    figures = score(run, flight.estimates, tlog, vehicle, without_wind)
+    with console.status("scoring the flight against the truth"):
+        figures = score(run, flight.estimates, tlog, vehicle, without_wind)
     return DemoSummary(
         plan=run.plan.name,
         wind=wind_text,
