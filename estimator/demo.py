@@ -439,14 +439,17 @@ def run_demo(
         run, f"uav-energy demo: '{run.plan.name}', hidden wind {wind_text}, ×{speedup:g}"
     )
     tlog = out_dir / "demo.tlog"
-    with Live(table.render(), console=console, refresh_per_second=4, transient=False) as live:
+    live = Live(table.render(), console=console, refresh_per_second=4, transient=False)
 
-        def on_estimate(row: Row) -> None:
-            table.add(row)
-            live.update(table.render())
+    def on_estimate(row: Row) -> None:
+        table.add(row)
+        live.update(table.render())
 
-        flight = asyncio.run(fly_live(run, speedup, tlog=tlog, on_estimate=on_estimate))
-    console.line()
+    try:
+        with live:
+            flight = asyncio.run(fly_live(run, speedup, tlog=tlog, on_estimate=on_estimate))
+    finally:
+        console.line()
     if not flight.estimates:
         raise RuntimeError("the daemon published no estimate")
     with console.status("scoring the flight against the truth"):
