@@ -202,7 +202,12 @@ def _guided_flight(sim_time_s: float) -> float:
 
     conn = mavutil.mavlink_connection("tcp:127.0.0.1:5762", source_system=250)
     try:
-        assert conn.wait_heartbeat(timeout=60), "no HEARTBEAT on SERIAL1"
+        deadline = time.monotonic() + 60
+        beat = None  # SITL also forwards the daemon's HEARTBEAT (component 191) to SERIAL1
+        while beat is None or not conn.probably_vehicle_heartbeat(beat):
+            assert time.monotonic() < deadline, "no autopilot HEARTBEAT on SERIAL1"
+            beat = conn.recv_match(type="HEARTBEAT", blocking=True, timeout=2)
+        conn.target_system, conn.target_component = beat.get_srcSystem(), beat.get_srcComponent()
         sysid, compid = conn.target_system, conn.target_component
         conn.mav.request_data_stream_send(sysid, compid, mavlink.MAV_DATA_STREAM_ALL, 4, 1)
         said: list[str] = []
