@@ -33,6 +33,7 @@ import socket
 import termios
 import tty
 from collections import Counter, deque
+from collections.abc import Callable
 from dataclasses import dataclass
 from typing import Any
 
@@ -115,6 +116,7 @@ class MavlinkLink:
         self._ready = asyncio.Event()
         self._closed = False
         self._transport: _Transport | None = None
+        self._listener: Callable[[list[mavlink.MAVLink_message]], None] | None = None
 
     @property
     def url(self) -> str:
@@ -142,6 +144,9 @@ class MavlinkLink:
         if not messages:
             return
         self.counts["rx_messages"] += len(messages)
+        if self._listener is not None:
+            self._listener(messages)
+            return
         self._pending.extend(messages)
         overflow = len(self._pending) - self._max_pending
         if overflow > 0:
@@ -149,6 +154,14 @@ class MavlinkLink:
                 self._pending.popleft()
             self.counts["dropped"] += overflow
         self._ready.set()
+
+    def set_listener(
+        self, listener: Callable[[list[mavlink.MAVLink_message]], None] | None
+    ) -> None:
+        """Hand each parsed chunk to ``listener`` as it arrives, in the transport's callback
+        (no queue, no task switch: the lowest latency); None goes back to :meth:`recv`.
+        The listener must not block and should not raise."""
+        self._listener = listener
 
     async def recv(self) -> list[mavlink.MAVLink_message]:
         """Wait for at least one message and return everything queued, oldest first.

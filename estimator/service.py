@@ -1,9 +1,11 @@
 """The onboard daemon: autopilot link in, :class:`Pipeline`, estimates out (asyncio, one thread).
 
-Tasks: receive (decode → pipeline → JSON lines), publish (NAMED_VALUE_FLOAT/BATTERY_STATUS at
-the configured rate), heartbeat + watchdog (1 Hz: our HEARTBEAT, stale detection, stream
-requests until telemetry flows, counters of bad input), and a drain per output link. Wall
-clock is used only for these timers; the estimates run on the autopilot's clock.
+Messages are handled in the link's receive callback as their datagram arrives (decode →
+pipeline → JSON lines; no queue, no task switch). Tasks: publish (NAMED_VALUE_FLOAT and
+BATTERY_STATUS at the configured rate), heartbeat + watchdog (1 Hz: our HEARTBEAT, stale
+detection, stream requests until telemetry flows, counters of bad input), and a drain per
+output link. Wall clock is used only for these timers; the estimates run on the autopilot's
+clock.
 One log line per event: autopilot found, streams requested, energy initialized, model-only
 mode, reboot, link silent (stale) / resumed, bad frames and floods (at most one line per
 10 s each).
@@ -13,6 +15,7 @@ from __future__ import annotations
 
 import asyncio
 import contextlib
+import gc
 import logging
 import signal
 import sys
@@ -104,8 +107,9 @@ class Service:
                 len(self.outputs),
                 self.pipeline.vehicle.name,
             )
+            self.link.set_listener(self._on_messages)
+            gc.freeze()  # start-up objects (modules, codecs) leave the collector's scans
             tasks = [
-                loop.create_task(self._receive()),
                 loop.create_task(self._publish_loop()),
                 loop.create_task(self._heartbeat_loop()),
                 *(loop.create_task(_drain(out)) for out in self.outputs),
@@ -140,25 +144,21 @@ class Service:
 
     # -- receive ----------------------------------------------------------------------------
 
-    async def _receive(self) -> None:
-        assert self.link is not None
-        loop = asyncio.get_running_loop()
-        while True:
-            messages = await self.link.recv()
-            if not messages:
-                return
-            for msg in messages:
-                try:
-                    self._handle(msg, loop.time())
-                except Exception as exc:  # never die on one message: log it, count, go on
-                    self.internal_errors += 1
-                    if self.internal_errors <= 10 or self.internal_errors % 1000 == 0:
-                        log.error(
-                            "internal error #%d on %s skipped: %r",
-                            self.internal_errors,
-                            msg.get_type(),
-                            exc,
-                        )
+    def _on_messages(self, messages: list[mavlink.MAVLink_message]) -> None:
+        """Link listener: handle each message as its datagram arrives."""
+        now_s = asyncio.get_running_loop().time()
+        for msg in messages:
+            try:
+                self._handle(msg, now_s)
+            except Exception as exc:  # never die on one message: log it, count, go on
+                self.internal_errors += 1
+                if self.internal_errors <= 10 or self.internal_errors % 1000 == 0:
+                    log.error(
+                        "internal error #%d on %s skipped: %r",
+                        self.internal_errors,
+                        msg.get_type(),
+                        exc,
+                    )
 
     def _handle(self, msg: mavlink.MAVLink_message, now_s: float) -> None:
         had_target = self.decoder.target is not None

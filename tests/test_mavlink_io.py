@@ -181,3 +181,24 @@ async def test_serial_device_that_disappears_is_reopened(tmp_path: Path) -> None
         os.close(worker)
     finally:
         await link.close()
+
+
+async def test_listener_receives_messages_as_they_arrive_instead_of_the_queue() -> None:
+    server = await open_link("udpin:127.0.0.1:0")
+    assert server.local_address is not None
+    client = await open_link(f"udpout:127.0.0.1:{server.local_address[1]}", source_component=1)
+    got: list = []
+    server.set_listener(got.extend)
+    try:
+        client.send(heartbeat(client))
+        async with asyncio.timeout(5):
+            while not got:
+                await asyncio.sleep(0.01)
+        assert got[0].get_type() == "HEARTBEAT"
+        server.set_listener(None)
+        client.send(heartbeat(client))
+        assert (await recv_n(server, 1))[0].get_type() == "HEARTBEAT"
+        assert len(got) == 1
+    finally:
+        await client.close()
+        await server.close()
