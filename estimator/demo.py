@@ -30,7 +30,7 @@ import json
 import math
 import time
 from collections.abc import Callable
-from dataclasses import dataclass, field, replace
+from dataclasses import asdict, dataclass, field, replace
 from pathlib import Path
 from typing import Any, BinaryIO
 
@@ -275,6 +275,13 @@ class DemoSummary:
     reserve_without_wind_s: float
     counters: dict[str, int] = field(default_factory=dict)
 
+    def as_dict(self) -> dict[str, Any]:
+        """Every figure, with the derived wind costs, for JSON."""
+        doc = asdict(self)
+        doc["endurance"] = [{**asdict(c), "error_pct": c.error_pct} for c in self.endurance]
+        doc.update(wind_cost_wh=self.wind_cost_wh, wind_cost_reserve_s=self.wind_cost_reserve_s)
+        return doc
+
     @property
     def wind_cost_wh(self) -> float:
         """Energy drawn beyond what the (windless) model predicted while airborne."""
@@ -414,8 +421,8 @@ def run_demo(
     """Fly the demo mission live and score it (see the module docstring).
 
     ``duration_s`` of flight (the plan, then the cruise); ``speedup`` × real time; the tlog
-    and truth go to ``out_dir``/demo.tlog (replay it with ``uav-energy replay``). The live
-    table goes to ``console`` (default: stderr).
+    and truth go to ``out_dir``/demo.tlog (replay it with ``uav-energy replay``), the figures
+    to ``out_dir``/summary.json. The live table goes to ``console`` (default: stderr).
     """
     if not (math.isfinite(speedup) and speedup > 0):
         raise UserError(f"the demo's speedup must be a positive number, got {speedup}")
@@ -454,7 +461,7 @@ def run_demo(
         raise RuntimeError("the daemon published no estimate")
     with console.status("scoring the flight against the truth"):
         figures = score(run, flight.estimates, tlog, vehicle, without_wind)
-    return DemoSummary(
+    summary = DemoSummary(
         plan=run.plan.name,
         wind=wind_text,
         speedup=speedup,
@@ -464,6 +471,8 @@ def run_demo(
         counters=flight.counters,
         **figures,
     )
+    (out_dir / "summary.json").write_text(json.dumps(summary.as_dict(), indent=2) + "\n")
+    return summary
 
 
 def summary_table(summary: DemoSummary) -> Table:

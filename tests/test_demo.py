@@ -4,6 +4,7 @@ figures come from the flight it flew, and they are sane."""
 from __future__ import annotations
 
 import io
+import json
 import math
 from pathlib import Path
 
@@ -74,6 +75,10 @@ def test_summary_figures_are_those_of_the_flight_flown(
         last.energy_remaining_wh - true_end_wh, abs=0.05
     )
     assert summary.final_bias == pytest.approx(last.bias)
+    written = json.loads((out_dir / "summary.json").read_text())
+    assert written["estimates"] == summary.estimates
+    assert written["wind_cost_wh"] == pytest.approx(summary.wind_cost_wh)
+    assert [c["after_s"] for c in written["endurance"]] == [10.0, 30.0, 60.0, 120.0]
 
 
 def test_remaining_energy_and_cruise_endurance_match_the_truth(
