@@ -28,6 +28,7 @@ import contextlib
 import io
 import json
 import math
+import tempfile
 import time
 from collections.abc import Callable
 from dataclasses import asdict, dataclass, field, replace
@@ -114,15 +115,23 @@ async def serve_flight(
 
 
 class _JsonLines(io.TextIOBase):
-    """A text stream that parses the daemon's JSON lines (``--json -``) as they are written."""
+    """A text stream that parses the daemon's JSON lines (``--json -``) as they are written.
 
-    def __init__(self, on_row: Callable[[Row], None] | None) -> None:
+    Its file descriptor is an anonymous regular file (never written): the daemon then writes
+    lines with plain ``sys.stdout.write`` calls, as it does for a stdout redirected to a
+    file, instead of trying a non-blocking pipe transport on it."""
+
+    def __init__(self, on_row: Callable[[Row], None] | None, regular_fd: int) -> None:
         self.rows: list[Row] = []
         self.on_row = on_row
         self._partial = ""
+        self._fd = regular_fd
 
     def writable(self) -> bool:
         return True
+
+    def fileno(self) -> int:
+        return self._fd
 
     def write(self, text: str) -> int:
         *lines, self._partial = (self._partial + text).split("\n")
@@ -172,10 +181,12 @@ async def fly_live(
     )
     validate(config)
     service = Service(config, vehicle or default_vehicle())
-    sink = _JsonLines(on_estimate)
     stop = asyncio.Event()
     start = time.monotonic()
-    with contextlib.redirect_stdout(sink):
+    with (
+        tempfile.TemporaryFile() as regular_file,
+        contextlib.redirect_stdout(_JsonLines(on_estimate, regular_file.fileno())) as sink,
+    ):
         daemon = loop.create_task(service.run(stop))
         try:
             flight = loop.create_task(serve_flight(run, sim_link, speedup, tlog, on_progress))
