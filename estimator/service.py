@@ -259,7 +259,8 @@ class Service:
                 )
 
     def _write_json(self, estimate: Estimate) -> None:
-        line = publish.json_line(estimate) + "\n"
+        """One estimate as a JSON object: a datagram each over UDP, a line on stdout."""
+        line = publish.json_line(estimate)
         if self._json_udp is not None:
             self._json_udp.sendto(line.encode())
         elif self._json_pipe is not None:
@@ -267,9 +268,9 @@ class Service:
             if self._json_pipe.get_write_buffer_size() > JSON_BUFFER_LIMIT_BYTES:
                 self.json_dropped += 1
                 return
-            self._json_pipe.write(line.encode())
+            self._json_pipe.write((line + "\n").encode())
         else:  # stdout is a regular file: a blocking write, but a file never stalls long
-            sys.stdout.write(line)
+            sys.stdout.write(line + "\n")
             sys.stdout.flush()
 
     async def _publish_loop(self) -> None:
