@@ -37,6 +37,8 @@ class ServiceConfig:
     stale_after_s: no telemetry for this long marks estimates stale.
     vehicle: vehicle TOML file ("" = the built-in default vehicle).
     log_level: debug, info, warning or error.
+    fusion: noise figures overriding :class:`~estimator.fusion.FusionSettings` defaults
+    (the ``[fusion]`` table), as (name, value) pairs.
     """
 
     connect: str = "udpin:0.0.0.0:14550"
@@ -56,6 +58,7 @@ class ServiceConfig:
     stale_after_s: float = 3.0
     vehicle: str = ""
     log_level: str = "info"
+    fusion: tuple[tuple[str, float], ...] = ()
 
     @property
     def log_level_number(self) -> int:
@@ -99,6 +102,9 @@ def load_config_file(path: str | Path) -> dict[str, Any]:
     for section, table in doc.items():
         if not isinstance(table, dict):
             raise UserError(f"config file {path}: '{section}' must be a [section]")
+        if section == "fusion":
+            values["fusion"] = table
+            continue
         for key, value in table.items():
             name = _KEYS.get((section, key))
             if name is None:
@@ -118,6 +124,8 @@ def build_config(file_values: dict[str, Any], overrides: dict[str, Any]) -> Serv
 
 
 def _coerce(name: str, value: Any, type_name: str) -> Any:
+    if name == "fusion":
+        return _fusion_pairs(value)
     if type_name == "tuple[str, ...]":
         items = [value] if isinstance(value, str) else value
         if not isinstance(items, list | tuple) or not all(isinstance(x, str) for x in items):
@@ -142,6 +150,28 @@ def _coerce(name: str, value: Any, type_name: str) -> Any:
     if not isinstance(value, str):
         raise UserError(f"config '{name}' must be a string, got {value!r}")
     return value
+
+
+def _fusion_pairs(table: Any) -> tuple[tuple[str, float], ...]:
+    """Validate a ``[fusion]`` table: known FusionSettings names, finite numbers ≥ 0."""
+    from estimator.fusion import FusionSettings
+
+    if isinstance(table, tuple):
+        table = dict(table)
+    if not isinstance(table, dict):
+        raise UserError("config [fusion] must be a table of noise figures")
+    known = {f.name for f in fields(FusionSettings)}
+    pairs = []
+    for key, value in table.items():
+        if key not in known:
+            raise UserError(
+                f"config [fusion] has no setting '{key}' (known: {', '.join(sorted(known))})"
+            )
+        number = isinstance(value, int | float) and not isinstance(value, bool)
+        if not number or not math.isfinite(value) or value < 0:
+            raise UserError(f"config [fusion] {key} must be a finite number ≥ 0, got {value!r}")
+        pairs.append((key, float(value)))
+    return tuple(sorted(pairs))
 
 
 def validate(config: ServiceConfig) -> None:

@@ -462,3 +462,22 @@ async def test_battery_status_goes_towards_the_autopilot_only_when_configured(
         kinds = {m.get_type() for m in received if m.get_srcComponent() == 191}
         assert "NAMED_VALUE_FLOAT" in kinds
         assert ("BATTERY_STATUS" in kinds) == battery_to_autopilot
+
+
+def test_fusion_table_sets_the_noise_figures_and_rejects_unknown_names(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    from estimator.config import build_config, load_config_file
+
+    conf = tmp_path / "c.toml"
+    conf.write_text("[fusion]\ninternal_resistance_ohm = 0.03\ncapacity_sigma_fraction = 0\n")
+    config = build_config(load_config_file(conf), {})
+    service = Service(config, default_vehicle())
+    settings = service.pipeline.energy.settings
+    assert settings.internal_resistance_ohm == 0.03 and settings.capacity_sigma_fraction == 0.0
+    conf.write_text("[fusion]\nresistence = 0.03\n")
+    assert cli_main(["run", "--config", str(conf)]) == 2
+    assert "no setting 'resistence'" in capsys.readouterr().err
+    conf.write_text("[fusion]\nbias_prior_sigma = -1\n")
+    assert cli_main(["run", "--config", str(conf)]) == 2
+    assert "finite number ≥ 0" in capsys.readouterr().err
