@@ -16,7 +16,7 @@ from estimator import __version__
 from estimator.errors import UserError
 
 #: Subcommand modules under estimator/commands, in the order ``--help`` lists them.
-COMMANDS = ("demo", "fit", "run", "replay", "sim", "residuals")
+COMMANDS = ("demo", "run", "replay", "sim", "fit", "residuals", "experiments")
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -27,13 +27,7 @@ def build_parser() -> argparse.ArgumentParser:
     parser.add_argument("--version", action="version", version=f"uav-energy {__version__}")
     subparsers = parser.add_subparsers(dest="command", required=True, metavar="COMMAND")
     for name in COMMANDS:
-        try:
-            module = importlib.import_module(f"estimator.commands.{name}")
-        except ModuleNotFoundError as exc:
-            if exc.name == f"estimator.commands.{name}":
-                continue  # command not built yet
-            raise
-        module.register(subparsers)
+        importlib.import_module(f"estimator.commands.{name}").register(subparsers)
     return parser
 
 

@@ -3,12 +3,11 @@
 Experiment 1 (straight and level, 0–14 m/s) is generated from a vehicle's model, fitted with
 :mod:`estimator.fit` and scored held-out; experiment 2 (circles, 1–6 m/s, r = 10 and 20 m) is
 predicted with eq. (2) from that fit. :func:`reproduce` writes the report; run it as
-``python -m estimator.experiments [--out DIR] [--seed N]`` or through ``uav-energy demo``.
+``uav-energy experiments [--out DIR] [--seed N]``.
 """
 
 from __future__ import annotations
 
-import argparse
 from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
@@ -78,17 +77,3 @@ def summary_markdown(result: Experiments) -> str:
         + circles_markdown(result.circles, result.radii_m)
         + "\n![experiment 2](experiment2.png)\n"
     )
-
-
-def main(argv: list[str] | None = None) -> int:
-    parser = argparse.ArgumentParser(prog="python -m estimator.experiments", description=__doc__)
-    parser.add_argument("--out", type=Path, default=Path("out/experiments"))
-    parser.add_argument("--seed", type=int, default=0)
-    args = parser.parse_args(argv)
-    reproduce(args.out, seed=args.seed, progress=lambda m: print(m, flush=True))
-    print(f"report written to {args.out}/summary.md")
-    return 0
-
-
-if __name__ == "__main__":
-    raise SystemExit(main())
