@@ -10,7 +10,7 @@ IRIS="$DATA/iris_quadcopter_logs"
 PRIORS_NOTE="Data cover 0-6 m/s: hover power is measured; tip speed and profile share come from the priors."
 
 $FIT fit "$IRIS"/2016-03-*/*/*.log --title "IRIS+ March 2016" \
-  --name iris-plus-2016-03 --mass-kg 1.282 --capacity-ah 5.1 \
+  --name iris-plus-2016-03 --mass-kg 1.282 --capacity-ah 5.1 --cells 3 \
   --note "3DR IRIS+ (APM:Copter 3.3), the March 2016 flights of kevinaangstadt/quadcopter-logs" \
   --note "(../shared/data/iris_quadcopter_logs, see its SOURCE.md), fitted by scripts/fit_real.sh." \
   --note "mass_kg: 3DR's published IRIS+ weight with battery, 1282 g (ASSUMED: mass is not in the logs)." \
@@ -20,7 +20,7 @@ $FIT fit "$IRIS"/2016-03-*/*/*.log --title "IRIS+ March 2016" \
   --json > out/fit/iris_2016_03.json
 
 $FIT fit "$IRIS"/2016-0[678]-*/*/*.log --title "IRIS+ June-August 2016" \
-  --name iris-plus-2016-06-08 --mass-kg 1.58 --capacity-ah 5.1 \
+  --name iris-plus-2016-06-08 --mass-kg 1.58 --capacity-ah 5.1 --cells 3 \
   --note "3DR IRIS+ (APM:Copter 3.3), the June-August 2016 flights of kevinaangstadt/quadcopter-logs" \
   --note "(../shared/data/iris_quadcopter_logs, see its SOURCE.md), fitted by scripts/fit_real.sh." \
   --note "mass_kg 1.58 is an ESTIMATE: hover power rose from 151 W (March) to 207 W with no recorded" \
