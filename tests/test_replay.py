@@ -20,13 +20,14 @@ from estimator.cli import main
 from estimator.commands.replay import CSV_COLUMNS, flight_names, parse_speed
 from estimator.config import ServiceConfig
 from estimator.decode import FrameParser, TelemetryDecoder
+from estimator.fusion import FusionSettings
 from estimator.logs import iter_samples
-from estimator.pipeline import Pipeline
+from estimator.pipeline import Pipeline, PipelineSettings
 from estimator.publish import json_line
 from estimator.replay import replay_log, summarize
 from estimator.service import Service
 from estimator.sim import SimConfig, SimRun, simulate, tlog_records, write_tlog
-from estimator.vehicle import default_vehicle
+from estimator.vehicle import default_vehicle, load_vehicle
 
 REPO = Path(__file__).resolve().parent.parent
 CMU_CRUISE = REPO.parent / "shared/data/cmu_m100_subset/flights_validation_data_clean_cruise.csv"
@@ -184,6 +185,26 @@ def test_cmu_csv_replays_through_the_pipeline(tmp_path: Path) -> None:
     assert flight.format == "cmu-csv" and len(flight.estimates) > 1000
     assert not flight.estimates[-1].model_only  # the dataset's power is fused
     assert summarize([flight]).power_points > 500
+
+
+def test_replay_with_the_daemons_config_uses_its_fusion_settings_and_vehicle(
+    logs: dict[str, Path], tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    vehicle_file = REPO / "config" / "vehicles" / "iris_plus_2016_06_08.toml"
+    config = tmp_path / "daemon.toml"
+    config.write_text(f'[fusion]\nbias_prior_sigma = 0.3\n\n[vehicle]\nfile = "{vehicle_file}"\n')
+    out = tmp_path / "est.csv"
+    code, _, _ = _replay_cli(capsys, str(IRIS_LOG), "--config", str(config), "--out", str(out))
+    assert code == 0
+    with out.open() as f:
+        sigma = [float(r["bias_sigma"]) for r in csv.DictReader(f)]
+    vehicle = load_vehicle(vehicle_file)
+    settings = PipelineSettings(fusion=FusionSettings(bias_prior_sigma=0.3))
+    pipeline = Pipeline(vehicle, settings)
+    direct = [e for s in iter_samples(IRIS_LOG) if (e := pipeline.process(s)) is not None]
+    assert sigma == pytest.approx([e.bias_sigma for e in direct], rel=1e-9)
+    default = replay_log(IRIS_LOG, vehicle).estimates
+    assert sigma[0] != pytest.approx(default[0].bias_sigma)
 
 
 def test_paced_replay_gives_the_same_estimates_as_max_speed(

@@ -1,5 +1,6 @@
-"""``uav-energy replay LOG... [--vehicle FILE.toml] [--out CSV] [--report DIR] [--json]
-[--speed max|N]``: recorded flights through the daemon's pipeline (:mod:`estimator.replay`).
+"""``uav-energy replay LOG... [--vehicle FILE.toml] [--config FILE.toml] [--out CSV]
+[--report DIR] [--json] [--speed max|N]``: recorded flights through the daemon's pipeline
+(:mod:`estimator.replay`), with the daemon's settings when given its ``--config`` file.
 
 Output: a table of the power error per flight on stdout (or one JSON object with ``--json``),
 the estimates as CSV with ``--out``, plots with ``--report``. ``--speed N`` paces the samples at
@@ -34,9 +35,11 @@ from rich.progress import (
 )
 from rich.table import Table
 
+from estimator.config import build_config, load_config_file
 from estimator.errors import UserError
+from estimator.fusion import FusionSettings
 from estimator.logs import FORMATS, iter_samples
-from estimator.pipeline import Estimate
+from estimator.pipeline import Estimate, PipelineSettings
 from estimator.replay import FlightReplay, Summary, replay_stream, summarize
 from estimator.telemetry import Sample
 from estimator.vehicle import Vehicle, default_vehicle, load_vehicle
@@ -73,6 +76,12 @@ def register(subparsers: argparse._SubParsersAction[argparse.ArgumentParser]) ->
     parser.add_argument("logs", nargs="+", type=Path, metavar="LOG", help="log files")
     parser.add_argument(
         "--vehicle", type=Path, metavar="FILE.toml", help="vehicle file (default: built-in)"
+    )
+    parser.add_argument(
+        "--config",
+        type=Path,
+        metavar="FILE.toml",
+        help="the daemon's configuration: its [fusion] settings and [vehicle] file apply",
     )
     parser.add_argument(
         "--format", default="auto", choices=("auto", *FORMATS), help="log format (default: auto)"
@@ -119,7 +128,7 @@ def paced(samples: Iterable[Sample], speed: float) -> Iterator[Sample]:
 
 
 def run(args: argparse.Namespace) -> int:
-    vehicle = default_vehicle() if args.vehicle is None else load_vehicle(args.vehicle)
+    vehicle, settings = vehicle_and_settings(args.vehicle, args.config)
     names = flight_names(args.logs)
     console = Console(file=sys.stderr)
     flights: list[FlightReplay] = []
@@ -128,7 +137,7 @@ def run(args: argparse.Namespace) -> int:
     with _progress(console, len(args.logs)) as progress:
         for path, name in zip(args.logs, names, strict=True):
             try:
-                flight = _replay_one(path, name, vehicle, args, progress)
+                flight = _replay_one(path, name, vehicle, settings, args, progress)
             except UserError as exc:
                 if len(args.logs) == 1:
                     raise
@@ -161,8 +170,26 @@ def run(args: argparse.Namespace) -> int:
     return 0
 
 
+def vehicle_and_settings(
+    vehicle_path: Path | None, config_path: Path | None
+) -> tuple[Vehicle, PipelineSettings]:
+    """The vehicle and pipeline settings the daemon would run with: ``--vehicle``, else the
+    config file's ``[vehicle] file``, else the built-in; the config's ``[fusion]`` figures."""
+    config = build_config(load_config_file(config_path) if config_path else {}, {})
+    settings = PipelineSettings(fusion=FusionSettings(**dict(config.fusion)))
+    if vehicle_path is None and config.vehicle:
+        vehicle_path = Path(config.vehicle)
+    vehicle = default_vehicle() if vehicle_path is None else load_vehicle(vehicle_path)
+    return vehicle, settings
+
+
 def _replay_one(
-    path: Path, name: str, vehicle: Vehicle, args: argparse.Namespace, progress: Progress
+    path: Path,
+    name: str,
+    vehicle: Vehicle,
+    settings: PipelineSettings,
+    args: argparse.Namespace,
+    progress: Progress,
 ) -> FlightReplay:
     stream = iter_samples(path, args.format)
     task = progress.add_task(name, total=None)
@@ -173,7 +200,7 @@ def _replay_one(
 
     samples: Iterable[Sample] = stream if args.speed is None else paced(stream, args.speed)
     try:
-        return replay_stream(stream, vehicle, name, samples=samples, on_sample=on_sample)
+        return replay_stream(stream, vehicle, name, settings, samples, on_sample)
     finally:
         progress.remove_task(task)
         progress.advance(_LOGS_TASK)
