@@ -21,7 +21,6 @@ from dataclasses import asdict, dataclass
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
-from scipy.optimize import minimize_scalar
 
 G_MPS2 = 9.80665
 SEA_LEVEL_DENSITY_KGPM3 = 1.225
@@ -223,6 +222,8 @@ def kinetic_power_w(mass_kg: float, velocity_mps: ArrayLike, accel_mps2: ArrayLi
 
 def _argmin_on_grid(fn: Callable[[FloatArray], FloatArray], lo: float, hi: float) -> float:
     """Global minimum of a smooth 1-D function: coarse grid, then bounded refinement."""
+    from scipy.optimize import minimize_scalar  # offline use only: keeps the daemon lean
+
     grid = np.linspace(lo, hi, 601)
     values = fn(grid)
     i = int(np.argmin(values))
