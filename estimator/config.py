@@ -11,10 +11,13 @@ import math
 import tomllib
 from dataclasses import dataclass, fields, replace
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from estimator.errors import UserError
 from estimator.mavlink_io import parse_url
+
+if TYPE_CHECKING:
+    from estimator.pipeline import PipelineSettings
 
 LOG_LEVELS = ("debug", "info", "warning", "error")
 
@@ -36,6 +39,8 @@ class ServiceConfig:
     json: "" (off), "-" (stdout) or "udp:HOST:PORT"; json_rate_hz 0: every estimate.
     stale_after_s: no telemetry for this long marks estimates stale.
     vehicle: vehicle TOML file ("" = the built-in default vehicle).
+    track_effects: follow wind and mass online (:mod:`estimator.online_effects`) instead of
+    keeping the vehicle file's values for the whole flight.
     log_level: debug, info, warning or error.
     fusion: noise figures overriding :class:`~estimator.fusion.FusionSettings` defaults
     (the ``[fusion]`` table), as (name, value) pairs.
@@ -57,8 +62,18 @@ class ServiceConfig:
     json_rate_hz: float = 0.0
     stale_after_s: float = 3.0
     vehicle: str = ""
+    track_effects: bool = True
     log_level: str = "info"
     fusion: tuple[tuple[str, float], ...] = ()
+
+    def pipeline_settings(self) -> PipelineSettings:
+        """The pipeline's settings this configuration asks for."""
+        from estimator.fusion import FusionSettings
+        from estimator.pipeline import PipelineSettings
+
+        return PipelineSettings(
+            fusion=FusionSettings(**dict(self.fusion)), track_effects=self.track_effects
+        )
 
     @property
     def log_level_number(self) -> int:
@@ -83,6 +98,7 @@ _KEYS = {
     ("publish", "json"): "json",
     ("publish", "json_rate_hz"): "json_rate_hz",
     ("vehicle", "file"): "vehicle",
+    ("vehicle", "track_effects"): "track_effects",
     ("log", "level"): "log_level",
 }
 

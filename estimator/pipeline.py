@@ -25,23 +25,33 @@ from estimator.battery import PackModel
 from estimator.effects import Climb, Effect, FlightState, effects_from_tables, predict_power_w
 from estimator.fusion import EnergyFilter, FusionSettings
 from estimator.kinematics import KinematicsFilter, KinematicsSettings, KinematicState
+from estimator.online_effects import OnlineEffects
 from estimator.telemetry import ArmedSample, BatterySample, RebootSample, Sample, VelocitySample
 from estimator.vehicle import Vehicle
 
 #: Speeds (m/s) on which V_me and V_mr are searched, with the vehicle's effects applied.
 _SPEED_GRID_MPS = np.linspace(0.0, 30.0, 601)
+#: Tracked wind and mass replace the ones in use once the wind is known to this 1σ (m/s).
+#: Before that (hover, one-direction flight) wind and mass trade off against each other and
+#: the point estimate is biased by the curvature of P(V).
+_TRACKED_WIND_SIGMA_MPS = 1.0
+#: How often (s, sample clock) V_me, V_mr and hover power follow the tracked wind and mass.
+_SPEEDS_REFRESH_S = 5.0
 
 
 @dataclass(frozen=True, slots=True)
 class PipelineSettings:
     """battery_stale_s: estimates are ``stale`` when the newest battery sample is older than
     this on the sample clock.  add_climb_effect: add a default :class:`Climb` effect when the
-    vehicle file has none (climbing costs m·g·v_c/η)."""
+    vehicle file has none (climbing costs m·g·v_c/η).  track_effects: follow wind and mass
+    online from measured power (:class:`~estimator.online_effects.OnlineEffects`), starting
+    from the vehicle file's values; off keeps those values for the whole flight."""
 
     kinematics: KinematicsSettings = field(default_factory=KinematicsSettings)
     fusion: FusionSettings = field(default_factory=FusionSettings)
     battery_stale_s: float = 5.0
     add_climb_effect: bool = True
+    track_effects: bool = True
 
 
 @dataclass(frozen=True, slots=True)
@@ -104,6 +114,12 @@ class Pipeline:
         if self.settings.add_climb_effect and not any(isinstance(e, Climb) for e in effects):
             effects.append(Climb())
         self.effects: tuple[Effect, ...] = tuple(effects)
+        self.online = (
+            OnlineEffects(vehicle.model, vehicle.mass_kg, self.effects)
+            if self.settings.track_effects
+            else None
+        )
+        self._speeds_time_s = -math.inf
         self.pack = PackModel(vehicle.battery)
         self.kinematics = KinematicsFilter(self.settings.kinematics)
         self.energy = EnergyFilter(self.pack, self.settings.fusion)
@@ -116,8 +132,7 @@ class Pipeline:
         self._steady_power_w = 0.0
         self._time_s: float | None = None
         self._loss_factor = 1.0
-        self.v_me_mps, self.v_mr_mps, self._p_me_w, self._p_mr_w = self._characteristic_speeds()
-        self._p_hover_w = float(self._predict(np.zeros(1))[0])
+        self._refresh_speeds()
 
     # -- power: every prediction goes through predict_power_w ----------------------------------
 
@@ -144,17 +159,14 @@ class Pipeline:
         power = predict_power_w(self.vehicle.model, self.vehicle.mass_kg, flight, self.effects)
         return np.maximum(power, 0.0)
 
-    def _characteristic_speeds(self) -> tuple[float, float, float, float]:
+    def _refresh_speeds(self) -> None:
+        """V_me, V_mr and their powers, and hover power, with the current effects."""
         power = self._predict(_SPEED_GRID_MPS)
         i_me = int(np.argmin(power))
-        per_m = power[1:] / _SPEED_GRID_MPS[1:]
-        i_mr = int(np.argmin(per_m)) + 1
-        return (
-            float(_SPEED_GRID_MPS[i_me]),
-            float(_SPEED_GRID_MPS[i_mr]),
-            float(power[i_me]),
-            float(power[i_mr]),
-        )
+        i_mr = int(np.argmin(power[1:] / _SPEED_GRID_MPS[1:])) + 1
+        self.v_me_mps, self.v_mr_mps = float(_SPEED_GRID_MPS[i_me]), float(_SPEED_GRID_MPS[i_mr])
+        self._p_me_w, self._p_mr_w = float(power[i_me]), float(power[i_mr])
+        self._p_hover_w = float(power[0])
 
     def _update_power(self) -> None:
         state = self._state
@@ -229,6 +241,7 @@ class Pipeline:
         measured_w = sample.power_w
         if measured_w is not None and self._armed is not False and self._power_model_w > 0:
             self.energy.update_power(measured_w, self._power_model_w, self._kinetic_sigma_w())
+            self._track_effects(sample.time_s, measured_w, sample.voltage_v)
         if sample.consumed_mah is not None:
             self.energy.update_charge(sample.consumed_mah)
         current_a = sample.current_a
@@ -239,6 +252,21 @@ class Pipeline:
         self.energy.voltage.update(dt, self.energy.soc, sample.voltage_v, current_a)
         self._loss_factor = self.energy.loss_factor(self.energy.bias * self._power_model_w)
         return self._emit(sample.time_s)
+
+    def _track_effects(self, time_s: float, measured_w: float, voltage_v: float) -> None:
+        """Follow wind and mass with this power reading (after the fusion step, so each
+        reading is fused with the effects that predicted it)."""
+        if self.online is None or self._state is None:
+            return
+        tracked = self.online.update_kinematics(self._state, measured_w, voltage_v)
+        sigma = self.online.sigma
+        if max(sigma["wind_n_mps"], sigma["wind_e_mps"]) > _TRACKED_WIND_SIGMA_MPS:
+            return  # not identified yet: keep the effects in use (the fusion bias absorbs it)
+        self.effects = tracked
+        self._update_power()
+        if time_s - self._speeds_time_s >= _SPEEDS_REFRESH_S:
+            self._refresh_speeds()
+            self._speeds_time_s = time_s
 
     def _reboot(self, sample: RebootSample) -> None:
         self.counts["reboot"] += 1

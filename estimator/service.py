@@ -26,7 +26,6 @@ from pymavlink.dialects.v20 import common as mavlink
 from estimator import publish
 from estimator.config import ServiceConfig
 from estimator.decode import TelemetryDecoder
-from estimator.fusion import FusionSettings
 from estimator.mavlink_io import MavlinkLink, open_link, parse_url
 from estimator.pipeline import Estimate, Pipeline, PipelineSettings
 from estimator.vehicle import Vehicle
@@ -59,7 +58,7 @@ class Service:
     ) -> None:
         self.config = config
         if settings is None:
-            settings = PipelineSettings(fusion=FusionSettings(**dict(config.fusion)))
+            settings = config.pipeline_settings()
         self.pipeline = Pipeline(vehicle, settings)
         target = None
         if config.target_system:

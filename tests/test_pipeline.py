@@ -9,6 +9,7 @@ import pytest
 
 from estimator.battery import PackModel
 from estimator.decode import TelemetryDecoder
+from estimator.effects import Effect, Wind
 from estimator.pipeline import Estimate, Pipeline, PipelineSettings
 from estimator.sim import SimConfig, simulate
 from estimator.telemetry import ArmedSample, BatterySample, RebootSample, Sample, VelocitySample
@@ -140,3 +141,38 @@ def test_out_of_order_samples_are_counted_and_skipped() -> None:
     assert p.process(VelocitySample(1.0, 1.0, 0.0, 0.0)) is None
     assert p.process(BatterySample(1.0, FULL_V, 1.0, 1.0)) is None
     assert p.counts["velocity_out_of_order"] == 1 and p.counts["battery_out_of_order"] == 1
+
+
+def _model_power_error_w(
+    settings: PipelineSettings, hidden: tuple[Effect, ...]
+) -> tuple[float, Pipeline]:
+    """RMS of model − measured power over the last half of a simulated mixed flight."""
+    sim = simulate(SimConfig(plan="mixed", effects=hidden, duration_s=400.0, seed=3))
+    decoder, pipeline = TelemetryDecoder(), Pipeline(VEHICLE, settings)
+    errors = []
+    for _, msg in sim.messages:
+        for sample in decoder.decode(msg):
+            est = pipeline.process(sample)
+            if est is not None and est.time_s > 200.0 and est.power_measured_w is not None:
+                errors.append(est.power_model_w - est.power_measured_w)
+    return math.sqrt(sum(e * e for e in errors) / len(errors)), pipeline
+
+
+def test_a_hidden_wind_is_tracked_online_and_the_model_follows_it() -> None:
+    hidden = (Wind(speed_mps=5.0, from_deg=60.0),)
+    frozen_w, _ = _model_power_error_w(PipelineSettings(track_effects=False), hidden)
+    tracked_w, pipeline = _model_power_error_w(PipelineSettings(), hidden)
+    assert pipeline.online is not None
+    wind = pipeline.online.wind
+    assert wind.speed_mps == pytest.approx(5.0, abs=1.0)
+    assert abs((wind.from_deg - 60.0 + 180.0) % 360.0 - 180.0) < 20.0
+    assert any(isinstance(e, Wind) and e.speed_mps > 3.0 for e in pipeline.effects)
+    assert tracked_w < 0.5 * frozen_w
+
+
+def test_an_unidentified_wind_leaves_the_model_alone() -> None:
+    """Straight one-direction flight: wind and mass trade off, so nothing is applied."""
+    pipeline = Pipeline(VEHICLE)
+    run(pipeline, flight(120.0))
+    assert pipeline.online is not None and pipeline.online.updates > 0
+    assert pipeline.effects == Pipeline(VEHICLE).effects

@@ -37,7 +37,6 @@ from rich.table import Table
 
 from estimator.config import build_config, load_config_file
 from estimator.errors import UserError
-from estimator.fusion import FusionSettings
 from estimator.logs import FORMATS, iter_samples
 from estimator.pipeline import Estimate, PipelineSettings
 from estimator.replay import FlightReplay, Summary, replay_stream, summarize
@@ -174,9 +173,10 @@ def vehicle_and_settings(
     vehicle_path: Path | None, config_path: Path | None
 ) -> tuple[Vehicle, PipelineSettings]:
     """The vehicle and pipeline settings the daemon would run with: ``--vehicle``, else the
-    config file's ``[vehicle] file``, else the built-in; the config's ``[fusion]`` figures."""
+    config file's ``[vehicle] file``, else the built-in; the config's ``[fusion]`` figures
+    and ``track_effects``."""
     config = build_config(load_config_file(config_path) if config_path else {}, {})
-    settings = PipelineSettings(fusion=FusionSettings(**dict(config.fusion)))
+    settings = config.pipeline_settings()
     if vehicle_path is None and config.vehicle:
         vehicle_path = Path(config.vehicle)
     vehicle = default_vehicle() if vehicle_path is None else load_vehicle(vehicle_path)
