@@ -35,6 +35,8 @@ _SPEED_GRID_MPS = np.linspace(0.0, 30.0, 601)
 #: Before that (hover, one-direction flight) wind and mass trade off against each other and
 #: the point estimate is biased by the curvature of P(V).
 _TRACKED_WIND_SIGMA_MPS = 1.0
+#: Above this horizontal speed (m/s) the course over ground is the direction of flight.
+_TRACK_MIN_SPEED_MPS = 1.0
 #: How often (s, sample clock) V_me, V_mr and hover power follow the tracked wind and mass.
 _SPEEDS_REFRESH_S = 5.0
 
@@ -120,6 +122,7 @@ class Pipeline:
             else None
         )
         self._speeds_time_s = -math.inf
+        self._track_rad = 0.0  # course over ground, rad from north (last one while moving)
         self.pack = PackModel(vehicle.battery)
         self.kinematics = KinematicsFilter(self.settings.kinematics)
         self.energy = EnergyFilter(self.pack, self.settings.fusion)
@@ -142,13 +145,16 @@ class Pipeline:
         accel_centripetal_mps2: float = 0.0,
         state: KinematicState | None = None,
     ) -> np.ndarray:
-        """Model power (W) for level flight at each horizontal speed (north), steady turn
-        with a⊥ as given; with ``state``, the first entry is that full state instead."""
+        """Model power (W) for level flight at each horizontal speed along the current track
+        (it matters in wind), steady turn with a⊥ as given; with ``state``, the first entry is
+        that full state instead."""
         n = len(speed_mps)
-        vn = np.array(speed_mps, dtype=float)
-        ve, vd, an, ae = np.zeros(n), np.zeros(n), np.zeros(n), np.zeros(n)
-        if accel_centripetal_mps2:
-            ae[:] = accel_centripetal_mps2  # across a northward velocity: a⊥ only
+        north, east = math.cos(self._track_rad), math.sin(self._track_rad)
+        speed = np.array(speed_mps, dtype=float)
+        vn, ve = speed * north, speed * east
+        vd = np.zeros(n)
+        an = np.full(n, -east * accel_centripetal_mps2)  # across the track: a⊥ only
+        ae = np.full(n, north * accel_centripetal_mps2)
         t = np.zeros(n)
         voltage = np.full(n, np.nan if self._battery is None else self._battery.voltage_v)
         if state is not None:
@@ -176,6 +182,8 @@ class Pipeline:
         if state is None:
             self._power_model_w = self._steady_power_w = self._p_hover_w
             return
+        if state.speed_mps > _TRACK_MIN_SPEED_MPS:
+            self._track_rad = math.atan2(state.ve_mps, state.vn_mps)
         full, steady = self._predict(
             np.array([0.0, state.speed_mps]), state.accel_centripetal_mps2, state
         )

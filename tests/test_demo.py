@@ -100,9 +100,9 @@ def test_the_hidden_wind_costs_energy_and_endurance(
 ) -> None:
     summary, _, _ = windy
     assert summary.power_rmse_w is not None and summary.power_mape_pct is not None
-    assert summary.power_rmse_w > 20.0  # the model does not know the wind
+    assert summary.power_rmse_w > 20.0  # the model misses the wind until it is learnt online
     assert summary.wind_cost_wh > 1.0
-    assert summary.final_bias > 1.1
+    assert summary.final_bias == pytest.approx(1.0, abs=0.05)  # the wind is in the model now
     assert summary.wind_cost_reserve_s > 60.0
     assert summary.reserve_s < summary.reserve_without_wind_s
 
