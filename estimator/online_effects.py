@@ -124,6 +124,8 @@ class OnlineEffects:
         self.vertical = 0
         self.rejected = 0
         self.changes = 0
+        #: Times the covariance was restarted after losing positive definiteness (bad data).
+        self.resets = 0
 
     @classmethod
     def from_vehicle(
@@ -206,7 +208,12 @@ class OnlineEffects:
         if dt > 0:
             wind_q = s.wind_walk_mps_per_sqrt_s**2 * dt
             ukf.Q = np.diag([wind_q, wind_q, s.mass_walk_kg_per_sqrt_s**2 * dt])
-            ukf.predict(dt=dt)
+            try:
+                ukf.predict(dt=dt)
+            except np.linalg.LinAlgError:
+                ukf.P = np.diag(self._initial_var)
+                self.resets += 1
+                ukf.predict(dt=dt)
         row = (time_s, vn_mps, ve_mps, vd_mps, an_mps2, ae_mps2, 0.0, voltage_v)
         state = FlightState(*(np.array([x], dtype=float) for x in row))
         speed = math.hypot(vn_mps, ve_mps)
@@ -214,7 +221,13 @@ class OnlineEffects:
         r = s.power_noise_w**2 + (s.power_noise_fraction * measured_power_w) ** 2 + kinetic_sd**2
         r += self.extra_noise_var_w2
         x_prior, p_prior = ukf.x.copy(), ukf.P.copy()
-        ukf.update(np.array([measured_power_w]), R=np.array([[r]]), state=state)
+        try:
+            ukf.update(np.array([measured_power_w]), R=np.array([[r]]), state=state)
+        except np.linalg.LinAlgError:  # covariance lost positive definiteness: start it over
+            ukf.x, ukf.P = x_prior, np.diag(self._initial_var)
+            self.resets += 1
+            return self.effects
+        ukf.P = 0.5 * (ukf.P + ukf.P.T)
         y2, s_var = float(ukf.y[0]) ** 2, float(ukf.S[0, 0])
         nu = float(ukf.y[0]) / math.sqrt(s_var)
         # adaptive measurement noise: drive E[y²] towards S (outliers clipped at the gate)

@@ -99,3 +99,15 @@ def test_wind_vector_round_trip() -> None:
         assert back.speed_mps == pytest.approx(wind.speed_mps)
         if wind.speed_mps:
             assert angle_diff_deg(back.from_deg, wind.from_deg) < 1e-9
+
+
+def test_a_covariance_that_lost_positive_definiteness_is_restarted_not_raised() -> None:
+    """Damaged logs can drive the UKF covariance indefinite; the tracker restarts it and
+    carries on (the daemon never dies on bad input)."""
+    tracker = OnlineEffects.from_vehicle(VEHICLE)
+    tracker.update(0.0, 5.0, 0.0, 0.0, 0.0, 0.0, 380.0)
+    tracker._ukf.P = np.diag([1.0, -1.0, 1.0])  # what a run of garbage readings can leave
+    tracker.update(0.5, 5.0, 0.0, 0.0, 0.0, 0.0, 380.0)
+    assert tracker.resets == 1
+    assert math.isfinite(tracker.wind.speed_mps) and math.isfinite(tracker.mass_delta_kg)
+    assert np.all(np.linalg.eigvalsh(tracker._ukf.P) > 0)
