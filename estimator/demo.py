@@ -152,6 +152,7 @@ class LiveFlight:
     counters: dict[str, int]
     sent: int
     wall_s: float
+    wind_learnt: str = "not tracked"
 
 
 async def fly_live(
@@ -204,8 +205,13 @@ async def fly_live(
             with contextlib.suppress(asyncio.CancelledError):
                 await daemon
             await sim_link.close()
+    online = service.pipeline.online
     return LiveFlight(
-        sink.rows, service.counters(), player.counts["sent"], time.monotonic() - start
+        sink.rows,
+        service.counters(),
+        player.counts["sent"],
+        time.monotonic() - start,
+        "not tracked" if online is None else _wind_text(online.wind),
     )
 
 
@@ -270,6 +276,7 @@ class DemoSummary:
 
     plan: str
     wind: str
+    wind_learnt: str
     speedup: float
     flight_s: float
     wall_s: float
@@ -457,7 +464,7 @@ def run_demo(
     with console.status("simulating the mission"):
         run = simulate(config)
         without_wind = simulate(replace(config, effects=()))
-    wind_text = "none" if wind is None else f"{wind.speed_mps:g} m/s from {wind.from_deg:g}°"
+    wind_text = "none" if wind is None else _wind_text(wind)
     table = LiveTable(
         run, f"uav-energy demo: '{run.plan.name}', hidden wind {wind_text}, ×{speedup:g}"
     )
@@ -480,6 +487,7 @@ def run_demo(
     summary = DemoSummary(
         plan=run.plan.name,
         wind=wind_text,
+        wind_learnt=flight.wind_learnt,
         speedup=speedup,
         flight_s=run.duration_s,
         wall_s=flight.wall_s,
@@ -489,6 +497,10 @@ def run_demo(
     )
     (out_dir / "summary.json").write_text(json.dumps(summary.as_dict(), indent=2) + "\n")
     return summary
+
+
+def _wind_text(wind: Wind) -> str:
+    return f"{wind.speed_mps:.3g} m/s from {wind.from_deg:.0f}°"
 
 
 def summary_table(summary: DemoSummary) -> Table:
@@ -526,6 +538,7 @@ def summary_table(summary: DemoSummary) -> Table:
     table.add_row(
         "hidden wind: extra energy drawn (truth)", f"{s.wind_cost_wh:+.1f} Wh ({share:+.0f} %)"
     )
+    table.add_row("wind learnt online by the daemon", s.wind_learnt)
     table.add_row(
         "hidden wind: reserve reached earlier",
         f"{s.wind_cost_reserve_s / 60:.1f} min ({s.reserve_s / 60:.1f} vs "

@@ -103,6 +103,9 @@ def test_the_hidden_wind_costs_energy_and_endurance(
     assert summary.power_rmse_w > 20.0  # the model misses the wind until it is learnt online
     assert summary.wind_cost_wh > 1.0
     assert summary.final_bias == pytest.approx(1.0, abs=0.05)  # the wind is in the model now
+    speed, direction = summary.wind_learnt.split(" m/s from ")
+    assert float(speed) == pytest.approx(6.0, abs=1.0)  # hidden: 6 m/s from 30°
+    assert abs(float(direction.rstrip("°")) - 30.0) < 20.0
     assert summary.wind_cost_reserve_s > 60.0
     assert summary.reserve_s < summary.reserve_without_wind_s
 
