@@ -87,3 +87,12 @@ def test_flying_flights_have_power_error_and_the_ground_only_one_has_none() -> N
             assert want["power_points"] == 0 and want["power_rmse_w"] is None
         else:
             assert want["power_points"] > 30 and want["power_rmse_w"] > 0
+
+
+@pytest.mark.parametrize("flight", ["2016-08-03/002/002.log", "2016-08-09/003/003.log"])
+def test_the_fitted_vehicle_follows_the_measured_power_of_its_own_period(flight: str) -> None:
+    """The June–August IRIS+ model on August flights: about 12–16 W RMSE (MAPE 5–6 %) when
+    frozen; anything far above means the pipeline's model power went wrong."""
+    summary = summarize([replay_log(REPLAY_DIR / "iris" / flight, load_vehicle(VEHICLE))])
+    assert summary.power_rmse_w is not None and summary.power_rmse_w < 25.0
+    assert summary.energy_predicted_wh == pytest.approx(summary.energy_measured_wh, rel=0.1)
