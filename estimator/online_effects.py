@@ -78,6 +78,8 @@ class OnlineSettings:
     change_sigma: float = 5.0
     #: Mass may not drop below this fraction of the vehicle file's.
     min_mass_fraction: float = 0.3
+    #: No multirotor flies in more wind than this (m/s): the estimate is held below it.
+    max_wind_mps: float = 15.0
 
 
 class OnlineEffects:
@@ -241,6 +243,9 @@ class OnlineEffects:
         self._recent.append(nu)
         self._check_change()
         ukf.x[2] = max(ukf.x[2], (s.min_mass_fraction - 1.0) * self.mass_kg)
+        wind_mps = math.hypot(ukf.x[0], ukf.x[1])
+        if wind_mps > s.max_wind_mps:
+            ukf.x[:2] *= s.max_wind_mps / wind_mps
         return self.effects
 
     def update_kinematics(

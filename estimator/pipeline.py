@@ -31,10 +31,13 @@ from estimator.vehicle import Vehicle
 
 #: Speeds (m/s) on which V_me and V_mr are searched, with the vehicle's effects applied.
 _SPEED_GRID_MPS = np.linspace(0.0, 30.0, 601)
-#: Tracked wind and mass replace the ones in use once the wind is known to this 1σ (m/s).
+#: Tracked wind and mass replace the file's once the wind is known to this 1σ (m/s) and they
+#: predict the measured power better (one step ahead) than the file's.
 #: Before that (hover, one-direction flight) wind and mass trade off against each other and
 #: the point estimate is biased by the curvature of P(V).
 _TRACKED_WIND_SIGMA_MPS = 1.0
+#: Gain of the moving averages that score tracked against vehicle-file effects (per reading).
+_SCORE_GAIN = 1.0 / 30.0
 #: Above this horizontal speed (m/s) the course over ground is the direction of flight.
 _TRACK_MIN_SPEED_MPS = 1.0
 #: How often (s, sample clock) V_me, V_mr and hover power follow the tracked wind and mass.
@@ -116,6 +119,11 @@ class Pipeline:
         if self.settings.add_climb_effect and not any(isinstance(e, Climb) for e in effects):
             effects.append(Climb())
         self.effects: tuple[Effect, ...] = tuple(effects)
+        self.file_effects = self.effects
+        # one-step-ahead squared power errors (W², moving averages) of the tracked effects and
+        # of the vehicle file's: the tracked ones are used only while they predict better
+        self._tracked_sq_w2 = 0.0
+        self._file_sq_w2 = 0.0
         self.online = (
             OnlineEffects(vehicle.model, vehicle.mass_kg, self.effects)
             if self.settings.track_effects
@@ -144,10 +152,11 @@ class Pipeline:
         speed_mps: np.ndarray,
         accel_centripetal_mps2: float = 0.0,
         state: KinematicState | None = None,
+        effects: tuple[Effect, ...] | None = None,
     ) -> np.ndarray:
         """Model power (W) for level flight at each horizontal speed along the current track
         (it matters in wind), steady turn with a⊥ as given; with ``state``, the first entry is
-        that full state instead."""
+        that full state instead. ``effects`` default to the ones in use."""
         n = len(speed_mps)
         north, east = math.cos(self._track_rad), math.sin(self._track_rad)
         speed = np.array(speed_mps, dtype=float)
@@ -162,7 +171,9 @@ class Pipeline:
             vn[0], ve[0], vd[0] = state.vn_mps, state.ve_mps, state.vd_mps
             an[0], ae[0] = state.an_mps2, state.ae_mps2
         flight = FlightState(t, vn, ve, vd, an, ae, np.zeros(n), voltage)
-        power = predict_power_w(self.vehicle.model, self.vehicle.mass_kg, flight, self.effects)
+        if effects is None:
+            effects = self.effects
+        power = predict_power_w(self.vehicle.model, self.vehicle.mass_kg, flight, effects)
         return np.maximum(power, 0.0)
 
     def _refresh_speeds(self) -> None:
@@ -264,13 +275,29 @@ class Pipeline:
     def _track_effects(self, time_s: float, measured_w: float, voltage_v: float) -> None:
         """Follow wind and mass with this power reading (after the fusion step, so each
         reading is fused with the effects that predicted it)."""
-        if self.online is None or self._state is None:
+        state = self._state
+        if self.online is None or state is None:
             return
-        tracked = self.online.update_kinematics(self._state, measured_w, voltage_v)
+        # score both hypotheses on this reading before the tracker learns from it
+        zero = np.zeros(1)
+        tracked_w = float(self._predict(zero, 0.0, state, self.online.effects)[0])
+        file_w = float(self._predict(zero, 0.0, state, self.file_effects)[0])
+        self._tracked_sq_w2 += _SCORE_GAIN * ((measured_w - tracked_w) ** 2 - self._tracked_sq_w2)
+        self._file_sq_w2 += _SCORE_GAIN * ((measured_w - file_w) ** 2 - self._file_sq_w2)
+        tracked = self.online.update_kinematics(state, measured_w, voltage_v)
         sigma = self.online.sigma
-        if max(sigma["wind_n_mps"], sigma["wind_e_mps"]) > _TRACKED_WIND_SIGMA_MPS:
-            return  # not identified yet: keep the effects in use (the fusion bias absorbs it)
-        self.effects = tracked
+        identified = max(sigma["wind_n_mps"], sigma["wind_e_mps"]) <= _TRACKED_WIND_SIGMA_MPS
+        in_use = self.effects != self.file_effects
+        if self._tracked_sq_w2 >= self._file_sq_w2:
+            chosen = self.file_effects  # the tracker went astray: the file's model is better
+        elif identified or in_use:
+            chosen = tracked
+        else:
+            return  # not identified yet: keep the file's effects (the fusion bias absorbs it)
+        if chosen == self.file_effects and not in_use:
+            return
+        self.counts["tracked_effects" if chosen is tracked else "file_effects"] += 1
+        self.effects = chosen
         self._update_power()
         if time_s - self._speeds_time_s >= _SPEEDS_REFRESH_S:
             self._refresh_speeds()
