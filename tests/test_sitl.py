@@ -281,8 +281,12 @@ def test_battery_status_time_remaining_and_pack_readings_are_sane(flown: Flown) 
     flying = [b for b in ours if b.current_battery > 1_000]  # > 10 A: in the air
     assert flying
     left = np.array([b.time_remaining for b in flying], dtype=float)
-    # steady endurance of a 3 kg quad on 10 Ah 6S: some ten to thirty minutes
-    assert np.median(left) == pytest.approx(np.median(truth.time_to_reserve_s), rel=0.5)
+    # steady endurance of a 3 kg quad on 10 Ah 6S: some ten to thirty minutes. Compared over
+    # the second half of the flight (messages arrive in time order): before that come the
+    # take-off transient and, on some cases, a hidden payload step the estimate cannot know
+    late_truth_s = truth.time_to_reserve_s[truth.flying > 0]
+    late_truth_s = late_truth_s[len(late_truth_s) // 2 :]
+    assert np.median(left[len(left) // 2 :]) == pytest.approx(np.median(late_truth_s), rel=0.5)
 
 
 # -- same pipeline, same numbers -----------------------------------------------------------------
