@@ -8,13 +8,13 @@ from __future__ import annotations
 
 import logging
 import math
-import tomllib
 from dataclasses import dataclass, fields, replace
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 from estimator.errors import UserError
 from estimator.mavlink_io import parse_url
+from estimator.toml_files import read_toml
 
 if TYPE_CHECKING:
     from estimator.pipeline import PipelineSettings
@@ -105,15 +105,7 @@ _KEYS = {
 
 def load_config_file(path: str | Path) -> dict[str, Any]:
     """Read a config TOML into ServiceConfig field values (unknown keys are errors)."""
-    path = Path(path)
-    try:
-        doc = tomllib.loads(path.read_text())
-    except FileNotFoundError:
-        raise UserError(f"config file {path} does not exist") from None
-    except (OSError, UnicodeDecodeError) as exc:
-        raise UserError(f"cannot read config file {path}: {exc}") from None
-    except tomllib.TOMLDecodeError as exc:
-        raise UserError(f"config file {path} is not valid TOML: {exc}") from None
+    doc = read_toml(path, "config")
     values: dict[str, Any] = {}
     for section, table in doc.items():
         if not isinstance(table, dict):

@@ -28,13 +28,13 @@ Plan file (TOML)::
 from __future__ import annotations
 
 import math
-import tomllib
 from collections.abc import Mapping
 from dataclasses import dataclass, fields, replace
 from pathlib import Path
 from typing import Any
 
 from estimator.errors import UserError
+from estimator.toml_files import read_toml
 
 LEG_KINDS = ("hover", "straight", "circle")
 BUILTIN_PLANS = ("straight", "circles", "mixed", "hover-cruise")
@@ -137,17 +137,7 @@ def _mixed_legs() -> list[Leg]:
 
 def load_plan(path: str | Path) -> Plan:
     """Read a TOML plan file; every problem is one clear sentence (UserError)."""
-    path = Path(path)
-    try:
-        doc = tomllib.loads(path.read_text())
-    except FileNotFoundError:
-        raise UserError(f"plan file {path} does not exist") from None
-    except IsADirectoryError:
-        raise UserError(f"plan file {path} is a directory") from None
-    except (OSError, UnicodeDecodeError) as exc:
-        raise UserError(f"cannot read plan file {path}: {exc}") from None
-    except tomllib.TOMLDecodeError as exc:
-        raise UserError(f"plan file {path} is not valid TOML: {exc}") from None
+    doc = read_toml(path, "plan")
     return plan_from_toml(doc, str(path))
 
 

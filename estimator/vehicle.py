@@ -21,6 +21,7 @@ import tomli_w
 
 from estimator.errors import UserError
 from estimator.model import COEFFICIENT_NAMES, PowerModel
+from estimator.toml_files import read_toml
 
 
 @dataclass(frozen=True)
@@ -70,17 +71,7 @@ def _toml_safe(params: dict[str, Any]) -> dict[str, Any]:
 
 def load_vehicle(path: str | Path) -> Vehicle:
     """Read and validate a vehicle file; every problem is one clear sentence (UserError)."""
-    path = Path(path)
-    try:
-        doc = tomllib.loads(path.read_text())
-    except FileNotFoundError:
-        raise UserError(f"vehicle file {path} does not exist") from None
-    except IsADirectoryError:
-        raise UserError(f"vehicle file {path} is a directory") from None
-    except (OSError, UnicodeDecodeError) as exc:
-        raise UserError(f"cannot read vehicle file {path}: {exc}") from None
-    except tomllib.TOMLDecodeError as exc:
-        raise UserError(f"vehicle file {path} is not valid TOML: {exc}") from None
+    doc = read_toml(path, "vehicle")
     return vehicle_from_toml(doc, str(path))
 
 
