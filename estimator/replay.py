@@ -8,8 +8,10 @@ the caller.
 
 Power error is measured where the model is meant to hold: at each battery sample with a
 current reading while the vehicle is *airborne* (armed and more than :data:`AIRBORNE_ALT_M`
-above home; a log without arming state or altitude is judged on the other alone), model power
-of the estimate at that instant against the measured V·I. Energies integrate both powers over
+above home; a log without arming state or altitude is judged on the other alone): the measured
+V·I against the model power of the last estimate published *before* that reading arrived — a
+prediction, never informed by the reading it is scored on (the pipeline's online wind/mass
+tracking learns from each reading). Energies integrate both powers over
 the same airborne intervals (gaps longer than :data:`MAX_GAP_S` are not integrated).
 """
 
@@ -56,9 +58,9 @@ class _FlightPhase:
 
 @dataclass
 class PowerTrace:
-    """At each battery sample with a current reading that gave an estimate: time (s), measured
-    and model power (W), the armed state then (1/0, NaN unknown) and the height over home (m,
-    NaN unknown)."""
+    """At each battery sample with a current reading: time (s), measured power and the model
+    power of the estimate published just before it (W), the armed state then (1/0, NaN
+    unknown) and the height over home (m, NaN unknown)."""
 
     time_s: list[float] = field(default_factory=list)
     measured_w: list[float] = field(default_factory=list)
@@ -67,7 +69,8 @@ class PowerTrace:
     alt_m: list[float] = field(default_factory=list)
 
     def add(self, sample: BatterySample, estimate: Estimate, phase: _FlightPhase) -> None:
-        """The point of a battery sample and the estimate it produced (if it has a current)."""
+        """The point of a battery sample (if it has a current) against the estimate published
+        before it arrived."""
         measured_w = sample.power_w
         if measured_w is None or not math.isfinite(estimate.power_model_w):
             return
@@ -145,12 +148,13 @@ def run(
     phase = _FlightPhase()
     count = 0
     for sample in samples:
+        published = pipeline.last  # what the daemon had published when the sample arrived
         estimate = pipeline.process(sample)
         phase.observe(sample)
         if estimate is not None:
             estimates.append(estimate)
-            if isinstance(sample, BatterySample):
-                power.add(sample, estimate, phase)
+            if isinstance(sample, BatterySample) and published is not None:
+                power.add(sample, published, phase)
         count += 1
         if on_sample is not None:
             on_sample(count)
