@@ -47,7 +47,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Callable, Sequence
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from typing import Any
 
 import numpy as np
@@ -340,6 +340,11 @@ def _wind(x: FloatArray, _at: float | None) -> Effect:
     return wind_from_vector(float(x[0]), float(x[1]))
 
 
+def _constant_and_stepped(candidate: Candidate) -> tuple[Candidate, Candidate]:
+    """The candidate acting all flight, and the same from a step time searched in the data."""
+    return candidate, replace(candidate, stepped=True)
+
+
 def candidates_for(vehicle: Vehicle, samples: Samples, names: Sequence[str]) -> list[Candidate]:
     """The candidates to try: ``names`` minus effects the vehicle file already has."""
     mass_lo = max(Mass.bounds["delta_kg"][0], -0.7 * vehicle.mass_kg)
@@ -359,17 +364,10 @@ def candidates_for(vehicle: Vehicle, samples: Samples, names: Sequence[str]) -> 
             null=(0.0, 0.0),
             starts=tuple((4.0 * math.cos(a), 4.0 * math.sin(a)) for a in np.radians([0, 120, 240])),
         ),
-        Candidate(
-            "mass", (0.0,), (mass_lo,), (mass_hi,), lambda x, at: Mass(float(x[0]), at), (0.0,)
-        ),
-        Candidate(
-            "mass",
-            (0.0,),
-            (mass_lo,),
-            (mass_hi,),
-            lambda x, at: Mass(float(x[0]), at),
-            (0.0,),
-            stepped=True,
+        *_constant_and_stepped(
+            Candidate(
+                "mass", (0.0,), (mass_lo,), (mass_hi,), lambda x, at: Mass(float(x[0]), at), (0.0,)
+            )
         ),
         Candidate(
             "air_density",
@@ -380,22 +378,15 @@ def candidates_for(vehicle: Vehicle, samples: Samples, names: Sequence[str]) -> 
             (SEA_LEVEL_DENSITY_KGPM3,),
         ),
         Candidate("climb", (0.6,), (0.2,), (1.0,), lambda x, _at: Climb(float(x[0]))),
-        Candidate(
-            "avionics",
-            (0.0,),
-            (avi_lo,),
-            (avi_hi,),
-            lambda x, at: Avionics(float(x[0]), at),
-            (0.0,),
-        ),
-        Candidate(
-            "avionics",
-            (0.0,),
-            (avi_lo,),
-            (avi_hi,),
-            lambda x, at: Avionics(float(x[0]), at),
-            (0.0,),
-            stepped=True,
+        *_constant_and_stepped(
+            Candidate(
+                "avionics",
+                (0.0,),
+                (avi_lo,),
+                (avi_hi,),
+                lambda x, at: Avionics(float(x[0]), at),
+                (0.0,),
+            )
         ),
         Candidate(
             "voltage",
