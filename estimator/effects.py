@@ -57,11 +57,11 @@ class FlightState:
 
     def __post_init__(self) -> None:
         n = len(self.time_s)
-        for f in fields(self):
-            value = _arr(getattr(self, f.name))
+        for name in _FLIGHT_STATE_FIELDS:
+            value = _arr(getattr(self, name))
             if value.shape != (n,):
-                raise ValueError(f"FlightState.{f.name} has shape {value.shape}, expected ({n},)")
-            object.__setattr__(self, f.name, value)
+                raise ValueError(f"FlightState.{name} has shape {value.shape}, expected ({n},)")
+            object.__setattr__(self, name, value)
 
     def __len__(self) -> int:
         return len(self.time_s)
@@ -94,6 +94,9 @@ class FlightState:
             alt_m=nan if alt_m is None else _arr(alt_m),
             voltage_v=nan if voltage_v is None else _arr(voltage_v),
         )
+
+
+_FLIGHT_STATE_FIELDS = tuple(f.name for f in fields(FlightState))
 
 
 @dataclass
@@ -194,11 +197,28 @@ class Mass(Effect):
     at_s: float | None = None
 
     def adjust(self, ctx: PowerContext) -> None:
-        base_kg = ctx.mass_kg / ctx.mass_ratio
-        ctx.mass_kg = ctx.mass_kg + self.delta_kg * _step(ctx.state.time_s, self.at_s)
-        if np.any(ctx.mass_kg <= 0):
-            raise ValueError("mass effect makes the vehicle's mass ≤ 0")
-        ctx.mass_ratio = ctx.mass_kg / base_kg
+        _add_mass(ctx, self.delta_kg * _step(ctx.state.time_s, self.at_s))
+
+
+@dataclass(frozen=True, eq=False)
+class SampleMass(Effect):
+    """A mass difference per sample, ``delta_kg`` (kg, one per row of the flight state): one
+    prediction for many mass hypotheses (the online tracker's sigma points). Not a vehicle
+    file effect."""
+
+    delta_kg: FloatArray
+
+    def adjust(self, ctx: PowerContext) -> None:
+        _add_mass(ctx, self.delta_kg)
+
+
+def _add_mass(ctx: PowerContext, delta_kg: FloatArray) -> None:
+    """Add ``delta_kg`` (per sample) to the mass and rescale the model's mass ratio."""
+    base_kg = ctx.mass_kg / ctx.mass_ratio
+    ctx.mass_kg = ctx.mass_kg + delta_kg
+    if np.any(ctx.mass_kg <= 0):
+        raise ValueError("mass effect makes the vehicle's mass ≤ 0")
+    ctx.mass_ratio = ctx.mass_kg / base_kg
 
 
 @dataclass(frozen=True)
@@ -356,14 +376,12 @@ def predict_context(
     ctx.accel_centripetal_mps2 = centripetal_accel_mps2(
         ctx.air_vn_mps, ctx.air_ve_mps, state.an_mps2, state.ae_mps2
     )
-    power_w = np.empty(n)
-    v0 = np.empty(n)
-    for ratio in np.unique(ctx.mass_ratio):
-        sel = ctx.mass_ratio == ratio
-        scaled = model.rescaled(float(ratio), ctx.density_ratio)
-        power_w[sel] = scaled.power_w(ctx.speed_mps[sel], ctx.accel_centripetal_mps2[sel])
-        v0[sel] = math.sqrt(scaled.c4 / 2.0)
-    ctx.hover_induced_velocity_mps = v0
+    power_w = model.power_w(
+        ctx.speed_mps, ctx.accel_centripetal_mps2, ctx.mass_ratio, ctx.density_ratio
+    )
+    ctx.hover_induced_velocity_mps = model.hover_induced_velocity_mps(
+        ctx.mass_ratio, ctx.density_ratio
+    )
     power_w += ctx.mass_kg * (ctx.air_vn_mps * state.an_mps2 + ctx.air_ve_mps * state.ae_mps2)
     for effect in effects:
         extra = effect.propulsion_w(ctx)

@@ -165,6 +165,13 @@ class EnergyFilter:
         return not self.has_current
 
     @property
+    def time_s(self) -> float:
+        """Sample time (s) the energy state is at."""
+        self._require()
+        assert self._time_s is not None
+        return self._time_s
+
+    @property
     def soc(self) -> float:
         """State of charge that the energy state implies."""
         kf = self._require()
@@ -282,16 +289,21 @@ class EnergyFilter:
             kf.P[:, 1] *= factor
 
     def update_power(
-        self, measured_w: float, power_model_w: float, model_sigma_w: float = 0.0
+        self,
+        measured_w: float,
+        power_model_w: float,
+        model_sigma_w: float = 0.0,
+        readings: int = 1,
     ) -> None:
         """Fold in measured terminal power V·I (W) against the model's power (W), whose
-        flight-state uncertainty (e.g. from the filtered acceleration) is ``model_sigma_w``."""
+        flight-state uncertainty (e.g. from the filtered acceleration) is ``model_sigma_w``.
+        With ``readings`` > 1 both are means of that many readings: the reading noise averages
+        down by √readings."""
         kf = self._require()
         self.has_current = True
         s = self.settings
-        sigma_w = math.hypot(
-            s.power_noise_fraction * abs(measured_w) + s.power_noise_floor_w, model_sigma_w
-        )
+        reading_sigma_w = s.power_noise_fraction * abs(measured_w) + s.power_noise_floor_w
+        sigma_w = math.hypot(reading_sigma_w / math.sqrt(readings), model_sigma_w)
         kf.update(
             np.array([measured_w]), R=np.array([[sigma_w**2]]), H=np.array([[0.0, power_model_w]])
         )

@@ -54,40 +54,36 @@ class PowerModel:
 
     # -- evaluation ----------------------------------------------------------------------------
 
-    def profile_power_w(self, speed_mps: ArrayLike) -> FloatArray:
-        """Blade-profile power c1 (1 + c2 V²), W."""
-        v = np.asarray(speed_mps, dtype=float)
-        return self.c1 * (1.0 + self.c2 * v * v)
-
-    def induced_power_w(
-        self, speed_mps: ArrayLike, accel_centripetal_mps2: ArrayLike = 0.0
+    def power_w(
+        self,
+        speed_mps: ArrayLike,
+        accel_centripetal_mps2: ArrayLike = 0.0,
+        mass_ratio: ArrayLike = 1.0,
+        density_ratio: float = 1.0,
     ) -> FloatArray:
-        """Induced power, eq. (2)'s induced integrand (eq. (1)'s when a⊥ = 0), W.
-
-        The load factor n² = 1 + a⊥²/g² scales the thrust a turn needs.
-        """
-        v = np.asarray(speed_mps, dtype=float)
-        load2 = 1.0 + np.square(np.asarray(accel_centripetal_mps2, dtype=float) / G_MPS2)
-        v2_c4 = v * v / self.c4
-        inner = np.sqrt(load2 + v2_c4 * v2_c4) - v2_c4
-        return self.c3 * np.sqrt(load2) * np.sqrt(inner)
-
-    def parasite_power_w(self, speed_mps: ArrayLike) -> FloatArray:
-        """Parasite power c5 V³, W."""
-        v = np.asarray(speed_mps, dtype=float)
-        return self.c5 * v * v * v
-
-    def power_w(self, speed_mps: ArrayLike, accel_centripetal_mps2: ArrayLike = 0.0) -> FloatArray:
         """Power in level flight at airspeed V with centripetal acceleration a⊥, W.
 
         With a⊥ = 0 this is eq. (1); otherwise the integrand of eq. (2) without the
         kinetic-energy term (add :func:`kinetic_power_w` for an instantaneous prediction).
+        Blade profile c1 (1 + c2 V²) + induced c3 n (sqrt(n² + V⁴/c4²) − V²/c4)^½ + parasite
+        c5 V³, with the load factor n² = 1 + a⊥²/g². ``mass_ratio`` (per sample) and
+        ``density_ratio`` evaluate :meth:`rescaled` models without building them.
         """
-        return (
-            self.profile_power_w(speed_mps)
-            + self.induced_power_w(speed_mps, accel_centripetal_mps2)
-            + self.parasite_power_w(speed_mps)
-        )
+        c1, c2, c3, c4, c5 = self._scaled(np.asarray(mass_ratio, dtype=float), density_ratio)
+        v = np.asarray(speed_mps, dtype=float)
+        v2 = v * v
+        load2 = 1.0 + np.square(np.asarray(accel_centripetal_mps2, dtype=float) / G_MPS2)
+        v2_c4 = v2 / c4
+        induced = c3 * np.sqrt(load2 * (np.sqrt(load2 + v2_c4 * v2_c4) - v2_c4))
+        return np.asarray(c1 * (1.0 + c2 * v2) + induced + c5 * v2 * v, dtype=float)
+
+    def hover_induced_velocity_mps(
+        self, mass_ratio: ArrayLike = 1.0, density_ratio: float = 1.0
+    ) -> FloatArray:
+        """Mean rotor induced velocity in hover v0 = sqrt(c4 / 2), m/s (rescaled like
+        :meth:`power_w`)."""
+        c4 = self._scaled(np.asarray(mass_ratio, dtype=float), density_ratio)[3]
+        return np.asarray(np.sqrt(0.5 * c4), dtype=float)
 
     @property
     def hover_power_w(self) -> float:
@@ -129,19 +125,22 @@ class PowerModel:
         )
 
     def rescaled(self, mass_ratio: float = 1.0, density_ratio: float = 1.0) -> PowerModel:
-        """The model for mass m·mass_ratio and air density ρ·density_ratio.
-
-        From Zeng et al.'s parameters: c1 ∝ ρ, c2 fixed (tip speed), c3 ∝ W^{3/2} ρ^{-1/2},
-        c4 ∝ W/ρ, c5 ∝ ρ.
-        """
+        """The model for mass m·mass_ratio and air density ρ·density_ratio (:meth:`_scaled`)."""
         if mass_ratio <= 0 or density_ratio <= 0:
             raise ValueError("mass and density ratios must be > 0")
-        return PowerModel(
-            c1=self.c1 * density_ratio,
-            c2=self.c2,
-            c3=self.c3 * mass_ratio**1.5 / math.sqrt(density_ratio),
-            c4=self.c4 * mass_ratio / density_ratio,
-            c5=self.c5 * density_ratio,
+        return PowerModel(*(float(c) for c in self._scaled(mass_ratio, density_ratio)))
+
+    def _scaled(
+        self, mass_ratio: float | FloatArray, density_ratio: float
+    ) -> tuple[float | FloatArray, ...]:
+        """c1..c5 for mass m·mass_ratio and air density ρ·density_ratio, from Zeng et al.'s
+        parameters: c1 ∝ ρ, c2 fixed (tip speed), c3 ∝ W^{3/2} ρ^{-1/2}, c4 ∝ W/ρ, c5 ∝ ρ."""
+        return (
+            self.c1 * density_ratio,
+            self.c2,
+            self.c3 * mass_ratio**1.5 / math.sqrt(density_ratio),
+            self.c4 * mass_ratio / density_ratio,
+            self.c5 * density_ratio,
         )
 
 

@@ -34,13 +34,21 @@ from __future__ import annotations
 
 import math
 from collections import deque
-from collections.abc import Iterable, Sequence
+from collections.abc import Iterable, Iterator, Sequence
 from dataclasses import dataclass
 
 import numpy as np
 from filterpy.kalman import MerweScaledSigmaPoints, UnscentedKalmanFilter
 
-from estimator.effects import Effect, FlightState, Mass, Wind, effects_from_tables, predict_power_w
+from estimator.effects import (
+    Effect,
+    FlightState,
+    Mass,
+    SampleMass,
+    Wind,
+    effects_from_tables,
+    predict_power_w,
+)
 from estimator.kinematics import KinematicsFilter, KinematicState
 from estimator.logs import FlightSeries
 from estimator.model import PowerModel
@@ -103,10 +111,14 @@ class OnlineEffects:
         mass = next((e for e in effects if isinstance(e, Mass)), Mass())
         self.others = tuple(e for e in effects if not isinstance(e, Wind | Mass))
         wn, we = wind.vector_ne_mps()
+        self._file_wind_ne_mps, self._file_mass = (wn, we), mass
         # a stepped mass from the file has not happened yet at take-off
         delta0 = mass.delta_kg if mass.at_s is None else 0.0
         points = MerweScaledSigmaPoints(3, alpha=1.0, beta=2.0, kappa=0.0)
-        self._ukf = UnscentedKalmanFilter(3, 1, 1.0, hx=self._hx, fx=_identity, points=points)
+        self._sigma_powers_w: Iterator[float] = iter(())
+        self._ukf = UnscentedKalmanFilter(
+            3, 1, 1.0, hx=self._next_sigma_power, fx=_identity, points=points
+        )
         self._ukf.x = np.array([wn, we, delta0])
         self._initial_var = np.array(
             [
@@ -126,6 +138,11 @@ class OnlineEffects:
         self.vertical = 0
         self.rejected = 0
         self.changes = 0
+        #: Readings the filter was run on (updates and gate rejections).
+        self.steps = 0
+        #: Power (W) predicted for the last reading run on, before it was used: with the
+        #: estimate then, and with the vehicle file's wind and mass.
+        self.predicted_w = (math.nan, math.nan)
         #: Times the covariance was restarted after losing positive definiteness (bad data).
         self.resets = 0
 
@@ -169,10 +186,23 @@ class OnlineEffects:
 
     # -- filter --------------------------------------------------------------------------------
 
-    def _hx(self, x: np.ndarray, state: FlightState) -> np.ndarray:
-        x = x.copy()
-        x[2] = max(x[2], (self.settings.min_mass_fraction - 1.0) * self.mass_kg)
-        return predict_power_w(self.model, self.mass_kg, state, self._effects(x))
+    def _powers_w(self, points: np.ndarray, row: tuple[float, ...]) -> np.ndarray:
+        """Model power (W) at one flight state ``row`` (FlightState fields, one value each)
+        for each row [w_n, w_e, δm] of ``points``, in one prediction: the wind is taken out
+        of the velocity (what :class:`Wind` does), the mass goes in as :class:`SampleMass`."""
+        k = len(points)
+        columns = np.repeat(np.array(row, dtype=float)[:, None], k, axis=1)
+        columns[1] -= points[:, 0]
+        columns[2] -= points[:, 1]
+        floor_kg = (self.settings.min_mass_fraction - 1.0) * self.mass_kg
+        effects = (SampleMass(np.maximum(points[:, 2], floor_kg)), *self.others)
+        return predict_power_w(self.model, self.mass_kg, FlightState(*columns), effects)
+
+    def _next_sigma_power(self, _point: np.ndarray) -> np.ndarray:
+        """filterpy's hx. The powers of all sigma points are predicted together before each
+        update (:meth:`_powers_w`); filterpy then asks for them one point at a time, in the
+        order of ``sigmas_f``."""
+        return np.array([next(self._sigma_powers_w)])
 
     def update(
         self,
@@ -204,27 +234,33 @@ class OnlineEffects:
         if measured_power_w < s.min_power_fraction_of_hover * self._hover_w:
             self.idle += 1
             return self.effects
+        self.steps += 1
         ukf = self._ukf
         dt = 0.0 if self._time_s is None else time_s - self._time_s
         self._time_s = time_s
-        if dt > 0:
-            wind_q = s.wind_walk_mps_per_sqrt_s**2 * dt
-            ukf.Q = np.diag([wind_q, wind_q, s.mass_walk_kg_per_sqrt_s**2 * dt])
-            try:
-                ukf.predict(dt=dt)
-            except np.linalg.LinAlgError:
-                ukf.P = np.diag(self._initial_var)
-                self.resets += 1
-                ukf.predict(dt=dt)
+        # predict even when dt = 0: it draws the sigma points the update evaluates
+        wind_q = s.wind_walk_mps_per_sqrt_s**2 * dt
+        ukf.Q = np.diag([wind_q, wind_q, s.mass_walk_kg_per_sqrt_s**2 * dt])
+        try:
+            ukf.predict(dt=dt)
+        except np.linalg.LinAlgError:
+            ukf.P = np.diag(self._initial_var)
+            self.resets += 1
+            ukf.predict(dt=dt)
         row = (time_s, vn_mps, ve_mps, vd_mps, an_mps2, ae_mps2, 0.0, voltage_v)
-        state = FlightState(*(np.array([x], dtype=float) for x in row))
+        file_mass = self._file_mass
+        file_delta_kg = file_mass.delta_kg * (file_mass.at_s is None or time_s >= file_mass.at_s)
+        hypotheses = [ukf.x, [*self._file_wind_ne_mps, file_delta_kg]]
+        powers_w = self._powers_w(np.vstack([ukf.sigmas_f, *hypotheses]), row).tolist()
+        self._sigma_powers_w = iter(powers_w[:-2])
+        self.predicted_w = (powers_w[-2], powers_w[-1])
         speed = math.hypot(vn_mps, ve_mps)
         kinetic_sd = self.mass_kg * speed * accel_sigma_mps2
         r = s.power_noise_w**2 + (s.power_noise_fraction * measured_power_w) ** 2 + kinetic_sd**2
         r += self.extra_noise_var_w2
         x_prior, p_prior = ukf.x.copy(), ukf.P.copy()
         try:
-            ukf.update(np.array([measured_power_w]), R=np.array([[r]]), state=state)
+            ukf.update(np.array([measured_power_w]), R=np.array([[r]]))
         except np.linalg.LinAlgError:  # covariance lost positive definiteness: start it over
             ukf.x, ukf.P = x_prior, np.diag(self._initial_var)
             self.resets += 1

@@ -1,12 +1,26 @@
 """The one pipeline: telemetry samples in, energy and endurance estimates out.
 
 The daemon feeds it from a socket, replay from a file, tests from lists; time comes only from
-the samples, so the same samples always give the same estimates. Per velocity sample:
-kinematics (causal Kalman filter) → flight state → model power
-(:func:`estimator.effects.predict_power_w`, the one place power is predicted) → energy filter
-predict. Per battery sample: measured power, consumed charge and terminal voltage update the
-fusion (:mod:`estimator.fusion`). A :class:`RebootSample` restarts the kinematics and moves
-the clocks, keeping the energy state.
+the samples, so the same samples always give the same estimates.
+
+Work happens in *periods* of the sample clock (``estimate_period_s``, 0.5 s by default): each
+velocity sample runs the kinematics (causal Kalman filter, scalar arithmetic) and is queued;
+each battery sample is queued. The sample that reaches the end of a period closes it, and then,
+once for the whole period:
+
+1. the model power after every queued velocity sample, in one vectorized call of
+   :func:`estimator.effects.predict_power_w` (the one place power is predicted);
+2. the energy filter integrates that power over the period (each power holds until the next
+   sample);
+3. the period's battery readings update the fusion (:mod:`estimator.fusion`): their mean
+   measured power against the mean model power in force when each arrived, the latest
+   consumed charge and the latest terminal voltage;
+4. the online wind/mass tracker takes the latest reading (at most once a second);
+5. one :class:`Estimate` is published.
+
+Per-sample numpy work would cost more than decoding the sample; per period it is amortized
+over every sample of the period. A :class:`RebootSample` closes the open period, restarts the
+kinematics and moves the clocks, keeping the energy state.
 
 Endurance figures are at a *steady* power: level flight at the current horizontal speed (and
 centripetal acceleration: a steady turn continues), without the transient kinetic and climb
@@ -17,6 +31,7 @@ from __future__ import annotations
 
 import math
 from collections import Counter
+from collections.abc import Sequence
 from dataclasses import dataclass, field, fields
 
 import numpy as np
@@ -36,7 +51,7 @@ _SPEED_GRID_MPS = np.linspace(0.0, 30.0, 601)
 #: Before that (hover, one-direction flight) wind and mass trade off against each other and
 #: the point estimate is biased by the curvature of P(V).
 _TRACKED_WIND_SIGMA_MPS = 1.0
-#: Gain of the moving averages that score tracked against vehicle-file effects (per reading).
+#: Gain of the moving averages that score tracked against vehicle-file effects (per update).
 _SCORE_GAIN = 1.0 / 30.0
 #: Above this horizontal speed (m/s) the course over ground is the direction of flight.
 _TRACK_MIN_SPEED_MPS = 1.0
@@ -50,13 +65,16 @@ class PipelineSettings:
     this on the sample clock.  add_climb_effect: add a default :class:`Climb` effect when the
     vehicle file has none (climbing costs m·g·v_c/η).  track_effects: follow wind and mass
     online from measured power (:class:`~estimator.online_effects.OnlineEffects`), starting
-    from the vehicle file's values; off keeps those values for the whole flight."""
+    from the vehicle file's values; off keeps those values for the whole flight.
+    estimate_period_s: one estimate per this much sample clock (s); see the module
+    docstring."""
 
     kinematics: KinematicsSettings = field(default_factory=KinematicsSettings)
     fusion: FusionSettings = field(default_factory=FusionSettings)
     battery_stale_s: float = 5.0
     add_climb_effect: bool = True
     track_effects: bool = True
+    estimate_period_s: float = 1.0
 
 
 @dataclass(frozen=True, slots=True)
@@ -109,12 +127,52 @@ class Estimate:
 _ESTIMATE_FIELDS = tuple(f.name for f in fields(Estimate))
 
 
+@dataclass(frozen=True, slots=True)
+class PowerReading:
+    """A battery reading with a current, against the model power in force when it arrived
+    (a prediction: the reading was not yet fused). Powers W, time s; armed None = unknown;
+    alt_m: height over home of the latest velocity sample (None = unknown)."""
+
+    time_s: float
+    measured_w: float
+    model_w: float
+    armed: bool | None
+    alt_m: float | None
+
+
+@dataclass(frozen=True, slots=True)
+class _Reading:
+    """A queued battery sample, the number of events of the period before it, and the armed
+    state and height over home (m) when it arrived (None = unknown)."""
+
+    sample: BatterySample
+    events_before: int
+    armed: bool | None
+    alt_m: float | None
+
+
+@dataclass(frozen=True, slots=True)
+class _Event:
+    """A sample that changes the model power: a new kinematic state (None after a reboot),
+    the armed state then (None = unknown) and the battery voltage then (V, NaN unknown)."""
+
+    time_s: float
+    state: KinematicState | None
+    armed: bool | None
+    voltage_v: float
+
+
 class Pipeline:
-    """Samples in (:meth:`process`), estimates out; ``counts`` says what it did and skipped."""
+    """Samples in (:meth:`process`), estimates out; ``counts`` says what it did and skipped.
+
+    ``readings`` holds the :class:`PowerReading` of the period that the last estimate closed.
+    """
 
     def __init__(self, vehicle: Vehicle, settings: PipelineSettings | None = None) -> None:
         self.vehicle = vehicle
         self.settings = settings or PipelineSettings()
+        if not self.settings.estimate_period_s > 0:
+            raise ValueError("estimate_period_s must be > 0")
         effects: list[Effect] = effects_from_tables(vehicle.effects)
         if self.settings.add_climb_effect and not any(isinstance(e, Climb) for e in effects):
             effects.append(Climb())
@@ -136,12 +194,19 @@ class Pipeline:
         self.energy = EnergyFilter(self.pack, self.settings.fusion)
         self.counts: Counter[str] = Counter()
         self.last: Estimate | None = None
+        self.readings: list[PowerReading] = []
         self._state: KinematicState | None = None
         self._armed: bool | None = None
         self._battery: BatterySample | None = None
-        self._power_model_w = 0.0
+        self._resistance_time_s: float | None = None
+        # the open period: power-changing samples and battery readings (with the number of
+        # events before each), and when it ends
+        self._events: list[_Event] = []
+        self._pending: list[_Reading] = []
+        self._period_end_s = math.inf
+        self._power_model_w = 0.0  # in force after the last closed period's last event
         self._steady_power_w = 0.0
-        self._time_s: float | None = None
+        self._time_s: float | None = None  # newest sample time (ordering)
         self._loss_factor = 1.0
         self._refresh_speeds()
 
@@ -149,28 +214,41 @@ class Pipeline:
 
     def _predict(
         self,
-        speed_mps: np.ndarray,
+        states: Sequence[KinematicState],
+        steady_speeds_mps: np.ndarray,
         accel_centripetal_mps2: float = 0.0,
-        state: KinematicState | None = None,
         effects: tuple[Effect, ...] | None = None,
+        voltages_v: Sequence[float] = (),
+        time_s: float = 0.0,
     ) -> np.ndarray:
-        """Model power (W) for level flight at each horizontal speed along the current track
-        (it matters in wind), steady turn with a⊥ as given; with ``state``, the first entry is
-        that full state instead. ``effects`` default to the ones in use."""
-        n = len(speed_mps)
+        """Model power (W): one row per kinematic state (at its battery voltage in
+        ``voltages_v``, V), then level flight at each steady speed along the current track (it
+        matters in wind) in a steady turn with a⊥ as given, at ``time_s`` and the latest
+        voltage. ``effects`` default to the ones in use."""
+        k = len(states)
         north, east = math.cos(self._track_rad), math.sin(self._track_rad)
-        speed = np.array(speed_mps, dtype=float)
-        vn, ve = speed * north, speed * east
-        vd = np.zeros(n)
-        an = np.full(n, -east * accel_centripetal_mps2)  # across the track: a⊥ only
-        ae = np.full(n, north * accel_centripetal_mps2)
-        t = np.zeros(n)
-        voltage = np.full(n, np.nan if self._battery is None else self._battery.voltage_v)
-        if state is not None:
-            t[:] = state.time_s
-            vn[0], ve[0], vd[0] = state.vn_mps, state.ve_mps, state.vd_mps
-            an[0], ae[0] = state.an_mps2, state.ae_mps2
-        flight = FlightState(t, vn, ve, vd, an, ae, np.zeros(n), voltage)
+        latest_v = math.nan if self._battery is None else self._battery.voltage_v
+        rows = np.empty((k + len(steady_speeds_mps), 8))
+        if k:
+            rows[:k] = [
+                (s.time_s, s.vn_mps, s.ve_mps, s.vd_mps, s.an_mps2, s.ae_mps2, 0.0, v)
+                for s, v in zip(states, voltages_v or [latest_v] * k, strict=True)
+            ]
+        # steady rows: level, along the track, a⊥ across it
+        rows[k:] = (
+            time_s,
+            0.0,
+            0.0,
+            0.0,
+            -east * accel_centripetal_mps2,
+            north * accel_centripetal_mps2,
+            0.0,
+            latest_v,
+        )
+        rows[k:, 1] = north * steady_speeds_mps
+        rows[k:, 2] = east * steady_speeds_mps
+        columns = rows.T
+        flight = FlightState(*columns)
         if effects is None:
             effects = self.effects
         power = predict_power_w(self.vehicle.model, self.vehicle.mass_kg, flight, effects)
@@ -178,27 +256,45 @@ class Pipeline:
 
     def _refresh_speeds(self) -> None:
         """V_me, V_mr and their powers, and hover power, with the current effects."""
-        power = self._predict(_SPEED_GRID_MPS)
+        power = self._predict((), _SPEED_GRID_MPS, time_s=self._time_s or 0.0)
         i_me = int(np.argmin(power))
         i_mr = int(np.argmin(power[1:] / _SPEED_GRID_MPS[1:])) + 1
         self.v_me_mps, self.v_mr_mps = float(_SPEED_GRID_MPS[i_me]), float(_SPEED_GRID_MPS[i_mr])
         self._p_me_w, self._p_mr_w = float(power[i_me]), float(power[i_mr])
         self._p_hover_w = float(power[0])
 
-    def _update_power(self) -> None:
+    def _event_powers_w(self, time_s: float) -> list[float]:
+        """Model power after each event of the open period (W), in one prediction; also sets
+        the steady power of the latest state (at ``time_s``)."""
+        rows = [e for e in self._events if e.state is not None and e.armed is not False]
         state = self._state
-        if self._armed is False:
-            self._power_model_w = self._steady_power_w = 0.0
-            return
-        if state is None:
-            self._power_model_w = self._steady_power_w = self._p_hover_w
-            return
-        if state.speed_mps > _TRACK_MIN_SPEED_MPS:
+        steady_speed = [] if state is None else [state.speed_mps]
+        if state is not None and state.speed_mps > _TRACK_MIN_SPEED_MPS:
             self._track_rad = math.atan2(state.ve_mps, state.vn_mps)
-        full, steady = self._predict(
-            np.array([0.0, state.speed_mps]), state.accel_centripetal_mps2, state
+        predicted = iter(
+            self._predict(
+                [e.state for e in rows if e.state is not None],
+                np.array(steady_speed),
+                0.0 if state is None else state.accel_centripetal_mps2,
+                voltages_v=[e.voltage_v for e in rows],
+                time_s=time_s,
+            )
         )
-        self._power_model_w, self._steady_power_w = float(full), float(steady)
+        powers = []
+        for event in self._events:
+            if event.armed is False:
+                powers.append(0.0)
+            elif event.state is None:
+                powers.append(self._p_hover_w)
+            else:
+                powers.append(float(next(predicted)))
+        if self._armed is False:
+            self._steady_power_w = 0.0
+        elif state is None:
+            self._steady_power_w = self._p_hover_w
+        else:
+            self._steady_power_w = float(next(predicted))
+        return powers
 
     def _kinetic_sigma_w(self) -> float:
         """1σ of the kinetic term m vᵀa from the filtered acceleration's uncertainty, W."""
@@ -210,82 +306,181 @@ class Pipeline:
     # -- samples ------------------------------------------------------------------------------
 
     def process(self, sample: Sample) -> Estimate | None:
-        """Fold in one sample; return the new estimate when the state advanced."""
+        """Fold in one sample; return the new estimate when it closed a period."""
         if isinstance(sample, VelocitySample):
-            return self._velocity(sample)
-        if isinstance(sample, BatterySample):
-            return self._battery_sample(sample)
-        if isinstance(sample, ArmedSample):
+            self.counts["velocity"] += 1
+            if self._out_of_order(sample.time_s, "velocity_out_of_order"):
+                return None
+            self._state = self.kinematics.update(sample)
+            if not self.energy.initialized:
+                self.counts["velocity_before_battery"] += 1
+                return None
+            self._queue_event(sample.time_s)
+        elif isinstance(sample, BatterySample):
+            self.counts["battery"] += 1
+            if not math.isfinite(sample.voltage_v) or sample.voltage_v <= 0:
+                self.counts["battery_invalid"] += 1
+                return None
+            if self._out_of_order(sample.time_s, "battery_out_of_order"):
+                return None
+            if not self.energy.initialized:
+                self._initialize(sample)
+                return None
+            alt_m = None if self._state is None else self._state.alt_m
+            self._pending.append(_Reading(sample, len(self._events), self._armed, alt_m))
+            self._battery = sample
+        elif isinstance(sample, ArmedSample):
             self.counts["armed" if sample.armed else "disarmed"] += 1
             self._armed = sample.armed
-            self._update_power()
+            if self.energy.initialized:
+                self._queue_event(sample.time_s)
             return None
-        if isinstance(sample, RebootSample):
-            self._reboot(sample)
+        elif isinstance(sample, RebootSample):
+            return self._reboot(sample)
+        else:
+            self.counts["unknown_sample"] += 1
             return None
-        self.counts["unknown_sample"] += 1
-        return None
+        self._time_s = sample.time_s
+        if sample.time_s < self._period_end_s:
+            return None
+        return self._close_period(sample.time_s)
 
-    def _velocity(self, sample: VelocitySample) -> Estimate | None:
-        self.counts["velocity"] += 1
-        if self._time_s is not None and sample.time_s < self._time_s:
-            self.counts["velocity_out_of_order"] += 1
+    def flush(self) -> Estimate | None:
+        """Close the open period at the newest sample's time (end of a log): the estimate of
+        its samples, or None when there is nothing to close."""
+        if not self.energy.initialized or self._time_s is None:
             return None
-        self._state = self.kinematics.update(sample)
-        self._update_power()
-        if not self.energy.initialized:
-            self.counts["velocity_before_battery"] += 1
+        if not self._events and not self._pending:
             return None
-        self._advance(sample.time_s)
-        return self._emit(sample.time_s)
+        return self._close_period(self._time_s)
 
-    def _battery_sample(self, sample: BatterySample) -> Estimate | None:
-        self.counts["battery"] += 1
-        if not math.isfinite(sample.voltage_v) or sample.voltage_v <= 0:
-            self.counts["battery_invalid"] += 1
-            return None
-        if not self.energy.initialized:
-            self._battery = sample
-            self._update_power()
-            self.energy.initialize(sample, self._power_model_w)
-            self._time_s = sample.time_s
-            self.counts["energy_initialized"] += 1
-            return None
-        if self._time_s is not None and sample.time_s < self._time_s:
-            self.counts["battery_out_of_order"] += 1
-            return None
-        previous = self._battery
+    def _out_of_order(self, time_s: float, counter: str) -> bool:
+        if self._time_s is not None and time_s < self._time_s:
+            self.counts[counter] += 1
+            return True
+        return False
+
+    def _queue_event(self, time_s: float) -> None:
+        voltage_v = math.nan if self._battery is None else self._battery.voltage_v
+        self._events.append(_Event(time_s, self._state, self._armed, voltage_v))
+
+    def _initialize(self, sample: BatterySample) -> None:
+        """First valid battery sample: start the energy state at the model power now."""
         self._battery = sample
-        self._advance(sample.time_s)
-        measured_w = sample.power_w
-        if measured_w is not None and self._armed is not False and self._power_model_w > 0:
-            self.energy.update_power(measured_w, self._power_model_w, self._kinetic_sigma_w())
-            self._track_effects(sample.time_s, measured_w, sample.voltage_v)
-        if sample.consumed_mah is not None:
-            self.energy.update_charge(sample.consumed_mah)
-        current_a = sample.current_a
+        self._time_s = sample.time_s
+        self._events = [_Event(sample.time_s, self._state, self._armed, sample.voltage_v)]
+        self._power_model_w = self._event_powers_w(sample.time_s)[0]
+        self._events = []
+        self.energy.initialize(sample, self._power_model_w)
+        self._resistance_time_s = sample.time_s
+        self._start_period(sample.time_s)
+        self.counts["energy_initialized"] += 1
+
+    def _start_period(self, time_s: float) -> None:
+        period = self.settings.estimate_period_s
+        self._period_end_s = (math.floor(time_s / period) + 1.0) * period
+
+    def _reboot(self, sample: RebootSample) -> Estimate | None:
+        """Close the old clock's period, then restart the kinematics on the new clock."""
+        self.counts["reboot"] += 1
+        estimate = self.flush()
+        self.kinematics.reset()
+        self._state = None
+        self._armed = None
+        self._battery = None
+        if self.energy.initialized:
+            self.energy.rebase(sample.time_s)
+            self._resistance_time_s = sample.time_s
+            self._queue_event(sample.time_s)
+            self._start_period(sample.time_s)
+        if self._time_s is not None:
+            self._time_s = sample.time_s
+        return estimate
+
+    # -- one period -----------------------------------------------------------------------------
+
+    def _close_period(self, time_s: float) -> Estimate:
+        powers_w = self._event_powers_w(time_s)
+        self._integrate(time_s, powers_w)
+        # each reading against the power in force when it arrived
+        model_w = [
+            powers_w[r.events_before - 1] if r.events_before else self._power_model_w
+            for r in self._pending
+        ]
+        if powers_w:
+            self._power_model_w = powers_w[-1]
+        self._fuse(model_w)
+        self._events, self._pending = [], []
+        self._start_period(time_s)
+        return self._emit(time_s)
+
+    def _integrate(self, time_s: float, powers_w: list[float]) -> None:
+        """Energy predict to ``time_s`` at the period's mean model power (each power holds
+        until the next event); the pack's loss factor OCV/V is the one of the last battery
+        update (it changes slowly)."""
+        start_s = self.energy.time_s
+        if time_s <= start_s:
+            return
+        energy_ws, t, p = 0.0, start_s, self._power_model_w
+        for event, power_w in zip(self._events, powers_w, strict=True):
+            if event.time_s > t:
+                energy_ws += p * (event.time_s - t)
+                t = event.time_s
+            p = power_w
+        energy_ws += p * (time_s - t)
+        self.energy.predict(time_s, energy_ws / (time_s - start_s), self._loss_factor)
+        if self._steady_power_w > 0:
+            self.energy.flight_state_changed(self._steady_power_w)
+
+    def _fuse(self, model_w: list[float]) -> None:
+        """The period's battery readings into the fusion and the online tracker; ``model_w``
+        is the model power in force when each arrived (W)."""
+        pending = self._pending
+        self.readings = [
+            PowerReading(r.sample.time_s, measured_w, p_w, r.armed, r.alt_m)
+            for r, p_w in zip(pending, model_w, strict=True)
+            if (measured_w := r.sample.power_w) is not None
+        ]
+        if not pending:
+            return
+        powered = [r for r in self.readings if r.model_w > 0]
+        latest = pending[-1].sample
+        if powered:
+            self.energy.update_power(
+                sum(r.measured_w for r in powered) / len(powered),
+                sum(r.model_w for r in powered) / len(powered),
+                self._kinetic_sigma_w(),
+                len(powered),
+            )
+            self._track_effects(powered[-1].time_s, powered[-1].measured_w, latest.voltage_v)
+        charge = [r.sample.consumed_mah for r in pending if r.sample.consumed_mah is not None]
+        if charge:
+            self.energy.update_charge(charge[-1])
+        current_a = latest.current_a
         if current_a is None:
-            current_a = self.energy.bias * self._power_model_w / sample.voltage_v
-        assert self.energy.voltage is not None
-        dt = 0.0 if previous is None else max(sample.time_s - previous.time_s, 0.0)
-        self.energy.voltage.update(dt, self.energy.soc, sample.voltage_v, current_a)
+            current_a = self.energy.bias * model_w[-1] / latest.voltage_v
+        assert self.energy.voltage is not None and self._resistance_time_s is not None
+        dt = max(latest.time_s - self._resistance_time_s, 0.0)
+        self._resistance_time_s = latest.time_s
+        self.energy.voltage.update(dt, self.energy.soc, latest.voltage_v, current_a)
         self._loss_factor = self.energy.loss_factor(self.energy.bias * self._power_model_w)
-        return self._emit(sample.time_s)
 
     def _track_effects(self, time_s: float, measured_w: float, voltage_v: float) -> None:
-        """Follow wind and mass with this power reading (after the fusion step, so each
-        reading is fused with the effects that predicted it)."""
-        state = self._state
-        if self.online is None or state is None:
+        """Follow wind and mass with one power reading (after the fusion step, so each
+        reading is fused with the effects that predicted it). Tracked and file effects are
+        scored on the readings the tracker uses, each as predicted before the reading."""
+        state, online = self._state, self.online
+        if online is None or state is None:
             return
-        # score both hypotheses on this reading before the tracker learns from it
-        zero = np.zeros(1)
-        tracked_w = float(self._predict(zero, 0.0, state, self.online.effects)[0])
-        file_w = float(self._predict(zero, 0.0, state, self.file_effects)[0])
+        steps = online.steps
+        tracked = online.update_kinematics(state, measured_w, voltage_v)
+        if online.steps == steps:
+            return  # not used (idle, vertical motion, bad values)
+        # score both hypotheses on the reading, as predicted before the tracker learnt from it
+        tracked_w, file_w = online.predicted_w
         self._tracked_sq_w2 += _SCORE_GAIN * ((measured_w - tracked_w) ** 2 - self._tracked_sq_w2)
         self._file_sq_w2 += _SCORE_GAIN * ((measured_w - file_w) ** 2 - self._file_sq_w2)
-        tracked = self.online.update_kinematics(state, measured_w, voltage_v)
-        sigma = self.online.sigma
+        sigma = online.sigma
         identified = max(sigma["wind_n_mps"], sigma["wind_e_mps"]) <= _TRACKED_WIND_SIGMA_MPS
         in_use = self.effects != self.file_effects
         if self._tracked_sq_w2 >= self._file_sq_w2:
@@ -298,30 +493,9 @@ class Pipeline:
             return
         self.counts["tracked_effects" if chosen is tracked else "file_effects"] += 1
         self.effects = chosen
-        self._update_power()
         if time_s - self._speeds_time_s >= _SPEEDS_REFRESH_S:
             self._refresh_speeds()
             self._speeds_time_s = time_s
-
-    def _reboot(self, sample: RebootSample) -> None:
-        self.counts["reboot"] += 1
-        self.kinematics.reset()
-        self._state = None
-        self._armed = None
-        self._update_power()
-        if self.energy.initialized:
-            self.energy.rebase(sample.time_s)
-        if self._time_s is not None:
-            self._time_s = sample.time_s
-        self._battery = None
-
-    def _advance(self, time_s: float) -> None:
-        """Predict the energy state up to ``time_s`` at the current model power (the pack's
-        loss factor OCV/V is refreshed with each battery sample: it changes slowly)."""
-        self.energy.predict(time_s, self._power_model_w, self._loss_factor)
-        if self._steady_power_w > 0:
-            self.energy.flight_state_changed(self._steady_power_w)
-        self._time_s = time_s
 
     def _emit(self, time_s: float) -> Estimate:
         est = self.energy.estimate()

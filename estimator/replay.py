@@ -9,10 +9,11 @@ the caller.
 Power error is measured where the model is meant to hold: at each battery sample with a
 current reading while the vehicle is *airborne* (armed and more than :data:`AIRBORNE_ALT_M`
 above home; a log without arming state or altitude is judged on the other alone): the measured
-V·I against the model power of the last estimate published *before* that reading arrived — a
-prediction, never informed by the reading it is scored on (the pipeline's online wind/mass
-tracking learns from each reading). Energies integrate both powers over
-the same airborne intervals (gaps longer than :data:`MAX_GAP_S` are not integrated).
+V·I against the model power in force when that reading arrived
+(:class:`~estimator.pipeline.PowerReading`) — a prediction, never informed by the reading it
+is scored on (the pipeline fuses readings and tracks wind and mass only after). Energies
+integrate both powers over the same airborne intervals (gaps longer than :data:`MAX_GAP_S`
+are not integrated).
 """
 
 from __future__ import annotations
@@ -26,8 +27,8 @@ import numpy as np
 from numpy.typing import NDArray
 
 from estimator.logs import SampleStream, iter_samples
-from estimator.pipeline import Estimate, Pipeline, PipelineSettings
-from estimator.telemetry import ArmedSample, BatterySample, RebootSample, Sample, VelocitySample
+from estimator.pipeline import Estimate, Pipeline, PipelineSettings, PowerReading
+from estimator.telemetry import Sample
 from estimator.vehicle import Vehicle
 
 #: Above this height over home (m) an armed vehicle counts as airborne.
@@ -40,27 +41,11 @@ MAX_GAP_S = 5.0
 FloatArray = NDArray[np.float64]
 
 
-class _FlightPhase:
-    """Tracks the armed state and the height over home from the samples."""
-
-    def __init__(self) -> None:
-        self.armed = math.nan
-        self.alt_m = math.nan
-
-    def observe(self, sample: Sample) -> None:
-        if isinstance(sample, ArmedSample):
-            self.armed = float(sample.armed)
-        elif isinstance(sample, VelocitySample):
-            self.alt_m = math.nan if sample.alt_m is None else sample.alt_m
-        elif isinstance(sample, RebootSample):
-            self.armed = self.alt_m = math.nan
-
-
 @dataclass
 class PowerTrace:
     """At each battery sample with a current reading: time (s), measured power and the model
-    power of the estimate published just before it (W), the armed state then (1/0, NaN
-    unknown) and the height over home (m, NaN unknown)."""
+    power in force when it arrived (W), the armed state then (1/0, NaN unknown) and the
+    height over home (m, NaN unknown)."""
 
     time_s: list[float] = field(default_factory=list)
     measured_w: list[float] = field(default_factory=list)
@@ -68,17 +53,16 @@ class PowerTrace:
     armed: list[float] = field(default_factory=list)
     alt_m: list[float] = field(default_factory=list)
 
-    def add(self, sample: BatterySample, estimate: Estimate, phase: _FlightPhase) -> None:
-        """The point of a battery sample (if it has a current) against the estimate published
-        before it arrived."""
-        measured_w = sample.power_w
-        if measured_w is None or not math.isfinite(estimate.power_model_w):
-            return
-        self.time_s.append(sample.time_s)
-        self.measured_w.append(measured_w)
-        self.model_w.append(estimate.power_model_w)
-        self.armed.append(phase.armed)
-        self.alt_m.append(phase.alt_m)
+    def extend(self, readings: Iterable[PowerReading]) -> None:
+        """Add the readings the pipeline scored in a period (see :class:`PowerReading`)."""
+        for r in readings:
+            if not math.isfinite(r.model_w):
+                continue
+            self.time_s.append(r.time_s)
+            self.measured_w.append(r.measured_w)
+            self.model_w.append(r.model_w)
+            self.armed.append(math.nan if r.armed is None else float(r.armed))
+            self.alt_m.append(math.nan if r.alt_m is None else r.alt_m)
 
     def airborne(self) -> NDArray[np.bool_]:
         """Armed and above :data:`AIRBORNE_ALT_M`. A log that never gives the armed state
@@ -145,19 +129,19 @@ def run(
     """
     estimates: list[Estimate] = []
     power = PowerTrace()
-    phase = _FlightPhase()
     count = 0
     for sample in samples:
-        published = pipeline.last  # what the daemon had published when the sample arrived
         estimate = pipeline.process(sample)
-        phase.observe(sample)
         if estimate is not None:
             estimates.append(estimate)
-            if isinstance(sample, BatterySample) and published is not None:
-                power.add(sample, published, phase)
+            power.extend(pipeline.readings)
         count += 1
         if on_sample is not None:
             on_sample(count)
+    last = pipeline.flush()  # the log ends inside a period: close it
+    if last is not None:
+        estimates.append(last)
+        power.extend(pipeline.readings)
     return estimates, power, count
 
 

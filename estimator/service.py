@@ -122,6 +122,8 @@ class Service:
             for task in tasks:
                 with contextlib.suppress(asyncio.CancelledError):
                     await task
+            if (last := self.pipeline.flush()) is not None:  # the samples of the open period
+                self._deliver(last, loop.time())
         finally:
             for link in [self.link, *self.outputs]:
                 await link.close()
@@ -182,17 +184,8 @@ class Service:
         was_initialized = self.pipeline.energy.initialized
         for sample in samples:
             estimate = self.pipeline.process(sample)
-            if estimate is None:
-                continue
-            self.latest = estimate
-            if self.config.publish_rate_hz == 0:
-                self._publish(estimate)
-            if self.config.json and (
-                self.config.json_rate_hz == 0
-                or now_s - self._last_json_s >= 1.0 / self.config.json_rate_hz
-            ):
-                self._last_json_s = now_s
-                self._write_json(estimate)
+            if estimate is not None:
+                self._deliver(estimate, now_s)
         if not was_initialized and self.pipeline.energy.initialized:
             log.info("energy initialized: SoC %.0f %%", 100 * self.pipeline.energy.soc)
         if (
@@ -246,6 +239,18 @@ class Service:
         if self.latest is not None and self.stale and not self.latest.stale:
             return replace(self.latest, stale=True)
         return self.latest
+
+    def _deliver(self, estimate: Estimate, now_s: float) -> None:
+        """A new estimate: keep it for the publish loop, send it now where configured."""
+        self.latest = estimate
+        if self.config.publish_rate_hz == 0:
+            self._publish(estimate)
+        if self.config.json and (
+            self.config.json_rate_hz == 0
+            or now_s - self._last_json_s >= 1.0 / self.config.json_rate_hz
+        ):
+            self._last_json_s = now_s
+            self._write_json(estimate)
 
     def _publish(self, estimate: Estimate) -> None:
         cfg = self.config

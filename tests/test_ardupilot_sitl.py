@@ -329,5 +329,5 @@ def test_recording_played_live_into_the_daemon_equals_its_replay(tmp_path: Path)
     )
     assert "autopilot found: system 1 component 1" in log
     assert "link_bad_frames=" not in log and "link_dropped=" not in log
-    assert len(live) == len(replayed) > 5000
+    assert len(live) == len(replayed) > 300  # one a second
     assert live == replayed

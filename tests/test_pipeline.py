@@ -40,14 +40,45 @@ def run(pipeline: Pipeline, samples: list[Sample]) -> list[Estimate]:
     return [e for s in samples if (e := pipeline.process(s)) is not None]
 
 
-def test_no_estimate_before_the_first_battery_sample_then_one_per_advance() -> None:
-    p = Pipeline(VEHICLE)
+def test_no_estimate_before_the_first_battery_sample_then_one_per_period() -> None:
+    p = Pipeline(VEHICLE)  # periods of 1 s of sample clock
     assert p.process(VelocitySample(0.0, 1.0, 0.0, 0.0)) is None
     assert p.process(BatterySample(0.1, FULL_V, 0.0, 0.0)) is None
     assert p.counts["energy_initialized"] == 1
-    estimate = p.process(VelocitySample(0.2, 1.0, 0.0, 0.0))
-    assert isinstance(estimate, Estimate) and estimate.time_s == 0.2
-    assert p.process(BatterySample(0.3, FULL_V, 1.0, 1.0)) is not None
+    assert p.process(VelocitySample(0.2, 1.0, 0.0, 0.0)) is None  # the period runs to 1.0
+    assert p.process(BatterySample(0.6, FULL_V, 1.0, 1.0)) is None
+    estimate = p.process(VelocitySample(1.05, 1.0, 0.0, 0.0))
+    assert isinstance(estimate, Estimate) and estimate.time_s == 1.05
+    assert [r.time_s for r in p.readings] == [0.6]  # the reading that period fused
+    assert p.process(VelocitySample(1.5, 1.0, 0.0, 0.0)) is None
+    assert p.process(VelocitySample(2.0, 1.0, 0.0, 0.0)) is not None
+    assert p.counts["estimates"] == 2
+
+
+def test_flush_closes_the_open_period() -> None:
+    p = Pipeline(VEHICLE)
+    p.process(BatterySample(0.0, FULL_V, 0.0, 0.0))
+    p.process(VelocitySample(0.3, 1.0, 0.0, 0.0))
+    flushed = p.flush()
+    assert flushed is not None and flushed.time_s == 0.3
+    assert p.flush() is None  # nothing left to close
+
+
+def test_the_energy_drawn_does_not_depend_on_the_estimate_period() -> None:
+    """Each sample's model power is integrated whatever the period: short and long periods
+    draw the same energy from the same flight (model only, so no fusion step differs)."""
+    samples = flight(60.0, current=False)
+    drawn_wh = []
+    for period_s in (0.1, 1.0, 5.0):
+        p = Pipeline(VEHICLE, PipelineSettings(estimate_period_s=period_s))
+        estimates = run(p, samples)
+        assert len(estimates) == pytest.approx(60.0 / period_s, abs=2)
+        end = p.flush() or estimates[-1]
+        start_wh = float(p.pack.usable_energy_wh(p.pack.soc_from_ocv(FULL_V)))
+        drawn_wh.append(start_wh - end.energy_remaining_wh)
+    assert drawn_wh[0] > 4.0  # a minute at about 300 W
+    assert drawn_wh[1] == pytest.approx(drawn_wh[0], rel=0.005)
+    assert drawn_wh[2] == pytest.approx(drawn_wh[0], rel=0.005)
 
 
 def test_same_samples_give_identical_estimates() -> None:
@@ -102,11 +133,12 @@ def test_no_current_sensor_on_the_simulator_stream() -> None:
 
 def test_reboot_resets_kinematics_keeps_energy_and_follows_the_new_clock() -> None:
     p = Pipeline(VEHICLE)
-    before = run(p, flight(100.0))[-1]
-    assert p.process(RebootSample(0.5)) is None
+    run(p, flight(100.0))
+    before = p.process(RebootSample(0.5))  # closes the old clock's open period
+    assert before is not None and before.time_s == pytest.approx(99.9)
     after = run(p, flight(30.0, t0=0.5)[2:])  # same vehicle, new clock, counter restarts at 0
     assert p.counts["reboot"] == 1
-    assert after[0].time_s < 1.0
+    assert after[0].time_s <= 1.0  # the first period on the new clock
     assert after[-1].energy_remaining_wh < before.energy_remaining_wh
     assert after[-1].energy_remaining_wh > before.energy_remaining_wh - 5.0
     assert math.isfinite(after[-1].endurance_s)

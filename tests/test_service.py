@@ -225,7 +225,7 @@ async def test_garbage_datagrams_and_a_flood_do_not_stop_the_daemon(flight: Mess
         await asyncio.sleep(0.2)
         before = service.pipeline.counts["estimates"]
         await play(sender, messages[300:600])
-        await wait_for(lambda: service.pipeline.counts["estimates"] > before + 50)
+        await wait_for(lambda: service.pipeline.counts["estimates"] > before + 5)  # 1 a second
         assert service.link is not None and service.link.bad_frames > 0
         assert service.decoder.counts["unused"] > 0  # what the kernel let through
 
