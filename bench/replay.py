@@ -4,7 +4,8 @@
    ``.tlog`` name, which pymavlink needs) decoded by pymavlink's
    ``mavutil.mavlink_connection(path).recv_match()`` loop — the baseline — against our reader
    alone (``estimator.logs.iter_samples``: only the message types the pipeline uses are
-   parsed) and against a whole replay (reader + the daemon's pipeline). Printed as ratios.
+   parsed) and against a whole replay (reader + the daemon's pipeline, with the vehicle file
+   fitted on those flights). Printed as ratios.
 2. Per-format throughput in samples/s: that tlog, a 10-minute synthetic flight written as an
    ArduPilot DataFlash .bin and as a PX4 .ulg (the test fixtures' writers), and the CMU CSV
    cruise file.
@@ -26,12 +27,15 @@ from pymavlink import mavutil
 
 from estimator.logs import iter_samples
 from estimator.replay import replay_log
-from estimator.vehicle import default_vehicle
+from estimator.vehicle import Vehicle, default_vehicle, load_vehicle
 
 REPO = Path(__file__).resolve().parent.parent
 DATA = REPO.parent / "shared" / "data"
 IRIS = DATA / "iris_quadcopter_logs"
 CMU_CRUISE = DATA / "cmu_m100_subset" / "flights_validation_data_clean_cruise.csv"
+#: The vehicle files fitted on those flights (the synthetic flights use the built-in vehicle).
+IRIS_VEHICLE = REPO / "config" / "vehicles" / "iris_plus_2016_06_08.toml"
+CMU_VEHICLE = REPO / "config" / "vehicles" / "dji_m100_cmu.toml"
 REPEATS = 3
 SYNTHETIC_REPEATS = 10  # copies of the 60 s fixture flight
 
@@ -60,8 +64,8 @@ def decoded_samples(path: Path) -> int:
     return sum(1 for _ in iter_samples(path))
 
 
-def replayed_samples(path: Path) -> int:
-    return replay_log(path, default_vehicle()).samples
+def replayed_samples(path: Path, vehicle: Vehicle) -> int:
+    return replay_log(path, vehicle).samples
 
 
 def synthetic_logs(directory: Path) -> dict[str, Path]:
@@ -102,7 +106,8 @@ def main() -> int:
         print(f"bench replay: {largest.relative_to(IRIS)} ({size_mb:.1f} MB), best of {REPEATS}")
         t_pymavlink, n_messages = best_of(lambda: pymavlink_messages(tlog))
         t_decode, n_samples = best_of(lambda: decoded_samples(tlog))
-        t_replay, _ = best_of(lambda: replayed_samples(tlog))
+        iris = load_vehicle(IRIS_VEHICLE)
+        t_replay, _ = best_of(lambda: replayed_samples(tlog, iris))
         print(f"  pymavlink recv_match loop : {t_pymavlink:6.2f} s  ({n_messages} messages)")
         print(
             f"  uav-energy reader         : {t_decode:6.2f} s  ({n_samples} samples)"
@@ -112,13 +117,16 @@ def main() -> int:
             f"  uav-energy replay (reader + pipeline): {t_replay:6.2f} s"
             f"  ratio pymavlink/replay = {t_pymavlink / t_replay:.1f}"
         )
-        logs = {"tlog (IRIS+)": tlog, **synthetic_logs(Path(tmp))}
+        logs = {"tlog (IRIS+)": (tlog, iris)}
+        logs |= {
+            name: (path, default_vehicle()) for name, path in synthetic_logs(Path(tmp)).items()
+        }
         if CMU_CRUISE.is_file():
-            logs["CMU csv (cruise)"] = CMU_CRUISE
+            logs["CMU csv (cruise)"] = (CMU_CRUISE, load_vehicle(CMU_VEHICLE))
         print("  per format (samples/s, best of 3): reader alone | full replay")
-        for name, path in logs.items():
+        for name, (path, vehicle) in logs.items():
             t_read, n = best_of(partial(decoded_samples, path))
-            t_full, _ = best_of(partial(replayed_samples, path))
+            t_full, _ = best_of(partial(replayed_samples, path, vehicle))
             print(
                 f"    {name:18s} {n:7d} samples  {n / t_read:10.0f} | {n / t_full:8.0f}"
                 f"   ({path.stat().st_size / 1e6:.1f} MB)"

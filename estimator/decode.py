@@ -69,6 +69,15 @@ class FrameParser:
                 good.append(msg)
         return good
 
+    def decode_frame(self, frame: bytes) -> mavlink.MAVLink_message | None:
+        """One whole frame (a log record's) into a message, without the byte-by-byte stream
+        parser; None for a bad frame (counted)."""
+        try:
+            return self._codec.decode(bytearray(frame))
+        except Exception:  # pymavlink's MAVError, struct.error on a damaged frame
+            self.bad_frames += 1
+            return None
+
 
 class TelemetryDecoder:
     """Turns the selected autopilot's messages into samples, with counters for what it skips.

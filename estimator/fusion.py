@@ -57,6 +57,8 @@ class FusionSettings:
     internal_resistance_ohm: the pack's resistance; None estimates it (prior 4 mΩ per cell).
     voltage_noise_v: error of one terminal-voltage reading (pack), V.
     resistance_walk_ohm_per_sqrt_s: random walk of the resistance (temperature), Ω/√s.
+    resistance_min_current_a: below this current (A) a voltage reading does not update the
+    resistance (at rest I·R is far below the voltage noise).
     ocv_curve_sigma_v_per_cell: error of the configured OCV curve, V per cell.
     """
 
@@ -72,6 +74,7 @@ class FusionSettings:
     voltage_noise_v: float = 0.05
     resistance_prior_ohm_per_cell: float = 0.004
     resistance_walk_ohm_per_sqrt_s: float = 1e-5
+    resistance_min_current_a: float = 1.0
     ocv_curve_sigma_v_per_cell: float = 0.01
     current_gain_sigma_fraction: float = 0.01
     state_change_step: float = 0.05
@@ -107,6 +110,8 @@ class ResistanceFilter:
         kf = self._kf
         if dt_s > 0:
             kf.P += self.settings.resistance_walk_ohm_per_sqrt_s**2 * dt_s
+        if abs(current_a) < self.settings.resistance_min_current_a:
+            return  # the drop I·R is lost in the voltage noise (a pack at rest)
         ocv_v = float(self.pack.ocv_v(soc))
         kf.update(np.array([ocv_v - voltage_v]), H=np.array([[current_a]]))
         kf.x[0] = min(max(kf.x[0], 0.0), 1.0)

@@ -15,7 +15,7 @@ once for the whole period:
 3. the period's battery readings update the fusion (:mod:`estimator.fusion`): their mean
    measured power against the mean model power in force when each arrived, the latest
    consumed charge and the latest terminal voltage;
-4. the online wind/mass tracker takes the latest reading (at most once a second);
+4. the online wind/mass tracker takes the latest reading (every ``track_period_s``);
 5. one :class:`Estimate` is published.
 
 Per-sample numpy work would cost more than decoding the sample; per period it is amortized
@@ -67,7 +67,9 @@ class PipelineSettings:
     online from measured power (:class:`~estimator.online_effects.OnlineEffects`), starting
     from the vehicle file's values; off keeps those values for the whole flight.
     estimate_period_s: one estimate per this much sample clock (s); see the module
-    docstring."""
+    docstring. track_period_s: the online tracker takes one reading per this much sample
+    clock (s): wind and payload change over tens of seconds, and readings close together
+    share their errors (gusts, ESC ripple)."""
 
     kinematics: KinematicsSettings = field(default_factory=KinematicsSettings)
     fusion: FusionSettings = field(default_factory=FusionSettings)
@@ -75,6 +77,7 @@ class PipelineSettings:
     add_climb_effect: bool = True
     track_effects: bool = True
     estimate_period_s: float = 1.0
+    track_period_s: float = 2.0
 
 
 @dataclass(frozen=True, slots=True)
@@ -171,8 +174,8 @@ class Pipeline:
     def __init__(self, vehicle: Vehicle, settings: PipelineSettings | None = None) -> None:
         self.vehicle = vehicle
         self.settings = settings or PipelineSettings()
-        if not self.settings.estimate_period_s > 0:
-            raise ValueError("estimate_period_s must be > 0")
+        if not (self.settings.estimate_period_s > 0 and self.settings.track_period_s > 0):
+            raise ValueError("estimate_period_s and track_period_s must be > 0")
         effects: list[Effect] = effects_from_tables(vehicle.effects)
         if self.settings.add_climb_effect and not any(isinstance(e, Climb) for e in effects):
             effects.append(Climb())
@@ -188,6 +191,7 @@ class Pipeline:
             else None
         )
         self._speeds_time_s = -math.inf
+        self._track_bin: int | None = None  # track_period_s bin of the last tracker step
         self._track_rad = 0.0  # course over ground, rad from north (last one while moving)
         self.pack = PackModel(vehicle.battery)
         self.kinematics = KinematicsFilter(self.settings.kinematics)
@@ -265,36 +269,31 @@ class Pipeline:
 
     def _event_powers_w(self, time_s: float) -> list[float]:
         """Model power after each event of the open period (W), in one prediction; also sets
-        the steady power of the latest state (at ``time_s``)."""
+        the steady power of the latest state (at ``time_s``). Disarmed: 0; armed with no
+        kinematic state yet: hover."""
         rows = [e for e in self._events if e.state is not None and e.armed is not False]
         state = self._state
-        steady_speed = [] if state is None else [state.speed_mps]
-        if state is not None and state.speed_mps > _TRACK_MIN_SPEED_MPS:
-            self._track_rad = math.atan2(state.ve_mps, state.vn_mps)
-        predicted = iter(
-            self._predict(
+        steady = state is not None and self._armed is not False
+        predicted: list[float] = []
+        if rows or steady:
+            if state is not None and state.speed_mps > _TRACK_MIN_SPEED_MPS:
+                self._track_rad = math.atan2(state.ve_mps, state.vn_mps)
+            predicted = self._predict(
                 [e.state for e in rows if e.state is not None],
-                np.array(steady_speed),
+                np.array([state.speed_mps] if steady and state is not None else []),
                 0.0 if state is None else state.accel_centripetal_mps2,
                 voltages_v=[e.voltage_v for e in rows],
                 time_s=time_s,
-            )
-        )
-        powers = []
-        for event in self._events:
-            if event.armed is False:
-                powers.append(0.0)
-            elif event.state is None:
-                powers.append(self._p_hover_w)
-            else:
-                powers.append(float(next(predicted)))
-        if self._armed is False:
-            self._steady_power_w = 0.0
-        elif state is None:
-            self._steady_power_w = self._p_hover_w
+            ).tolist()
+        if steady:
+            self._steady_power_w = predicted.pop()
         else:
-            self._steady_power_w = float(next(predicted))
-        return powers
+            self._steady_power_w = 0.0 if self._armed is False else self._p_hover_w
+        rows_w = iter(predicted)
+        return [
+            0.0 if e.armed is False else self._p_hover_w if e.state is None else next(rows_w)
+            for e in self._events
+        ]
 
     def _kinetic_sigma_w(self) -> float:
         """1σ of the kinetic term m vᵀa from the filtered acceleration's uncertainty, W."""
@@ -472,10 +471,14 @@ class Pipeline:
         state, online = self._state, self.online
         if online is None or state is None:
             return
+        track_bin = math.floor(time_s / self.settings.track_period_s)
+        if track_bin == self._track_bin:
+            return
         steps = online.steps
         tracked = online.update_kinematics(state, measured_w, voltage_v)
         if online.steps == steps:
             return  # not used (idle, vertical motion, bad values)
+        self._track_bin = track_bin
         # score both hypotheses on the reading, as predicted before the tracker learnt from it
         tracked_w, file_w = online.predicted_w
         self._tracked_sq_w2 += _SCORE_GAIN * ((measured_w - tracked_w) ** 2 - self._tracked_sq_w2)

@@ -69,17 +69,18 @@ def frame_length(data: bytes | memoryview, start: int) -> tuple[int, int] | None
 def _records(data: bytes, stream: SampleStream) -> Iterator[Sample]:
     parser = FrameParser()
     decoder = TelemetryDecoder()
-    view = memoryview(data)
     end = len(data)
     pos = 0
-    last_stamp_us: int | None = None
+    last_good: int | None = None  # offset of the last good record (its stamp anchors resync)
+    used = USED_MESSAGE_IDS
     while pos < end:
         if pos + STAMP_BYTES >= end:
             stream.truncated = True
             break
-        header = frame_length(view, pos + STAMP_BYTES)
+        header = frame_length(data, pos + STAMP_BYTES)
         if header is None:
             stream.bad_frames += 1
+            last_stamp_us = None if last_good is None else _stamp_us(data, last_good)
             pos = _resync(data, pos + 1, last_stamp_us)
             continue
         length, msgid = header
@@ -87,16 +88,22 @@ def _records(data: bytes, stream: SampleStream) -> Iterator[Sample]:
         if frame_end > end:
             stream.truncated = True
             break
-        last_stamp_us = struct.unpack_from(">Q", data, pos)[0]
-        if msgid not in USED_MESSAGE_IDS:
+        last_good = pos
+        if msgid not in used:
             stream.skipped += 1
             pos = frame_end
             continue
-        bad_before = parser.bad_frames
-        messages = parser.feed(data[pos + STAMP_BYTES : frame_end])
-        stream.bad_frames += parser.bad_frames - bad_before
+        msg = parser.decode_frame(data[pos + STAMP_BYTES : frame_end])
         pos = frame_end
-        yield from decoder.decode_all(messages)
+        if msg is None:
+            stream.bad_frames += 1
+            continue
+        yield from decoder.decode(msg)
+
+
+def _stamp_us(data: bytes, record: int) -> int:
+    """The receive stamp (µs) of the record at ``record``."""
+    return int(struct.unpack_from(">Q", data, record)[0])
 
 
 def _resync(data: bytes, start: int, last_stamp_us: int | None) -> int:
@@ -112,7 +119,7 @@ def _resync(data: bytes, start: int, last_stamp_us: int | None) -> int:
         if not candidates:
             return end
         record = min(candidates) - STAMP_BYTES
-        stamp = struct.unpack_from(">Q", data, record)[0]
+        stamp = _stamp_us(data, record)
         if last_stamp_us is None or abs(stamp - last_stamp_us) < _RESYNC_WINDOW_US:
             return record
         pos = record + 1
