@@ -25,6 +25,13 @@ normalised innovations keep one sign (their mean over ``change_window`` samples 
 ``change_sigma`` standard errors from 0) the mass uncertainty is widened back to its initial
 value so the filter can follow a payload step (``changes`` counts these).
 
+A step takes one reading or several taken close together (:meth:`~OnlineEffects.update_readings`;
+the pipeline gives it the readings of each ``track_period_s``): their mean measured power
+against the mean of the predictions at each reading's own flight state, with the noise of a mean
+(the learnt excess is not divided: model error does not average out). The sigma points and the
+two hypotheses the pipeline scores (the estimate, the vehicle file's values) are predicted in
+one vectorized call per step.
+
 Identifiability: wind direction needs flight in more than one direction; in hover only the
 wind speed is seen, and a hover power offset is shared between wind and mass until the vehicle
 moves. The filter carries this in its covariance (``sigma``).
@@ -36,6 +43,7 @@ import math
 from collections import deque
 from collections.abc import Iterable, Iterator, Sequence
 from dataclasses import dataclass
+from typing import NamedTuple
 
 import numpy as np
 from filterpy.kalman import MerweScaledSigmaPoints, UnscentedKalmanFilter
@@ -64,6 +72,38 @@ def wind_from_vector(wn_mps: float, we_mps: float) -> Wind:
     speed = math.hypot(wn_mps, we_mps)
     from_deg = math.degrees(math.atan2(-we_mps, -wn_mps)) % 360.0 if speed > 0 else 0.0
     return Wind(speed_mps=speed, from_deg=from_deg)
+
+
+class TrackerReading(NamedTuple):
+    """One power reading (W) with the flight state then: time s, velocity NED m/s,
+    horizontal acceleration m/s², battery voltage V (NaN unknown), 1σ of the acceleration."""
+
+    time_s: float
+    vn_mps: float
+    ve_mps: float
+    vd_mps: float
+    an_mps2: float
+    ae_mps2: float
+    measured_power_w: float
+    voltage_v: float = math.nan
+    accel_sigma_mps2: float = 0.0
+
+    @classmethod
+    def of(
+        cls, state: KinematicState, measured_power_w: float, voltage_v: float = math.nan
+    ) -> TrackerReading:
+        """From the pipeline's filtered kinematic state."""
+        return cls(
+            state.time_s,
+            state.vn_mps,
+            state.ve_mps,
+            state.vd_mps,
+            state.an_mps2,
+            state.ae_mps2,
+            measured_power_w,
+            voltage_v,
+            state.accel_sigma_mps2,
+        )
 
 
 @dataclass(frozen=True)
@@ -140,9 +180,10 @@ class OnlineEffects:
         self.changes = 0
         #: Readings the filter was run on (updates and gate rejections).
         self.steps = 0
-        #: Power (W) predicted for the last reading run on, before it was used: with the
-        #: estimate then, and with the vehicle file's wind and mass.
-        self.predicted_w = (math.nan, math.nan)
+        #: The last step's mean measured power (W) and the mean powers predicted for its
+        #: readings before the step: with the estimate then, and with the vehicle file's wind
+        #: and mass.
+        self.last_step_w = (math.nan, math.nan, math.nan)
         #: Times the covariance was restarted after losing positive definiteness (bad data).
         self.resets = 0
 
@@ -186,23 +227,29 @@ class OnlineEffects:
 
     # -- filter --------------------------------------------------------------------------------
 
-    def _powers_w(self, points: np.ndarray, row: tuple[float, ...]) -> np.ndarray:
-        """Model power (W) at one flight state ``row`` (FlightState fields, one value each)
-        for each row [w_n, w_e, δm] of ``points``, in one prediction: the wind is taken out
-        of the velocity (what :class:`Wind` does), the mass goes in as :class:`SampleMass`."""
-        k = len(points)
-        columns = np.repeat(np.array(row, dtype=float)[:, None], k, axis=1)
-        columns[1] -= points[:, 0]
-        columns[2] -= points[:, 1]
+    def _powers_w(self, points: np.ndarray, rows: np.ndarray) -> np.ndarray:
+        """Model power (W) at each flight state of ``rows`` (k × 8, the FlightState fields)
+        for each hypothesis [w_n, w_e, δm] of ``points`` (m × 3): an m × k array, from one
+        prediction. The wind is taken out of the velocity (what :class:`Wind` does), the mass
+        goes in as :class:`SampleMass`."""
+        m, k = len(points), len(rows)
+        columns = np.tile(rows.T, m)  # 8 × (m·k), hypothesis-major
+        columns[1] -= np.repeat(points[:, 0], k)
+        columns[2] -= np.repeat(points[:, 1], k)
         floor_kg = (self.settings.min_mass_fraction - 1.0) * self.mass_kg
-        effects = (SampleMass(np.maximum(points[:, 2], floor_kg)), *self.others)
-        return predict_power_w(self.model, self.mass_kg, FlightState(*columns), effects)
+        mass = SampleMass(np.repeat(np.maximum(points[:, 2], floor_kg), k))
+        state = FlightState(*columns)
+        return predict_power_w(self.model, self.mass_kg, state, (mass, *self.others)).reshape(m, k)
 
     def _next_sigma_power(self, _point: np.ndarray) -> np.ndarray:
         """filterpy's hx. The powers of all sigma points are predicted together before each
         update (:meth:`_powers_w`); filterpy then asks for them one point at a time, in the
         order of ``sigmas_f``."""
         return np.array([next(self._sigma_powers_w)])
+
+    def restart_clock(self) -> None:
+        """The autopilot rebooted: readings come on a new clock (the estimate is kept)."""
+        self._time_s = None
 
     def update(
         self,
@@ -221,21 +268,56 @@ class OnlineEffects:
         Returns :attr:`effects` after the update. Non-finite input or time going backwards
         leaves the estimate as it was.
         """
-        values = (time_s, vn_mps, ve_mps, vd_mps, an_mps2, ae_mps2, measured_power_w)
-        if not all(math.isfinite(v) for v in values) or (
-            self._time_s is not None and time_s < self._time_s
-        ):
-            self.rejected += 1
-            return self.effects
+        return self.update_readings(
+            [
+                TrackerReading(
+                    time_s,
+                    vn_mps,
+                    ve_mps,
+                    vd_mps,
+                    an_mps2,
+                    ae_mps2,
+                    measured_power_w,
+                    voltage_v,
+                    accel_sigma_mps2,
+                )
+            ]
+        )
+
+    def update_kinematics(
+        self, state: KinematicState, measured_power_w: float, voltage_v: float = math.nan
+    ) -> tuple[Effect, ...]:
+        """:meth:`update` from the pipeline's filtered kinematic state."""
+        return self.update_readings([TrackerReading.of(state, measured_power_w, voltage_v)])
+
+    def update_readings(self, readings: Sequence[TrackerReading]) -> tuple[Effect, ...]:
+        """Fold in readings taken close together (in time order) in one filter step: their
+        mean measured power against the mean of the powers predicted at each reading's own
+        flight state, with the noise of a mean. While the estimate moves little between
+        the readings this carries what they would carry one by one, at the cost of one step.
+        Readings that are not finite or go back in time (``rejected``), in fast vertical
+        motion (``vertical``) or below the idle power (``idle``) are left out.
+
+        Returns :attr:`effects` after the update.
+        """
         s = self.settings
-        if abs(vd_mps) > s.max_vertical_speed_mps:
-            self.vertical += 1
-            return self.effects
-        if measured_power_w < s.min_power_fraction_of_hover * self._hover_w:
-            self.idle += 1
+        kept = []
+        for r in readings:
+            if not all(math.isfinite(v) for v in r[:7]) or (
+                self._time_s is not None and r.time_s < self._time_s
+            ):
+                self.rejected += 1
+            elif abs(r.vd_mps) > s.max_vertical_speed_mps:
+                self.vertical += 1
+            elif r.measured_power_w < s.min_power_fraction_of_hover * self._hover_w:
+                self.idle += 1
+            else:
+                kept.append(r)
+        if not kept:
             return self.effects
         self.steps += 1
         ukf = self._ukf
+        time_s = kept[-1].time_s
         dt = 0.0 if self._time_s is None else time_s - self._time_s
         self._time_s = time_s
         # predict even when dt = 0: it draws the sigma points the update evaluates
@@ -247,20 +329,22 @@ class OnlineEffects:
             ukf.P = np.diag(self._initial_var)
             self.resets += 1
             ukf.predict(dt=dt)
-        row = (time_s, vn_mps, ve_mps, vd_mps, an_mps2, ae_mps2, 0.0, voltage_v)
+        rows = np.array([(*r[:6], 0.0, r.voltage_v) for r in kept], dtype=float)
+        measured = np.array([r.measured_power_w for r in kept])
         file_mass = self._file_mass
         file_delta_kg = file_mass.delta_kg * (file_mass.at_s is None or time_s >= file_mass.at_s)
         hypotheses = [ukf.x, [*self._file_wind_ne_mps, file_delta_kg]]
-        powers_w = self._powers_w(np.vstack([ukf.sigmas_f, *hypotheses]), row).tolist()
-        self._sigma_powers_w = iter(powers_w[:-2])
-        self.predicted_w = (powers_w[-2], powers_w[-1])
-        speed = math.hypot(vn_mps, ve_mps)
-        kinetic_sd = self.mass_kg * speed * accel_sigma_mps2
-        r = s.power_noise_w**2 + (s.power_noise_fraction * measured_power_w) ** 2 + kinetic_sd**2
-        r += self.extra_noise_var_w2
+        powers_w = self._powers_w(np.vstack([ukf.sigmas_f, *hypotheses]), rows).mean(axis=1)
+        self._sigma_powers_w = iter(powers_w[:-2].tolist())
+        measured_w = float(measured.mean())
+        self.last_step_w = (measured_w, float(powers_w[-2]), float(powers_w[-1]))
+        speed = np.hypot(rows[:, 1], rows[:, 2])
+        kinetic_sd = self.mass_kg * speed * np.array([r.accel_sigma_mps2 for r in kept])
+        r_each = s.power_noise_w**2 + (s.power_noise_fraction * measured) ** 2 + kinetic_sd**2
+        noise_var_w2 = float(r_each.sum()) / len(kept) ** 2 + self.extra_noise_var_w2
         x_prior, p_prior = ukf.x.copy(), ukf.P.copy()
         try:
-            ukf.update(np.array([measured_power_w]), R=np.array([[r]]))
+            ukf.update(np.array([measured_w]), R=np.array([[noise_var_w2]]))
         except np.linalg.LinAlgError:  # covariance lost positive definiteness: start it over
             ukf.x, ukf.P = x_prior, np.diag(self._initial_var)
             self.resets += 1
@@ -283,22 +367,6 @@ class OnlineEffects:
         if wind_mps > s.max_wind_mps:
             ukf.x[:2] *= s.max_wind_mps / wind_mps
         return self.effects
-
-    def update_kinematics(
-        self, state: KinematicState, measured_power_w: float, voltage_v: float = math.nan
-    ) -> tuple[Effect, ...]:
-        """:meth:`update` from the pipeline's filtered kinematic state."""
-        return self.update(
-            state.time_s,
-            state.vn_mps,
-            state.ve_mps,
-            state.vd_mps,
-            state.an_mps2,
-            state.ae_mps2,
-            measured_power_w,
-            voltage_v,
-            state.accel_sigma_mps2,
-        )
 
     def _check_change(self) -> None:
         """Widen the mass uncertainty back to the initial one when recent innovations keep one

@@ -40,7 +40,7 @@ from estimator.battery import PackModel
 from estimator.effects import Climb, Effect, FlightState, effects_from_tables, predict_power_w
 from estimator.fusion import EnergyFilter, FusionSettings
 from estimator.kinematics import KinematicsFilter, KinematicsSettings, KinematicState
-from estimator.online_effects import OnlineEffects
+from estimator.online_effects import OnlineEffects, TrackerReading
 from estimator.telemetry import ArmedSample, BatterySample, RebootSample, Sample, VelocitySample
 from estimator.vehicle import Vehicle
 
@@ -146,12 +146,13 @@ class PowerReading:
 @dataclass(frozen=True, slots=True)
 class _Reading:
     """A queued battery sample, the number of events of the period before it, and the armed
-    state and height over home (m) when it arrived (None = unknown)."""
+    state, height over home (m) and kinematic state when it arrived (None = unknown)."""
 
     sample: BatterySample
     events_before: int
     armed: bool | None
     alt_m: float | None
+    state: KinematicState | None
 
 
 @dataclass(frozen=True, slots=True)
@@ -192,6 +193,7 @@ class Pipeline:
         )
         self._speeds_time_s = -math.inf
         self._track_bin: int | None = None  # track_period_s bin of the last tracker step
+        self._track_queue: list[TrackerReading] = []  # readings for the next tracker step
         self._track_rad = 0.0  # course over ground, rad from north (last one while moving)
         self.pack = PackModel(vehicle.battery)
         self.kinematics = KinematicsFilter(self.settings.kinematics)
@@ -326,7 +328,8 @@ class Pipeline:
                 self._initialize(sample)
                 return None
             alt_m = None if self._state is None else self._state.alt_m
-            self._pending.append(_Reading(sample, len(self._events), self._armed, alt_m))
+            reading = _Reading(sample, len(self._events), self._armed, alt_m, self._state)
+            self._pending.append(reading)
             self._battery = sample
         elif isinstance(sample, ArmedSample):
             self.counts["armed" if sample.armed else "disarmed"] += 1
@@ -384,6 +387,9 @@ class Pipeline:
         self.counts["reboot"] += 1
         estimate = self.flush()
         self.kinematics.reset()
+        self._track_queue = []
+        if self.online is not None:
+            self.online.restart_clock()
         self._state = None
         self._armed = None
         self._battery = None
@@ -451,7 +457,12 @@ class Pipeline:
                 self._kinetic_sigma_w(),
                 len(powered),
             )
-            self._track_effects(powered[-1].time_s, powered[-1].measured_w, latest.voltage_v)
+            self._track_queue += [
+                TrackerReading.of(r.state, measured_w, r.sample.voltage_v)
+                for r, p_w in zip(pending, model_w, strict=True)
+                if r.state is not None and p_w > 0 and (measured_w := r.sample.power_w) is not None
+            ]
+            self._track_effects(latest.time_s)
         charge = [r.sample.consumed_mah for r in pending if r.sample.consumed_mah is not None]
         if charge:
             self.energy.update_charge(charge[-1])
@@ -464,23 +475,24 @@ class Pipeline:
         self.energy.voltage.update(dt, self.energy.soc, latest.voltage_v, current_a)
         self._loss_factor = self.energy.loss_factor(self.energy.bias * self._power_model_w)
 
-    def _track_effects(self, time_s: float, measured_w: float, voltage_v: float) -> None:
-        """Follow wind and mass with one power reading (after the fusion step, so each
-        reading is fused with the effects that predicted it). Tracked and file effects are
-        scored on the readings the tracker uses, each as predicted before the reading."""
-        state, online = self._state, self.online
-        if online is None or state is None:
+    def _track_effects(self, time_s: float) -> None:
+        """Follow wind and mass with the readings queued since the last tracker step, once
+        per ``track_period_s`` (after the fusion step, so each reading is fused with the
+        effects that predicted it). Tracked and file effects are scored on each step's
+        readings, as predicted before the step."""
+        online = self.online
+        if online is None or not self._track_queue:
             return
         track_bin = math.floor(time_s / self.settings.track_period_s)
         if track_bin == self._track_bin:
             return
-        steps = online.steps
-        tracked = online.update_kinematics(state, measured_w, voltage_v)
-        if online.steps == steps:
-            return  # not used (idle, vertical motion, bad values)
         self._track_bin = track_bin
-        # score both hypotheses on the reading, as predicted before the tracker learnt from it
-        tracked_w, file_w = online.predicted_w
+        readings, self._track_queue = self._track_queue, []
+        steps = online.steps
+        tracked = online.update_readings(readings)
+        if online.steps == steps:
+            return  # nothing used (idle, vertical motion, bad values)
+        measured_w, tracked_w, file_w = online.last_step_w
         self._tracked_sq_w2 += _SCORE_GAIN * ((measured_w - tracked_w) ** 2 - self._tracked_sq_w2)
         self._file_sq_w2 += _SCORE_GAIN * ((measured_w - file_w) ** 2 - self._file_sq_w2)
         sigma = online.sigma
