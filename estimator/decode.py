@@ -35,6 +35,11 @@ USED_MESSAGE_IDS = frozenset(
         mavlink.MAVLINK_MSG_ID_ATTITUDE,
     }
 )
+#: The velocity message types by id (the decoder uses the first one it sees).
+_VELOCITY_TYPES = {
+    mavlink.MAVLINK_MSG_ID_GLOBAL_POSITION_INT: "GLOBAL_POSITION_INT",
+    mavlink.MAVLINK_MSG_ID_LOCAL_POSITION_NED: "LOCAL_POSITION_NED",
+}
 _NOT_AUTOPILOTS = frozenset(
     {
         mavlink.MAV_TYPE_GCS,
@@ -106,6 +111,15 @@ class TelemetryDecoder:
     def clock_s(self) -> float | None:
         """Latest autopilot time seen (s since its boot), None before the first stamp."""
         return self._clock_s
+
+    def discards(self, msgid: int, system: int, component: int) -> bool:
+        """Whether :meth:`decode` would drop a message with this id from this source without
+        reading it, so a log reader may skip its frame by the header: any message from another
+        source once the autopilot is known, and a second velocity message type."""
+        if self.target is not None and (system, component) != self.target:
+            return True
+        kind = _VELOCITY_TYPES.get(msgid)
+        return kind is not None and self._velocity_type not in (None, kind)
 
     def decode_all(self, messages: Iterable[mavlink.MAVLink_message]) -> list[Sample]:
         """Decode several messages in order."""

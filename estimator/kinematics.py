@@ -1,55 +1,55 @@
 """Flight-state kinematics: speed, tangential and centripetal acceleration (horizontal plane).
 
 Frames: velocity and acceleration are horizontal NED components (north, east), m/s and m/s².
-The pure functions work on arrays; :class:`KinematicsFilter` is the causal, noise-robust
-estimator the pipeline runs on each velocity sample.
+The pure functions work on floats and arrays alike; :class:`KinematicsFilter` is the causal,
+noise-robust estimator the pipeline runs on each velocity sample.
 """
 
 from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from typing import TypeVar
 
 import numpy as np
-from numpy.typing import ArrayLike, NDArray
+from numpy.typing import NDArray
 
 from estimator.telemetry import VelocitySample
+
+#: Scalars (one sample) or numpy arrays (many): the functions below take either, alike.
+FloatOrArray = TypeVar("FloatOrArray", float, NDArray[np.float64])
 
 #: Below about this speed the direction of flight is noise; a⊥ is faded out smoothly.
 DEFAULT_SPEED_FLOOR_MPS = 0.5
 
 
 def centripetal_accel_mps2(
-    vn_mps: ArrayLike,
-    ve_mps: ArrayLike,
-    an_mps2: ArrayLike,
-    ae_mps2: ArrayLike,
+    vn_mps: FloatOrArray,
+    ve_mps: FloatOrArray,
+    an_mps2: FloatOrArray,
+    ae_mps2: FloatOrArray,
     speed_floor_mps: float = DEFAULT_SPEED_FLOOR_MPS,
-) -> NDArray[np.float64]:
-    """a⊥ = |v × a| / |v| with a continuous low-speed treatment.
+) -> FloatOrArray:
+    """a⊥ = |v × a| / |v| with a continuous low-speed treatment (floats or arrays alike).
 
     The exact a⊥ is undefined at V = 0. We use |v × a| / sqrt(V² + V_f²): equal to a⊥ within
     1 − V_f²/(2V²) above the floor (3 % at 2 m/s for V_f = 0.5 m/s), tending to 0 in hover,
     continuous everywhere. A fixed-radius turn has a⊥ = V²/r → 0 as V → 0 anyway.
     """
-    vn, ve = np.asarray(vn_mps, dtype=float), np.asarray(ve_mps, dtype=float)
-    an, ae = np.asarray(an_mps2, dtype=float), np.asarray(ae_mps2, dtype=float)
-    cross = np.abs(vn * ae - ve * an)
-    return np.asarray(cross / np.sqrt(vn * vn + ve * ve + speed_floor_mps**2), dtype=float)
+    cross = vn_mps * ae_mps2 - ve_mps * an_mps2
+    return abs(cross) / (vn_mps * vn_mps + ve_mps * ve_mps + speed_floor_mps**2) ** 0.5
 
 
 def tangential_accel_mps2(
-    vn_mps: ArrayLike,
-    ve_mps: ArrayLike,
-    an_mps2: ArrayLike,
-    ae_mps2: ArrayLike,
+    vn_mps: FloatOrArray,
+    ve_mps: FloatOrArray,
+    an_mps2: FloatOrArray,
+    ae_mps2: FloatOrArray,
     speed_floor_mps: float = DEFAULT_SPEED_FLOOR_MPS,
-) -> NDArray[np.float64]:
+) -> FloatOrArray:
     """Signed acceleration along the velocity, vᵀa / sqrt(V² + V_f²) (same treatment as a⊥)."""
-    vn, ve = np.asarray(vn_mps, dtype=float), np.asarray(ve_mps, dtype=float)
-    an, ae = np.asarray(an_mps2, dtype=float), np.asarray(ae_mps2, dtype=float)
-    dot = vn * an + ve * ae
-    return np.asarray(dot / np.sqrt(vn * vn + ve * ve + speed_floor_mps**2), dtype=float)
+    dot = vn_mps * an_mps2 + ve_mps * ae_mps2
+    return dot / (vn_mps * vn_mps + ve_mps * ve_mps + speed_floor_mps**2) ** 0.5
 
 
 @dataclass(frozen=True, slots=True)
@@ -167,8 +167,8 @@ class KinematicsFilter:
             an_mps2=an,
             ae_mps2=ae,
             speed_mps=math.hypot(vn, ve),
-            accel_tangential_mps2=float(tangential_accel_mps2(vn, ve, an, ae)),
-            accel_centripetal_mps2=float(centripetal_accel_mps2(vn, ve, an, ae)),
+            accel_tangential_mps2=tangential_accel_mps2(vn, ve, an, ae),
+            accel_centripetal_mps2=centripetal_accel_mps2(vn, ve, an, ae),
             climb_mps=-vd,
             alt_m=sample.alt_m,
             accel_sigma_mps2=math.sqrt(0.5 * (north.p_aa + east.p_aa)),

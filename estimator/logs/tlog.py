@@ -5,8 +5,9 @@ followed by one MAVLink 1 (STX 0xFE) or MAVLink 2 (STX 0xFD) frame. The receive 
 used: sample times come from the autopilot's ``time_boot_ms`` (:class:`TelemetryDecoder`), as
 in the daemon, so a replay gives the same samples as a live run.
 
-Speed: the frame header is read here and frames whose message id the decoder does not use are
-skipped without being parsed. A record without a frame start is corrupt: it is counted and the
+Speed: the frame header is read here and frames the decoder would not use (by message id, and
+once it knows the autopilot by source, see :meth:`TelemetryDecoder.discards`) are skipped
+without being parsed. A record without a frame start is corrupt: it is counted and the
 reader re-synchronises on the next plausible record. A file that ends inside a record is read
 up to the damage and flagged ``truncated``.
 """
@@ -66,6 +67,13 @@ def frame_length(data: bytes | memoryview, start: int) -> tuple[int, int] | None
     return None
 
 
+def frame_source(data: bytes, start: int) -> tuple[int, int]:
+    """(system id, component id) of the frame at ``start`` (its header was checked)."""
+    if data[start] == _STX_V1:
+        return data[start + 3], data[start + 4]
+    return data[start + 5], data[start + 6]
+
+
 def _records(data: bytes, stream: SampleStream) -> Iterator[Sample]:
     parser = FrameParser()
     decoder = TelemetryDecoder()
@@ -89,7 +97,7 @@ def _records(data: bytes, stream: SampleStream) -> Iterator[Sample]:
             stream.truncated = True
             break
         last_good = pos
-        if msgid not in used:
+        if msgid not in used or decoder.discards(msgid, *frame_source(data, pos + STAMP_BYTES)):
             stream.skipped += 1
             pos = frame_end
             continue
