@@ -15,6 +15,7 @@ Skips with a message when ``../shared`` is absent. Run: ``python -m bench.replay
 
 from __future__ import annotations
 
+import gc
 import sys
 import tempfile
 import time
@@ -98,6 +99,7 @@ def main() -> int:
     if not IRIS.is_dir():
         print(f"bench replay: skipped: {IRIS} is absent (needs ../shared next to the repo)")
         return 0
+    gc.freeze()  # what `uav-energy replay` does after its imports; the baseline gains alike
     largest = max(IRIS.rglob("*.log"), key=lambda p: p.stat().st_size)
     with tempfile.TemporaryDirectory() as tmp:
         tlog = Path(tmp) / f"{largest.stem}.tlog"
