@@ -7,8 +7,9 @@ would have published. No wall clock is read here: pacing (``--speed``) and timin
 the caller.
 
 Power error is measured where the model is meant to hold: at each battery sample with a
-current reading while the vehicle is *airborne* (armed and more than :data:`AIRBORNE_ALT_M`
-above home; a log without arming state or altitude is judged on the other alone): the measured
+current reading while the vehicle is *airborne* (armed, more than :data:`AIRBORNE_ALT_M`
+above home and drawing more than idle power, the online tracker's 30 % of the model's hover
+power; a log without arming state or altitude is judged on the rest): the measured
 V·I against the model power in force when that reading arrived
 (:class:`~estimator.pipeline.PowerReading`) — a prediction, never informed by the reading it
 is scored on (the pipeline fuses readings and tracks wind and mass only after). Energies
@@ -27,6 +28,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from estimator.logs import SampleStream, iter_samples
+from estimator.online_effects import OnlineSettings
 from estimator.pipeline import Estimate, Pipeline, PipelineSettings, PowerReading
 from estimator.telemetry import Sample
 from estimator.vehicle import Vehicle
@@ -52,6 +54,8 @@ class PowerTrace:
     model_w: list[float] = field(default_factory=list)
     armed: list[float] = field(default_factory=list)
     alt_m: list[float] = field(default_factory=list)
+    #: Measured power (W) below which the motors are idling: not flight, whatever the flags.
+    idle_below_w: float = 0.0
 
     def extend(self, readings: Iterable[PowerReading]) -> None:
         """Add the readings the pipeline scored in a period (see :class:`PowerReading`)."""
@@ -65,11 +69,12 @@ class PowerTrace:
             self.alt_m.append(math.nan if r.alt_m is None else r.alt_m)
 
     def airborne(self) -> NDArray[np.bool_]:
-        """Armed and above :data:`AIRBORNE_ALT_M`. A log that never gives the armed state
-        (or the altitude) is judged on the other alone."""
+        """Armed, above :data:`AIRBORNE_ALT_M` and drawing more than ``idle_below_w`` (a
+        barometer drifting on the ground while the motors spin up at arming is not flight).
+        A log that never gives the armed state (or the altitude) is judged on the rest."""
         armed = np.asarray(self.armed, dtype=float)
         alt = np.asarray(self.alt_m, dtype=float)
-        ok = np.ones(len(armed), dtype=bool)
+        ok = np.asarray(self.measured_w, dtype=float) >= self.idle_below_w
         if np.isfinite(armed).any():
             ok &= armed == 1.0
         if np.isfinite(alt).any():
@@ -128,7 +133,8 @@ def run(
     ``on_sample(n)`` is called after every sample (progress display).
     """
     estimates: list[Estimate] = []
-    power = PowerTrace()
+    idle_fraction = OnlineSettings().min_power_fraction_of_hover  # the tracker's idle rule
+    power = PowerTrace(idle_below_w=idle_fraction * pipeline.vehicle.model.hover_power_w)
     count = 0
     for sample in samples:
         estimate = pipeline.process(sample)
