@@ -223,14 +223,13 @@ class Pipeline:
         states: Sequence[KinematicState],
         steady_speeds_mps: np.ndarray,
         accel_centripetal_mps2: float = 0.0,
-        effects: tuple[Effect, ...] | None = None,
         voltages_v: Sequence[float] = (),
         time_s: float = 0.0,
     ) -> np.ndarray:
         """Model power (W): one row per kinematic state (at its battery voltage in
         ``voltages_v``, V), then level flight at each steady speed along the current track (it
         matters in wind) in a steady turn with a⊥ as given, at ``time_s`` and the latest
-        voltage. ``effects`` default to the ones in use."""
+        voltage; with the effects in use."""
         k = len(states)
         north, east = math.cos(self._track_rad), math.sin(self._track_rad)
         latest_v = math.nan if self._battery is None else self._battery.voltage_v
@@ -253,11 +252,8 @@ class Pipeline:
         )
         rows[k:, 1] = north * steady_speeds_mps
         rows[k:, 2] = east * steady_speeds_mps
-        columns = rows.T
-        flight = FlightState(*columns)
-        if effects is None:
-            effects = self.effects
-        power = predict_power_w(self.vehicle.model, self.vehicle.mass_kg, flight, effects)
+        flight = FlightState(*rows.T)
+        power = predict_power_w(self.vehicle.model, self.vehicle.mass_kg, flight, self.effects)
         return np.maximum(power, 0.0)
 
     def _refresh_speeds(self) -> None:
@@ -387,7 +383,7 @@ class Pipeline:
         self.counts["reboot"] += 1
         estimate = self.flush()
         self.kinematics.reset()
-        self._track_queue = []
+        self._track_queue, self._track_bin, self._speeds_time_s = [], None, -math.inf
         if self.online is not None:
             self.online.restart_clock()
         self._state = None
