@@ -76,6 +76,33 @@ class KinematicState:
     alt_m: float | None
     accel_sigma_mps2: float = 0.0
 
+    @classmethod
+    def of_motion(
+        cls,
+        time_s: float,
+        v_ned_mps: tuple[float, float, float],
+        a_ne_mps2: tuple[float, float],
+        alt_m: float | None = None,
+        accel_sigma_mps2: float = 0.0,
+    ) -> KinematicState:
+        """The state with velocity (north, east, down) and horizontal acceleration (north,
+        east); speed, tangential and centripetal acceleration and climb derived from them."""
+        (vn, ve, vd), (an, ae) = v_ned_mps, a_ne_mps2
+        return cls(
+            time_s,
+            vn,
+            ve,
+            vd,
+            an,
+            ae,
+            speed_mps=math.hypot(vn, ve),
+            accel_tangential_mps2=tangential_accel_mps2(vn, ve, an, ae),
+            accel_centripetal_mps2=centripetal_accel_mps2(vn, ve, an, ae),
+            climb_mps=-vd,
+            alt_m=alt_m,
+            accel_sigma_mps2=accel_sigma_mps2,
+        )
+
 
 @dataclass(frozen=True, slots=True)
 class KinematicsSettings:
@@ -158,18 +185,10 @@ class KinematicsFilter:
             down.step(dt, z[2], s.jerk_psd, r_v)
         self._last_time_s = sample.time_s
         north, east, down = self._axes
-        vn, ve, vd, an, ae = north.v, east.v, down.v, north.a, east.a
-        return KinematicState(
-            time_s=sample.time_s,
-            vn_mps=vn,
-            ve_mps=ve,
-            vd_mps=vd,
-            an_mps2=an,
-            ae_mps2=ae,
-            speed_mps=math.hypot(vn, ve),
-            accel_tangential_mps2=tangential_accel_mps2(vn, ve, an, ae),
-            accel_centripetal_mps2=centripetal_accel_mps2(vn, ve, an, ae),
-            climb_mps=-vd,
-            alt_m=sample.alt_m,
-            accel_sigma_mps2=math.sqrt(0.5 * (north.p_aa + east.p_aa)),
+        return KinematicState.of_motion(
+            sample.time_s,
+            (north.v, east.v, down.v),
+            (north.a, east.a),
+            sample.alt_m,
+            math.sqrt(0.5 * (north.p_aa + east.p_aa)),
         )

@@ -75,35 +75,12 @@ def wind_from_vector(wn_mps: float, we_mps: float) -> Wind:
 
 
 class TrackerReading(NamedTuple):
-    """One power reading (W) with the flight state then: time s, velocity NED m/s,
-    horizontal acceleration m/s², battery voltage V (NaN unknown), 1σ of the acceleration."""
+    """One measured power (W) with the filtered flight state then and the battery voltage
+    (V, NaN unknown)."""
 
-    time_s: float
-    vn_mps: float
-    ve_mps: float
-    vd_mps: float
-    an_mps2: float
-    ae_mps2: float
+    state: KinematicState
     measured_power_w: float
     voltage_v: float = math.nan
-    accel_sigma_mps2: float = 0.0
-
-    @classmethod
-    def of(
-        cls, state: KinematicState, measured_power_w: float, voltage_v: float = math.nan
-    ) -> TrackerReading:
-        """From the pipeline's filtered kinematic state."""
-        return cls(
-            state.time_s,
-            state.vn_mps,
-            state.ve_mps,
-            state.vd_mps,
-            state.an_mps2,
-            state.ae_mps2,
-            measured_power_w,
-            voltage_v,
-            state.accel_sigma_mps2,
-        )
 
 
 @dataclass(frozen=True)
@@ -268,27 +245,16 @@ class OnlineEffects:
         Returns :attr:`effects` after the update. Non-finite input or time going backwards
         leaves the estimate as it was.
         """
-        return self.update_readings(
-            [
-                TrackerReading(
-                    time_s,
-                    vn_mps,
-                    ve_mps,
-                    vd_mps,
-                    an_mps2,
-                    ae_mps2,
-                    measured_power_w,
-                    voltage_v,
-                    accel_sigma_mps2,
-                )
-            ]
+        state = KinematicState.of_motion(
+            time_s, (vn_mps, ve_mps, vd_mps), (an_mps2, ae_mps2), None, accel_sigma_mps2
         )
+        return self.update_readings([TrackerReading(state, measured_power_w, voltage_v)])
 
     def update_kinematics(
         self, state: KinematicState, measured_power_w: float, voltage_v: float = math.nan
     ) -> tuple[Effect, ...]:
         """:meth:`update` from the pipeline's filtered kinematic state."""
-        return self.update_readings([TrackerReading.of(state, measured_power_w, voltage_v)])
+        return self.update_readings([TrackerReading(state, measured_power_w, voltage_v)])
 
     def update_readings(self, readings: Sequence[TrackerReading]) -> tuple[Effect, ...]:
         """Fold in readings taken close together (in time order) in one filter step: their
@@ -303,21 +269,23 @@ class OnlineEffects:
         s = self.settings
         kept = []
         for r in readings:
-            if not all(math.isfinite(v) for v in r[:7]) or (
-                self._time_s is not None and r.time_s < self._time_s
+            st = r.state
+            motion = (st.time_s, st.vn_mps, st.ve_mps, st.vd_mps, st.an_mps2, st.ae_mps2)
+            if not all(math.isfinite(v) for v in (*motion, r.measured_power_w)) or (
+                self._time_s is not None and st.time_s < self._time_s
             ):
                 self.rejected += 1
-            elif abs(r.vd_mps) > s.max_vertical_speed_mps:
+            elif abs(st.vd_mps) > s.max_vertical_speed_mps:
                 self.vertical += 1
             elif r.measured_power_w < s.min_power_fraction_of_hover * self._hover_w:
                 self.idle += 1
             else:
-                kept.append(r)
+                kept.append((r, motion))
         if not kept:
             return self.effects
         self.steps += 1
         ukf = self._ukf
-        time_s = kept[-1].time_s
+        time_s = kept[-1][0].state.time_s
         dt = 0.0 if self._time_s is None else time_s - self._time_s
         self._time_s = time_s
         # predict even when dt = 0: it draws the sigma points the update evaluates
@@ -329,8 +297,8 @@ class OnlineEffects:
             ukf.P = np.diag(self._initial_var)
             self.resets += 1
             ukf.predict(dt=dt)
-        rows = np.array([(*r[:6], 0.0, r.voltage_v) for r in kept], dtype=float)
-        measured = np.array([r.measured_power_w for r in kept])
+        rows = np.array([(*motion, 0.0, r.voltage_v) for r, motion in kept], dtype=float)
+        measured = np.array([r.measured_power_w for r, _ in kept])
         file_mass = self._file_mass
         file_delta_kg = file_mass.delta_kg * (file_mass.at_s is None or time_s >= file_mass.at_s)
         hypotheses = [ukf.x, [*self._file_wind_ne_mps, file_delta_kg]]
@@ -338,8 +306,9 @@ class OnlineEffects:
         self._sigma_powers_w = iter(powers_w[:-2].tolist())
         measured_w = float(measured.mean())
         self.last_step_w = (measured_w, float(powers_w[-2]), float(powers_w[-1]))
-        speed = np.hypot(rows[:, 1], rows[:, 2])
-        kinetic_sd = self.mass_kg * speed * np.array([r.accel_sigma_mps2 for r in kept])
+        kinetic_sd = self.mass_kg * np.array(
+            [r.state.speed_mps * r.state.accel_sigma_mps2 for r, _ in kept]
+        )
         r_each = s.power_noise_w**2 + (s.power_noise_fraction * measured) ** 2 + kinetic_sd**2
         noise_var_w2 = float(r_each.sum()) / len(kept) ** 2 + self.extra_noise_var_w2
         x_prior, p_prior = ukf.x.copy(), ukf.P.copy()

@@ -454,7 +454,7 @@ class Pipeline:
                 len(powered),
             )
             self._track_queue += [
-                TrackerReading.of(r.state, measured_w, r.sample.voltage_v)
+                TrackerReading(r.state, measured_w, r.sample.voltage_v)
                 for r, p_w in zip(pending, model_w, strict=True)
                 if r.state is not None and p_w > 0 and (measured_w := r.sample.power_w) is not None
             ]
