@@ -265,11 +265,11 @@ class Pipeline:
         self._p_me_w, self._p_mr_w = float(power[i_me]), float(power[i_mr])
         self._p_hover_w = float(power[0])
 
-    def _event_powers_w(self, time_s: float) -> list[float]:
-        """Model power after each event of the open period (W), in one prediction; also sets
-        the steady power of the latest state (at ``time_s``). Disarmed: 0; armed with no
-        kinematic state yet: hover."""
-        rows = [e for e in self._events if e.state is not None and e.armed is not False]
+    def _event_powers_w(self, events: Sequence[_Event], time_s: float) -> list[float]:
+        """Model power after each of ``events`` (W), in one prediction; also sets the steady
+        power of the latest state (at ``time_s``). Disarmed: 0; armed with no kinematic state
+        yet: hover."""
+        rows = [e for e in events if e.state is not None and e.armed is not False]
         state = self._state
         steady = state is not None and self._armed is not False
         predicted: list[float] = []
@@ -290,7 +290,7 @@ class Pipeline:
         rows_w = iter(predicted)
         return [
             0.0 if e.armed is False else self._p_hover_w if e.state is None else next(rows_w)
-            for e in self._events
+            for e in events
         ]
 
     def _kinetic_sigma_w(self) -> float:
@@ -366,9 +366,8 @@ class Pipeline:
         """First valid battery sample: start the energy state at the model power now."""
         self._battery = sample
         self._time_s = sample.time_s
-        self._events = [_Event(sample.time_s, self._state, self._armed, sample.voltage_v)]
-        self._power_model_w = self._event_powers_w(sample.time_s)[0]
-        self._events = []
+        now = _Event(sample.time_s, self._state, self._armed, sample.voltage_v)
+        self._power_model_w = self._event_powers_w([now], sample.time_s)[0]
         self.energy.initialize(sample, self._power_model_w)
         self._resistance_time_s = sample.time_s
         self._start_period(sample.time_s)
@@ -401,7 +400,7 @@ class Pipeline:
     # -- one period -----------------------------------------------------------------------------
 
     def _close_period(self, time_s: float) -> Estimate:
-        powers_w = self._event_powers_w(time_s)
+        powers_w = self._event_powers_w(self._events, time_s)
         self._integrate(time_s, powers_w)
         # each reading against the power in force when it arrived
         model_w = [
@@ -437,26 +436,33 @@ class Pipeline:
         """The period's battery readings into the fusion and the online tracker; ``model_w``
         is the model power in force when each arrived (W)."""
         pending = self._pending
-        self.readings = [
-            PowerReading(r.sample.time_s, measured_w, p_w, r.armed, r.alt_m)
+        if not pending:
+            self.readings = []
+            return
+        # readings with a current: (queued reading, model power then, measured power)
+        scored = [
+            (r, p_w, measured_w)
             for r, p_w in zip(pending, model_w, strict=True)
             if (measured_w := r.sample.power_w) is not None
         ]
-        if not pending:
-            return
-        powered = [r for r in self.readings if r.model_w > 0]
+        self.readings = [
+            PowerReading(r.sample.time_s, measured_w, p_w, r.armed, r.alt_m)
+            for r, p_w, measured_w in scored
+        ]
+        powered = [(r, p_w, measured_w) for r, p_w, measured_w in scored if p_w > 0]
         latest = pending[-1].sample
         if powered:
+            n = len(powered)
             self.energy.update_power(
-                sum(r.measured_w for r in powered) / len(powered),
-                sum(r.model_w for r in powered) / len(powered),
+                sum(measured_w for _, _, measured_w in powered) / n,
+                sum(p_w for _, p_w, _ in powered) / n,
                 self._kinetic_sigma_w(),
-                len(powered),
+                n,
             )
             self._track_queue += [
                 TrackerReading(r.state, measured_w, r.sample.voltage_v)
-                for r, p_w in zip(pending, model_w, strict=True)
-                if r.state is not None and p_w > 0 and (measured_w := r.sample.power_w) is not None
+                for r, _, measured_w in powered
+                if r.state is not None
             ]
             self._track_effects(latest.time_s)
         charge = [r.sample.consumed_mah for r in pending if r.sample.consumed_mah is not None]
