@@ -24,7 +24,8 @@ from dataclasses import dataclass
 import numpy as np
 import psutil
 
-from estimator.sim import SimConfig, simulate
+from estimator.sim.run import SimConfig
+from estimator.sim.simulator import simulate
 
 RATE_MSG_S = 50.0
 WARMUP_S = 3.0
@@ -136,10 +137,10 @@ def processing_times_ms(messages: list, repeats: int = 3) -> tuple[np.ndarray, n
     an estimate (the daemon's work on the latency path)."""
     from pymavlink.dialects.v20 import common as mavlink
 
-    from estimator.decode import FrameParser, TelemetryDecoder
-    from estimator.pipeline import Pipeline
-    from estimator.publish import json_line
-    from estimator.vehicle import default_vehicle
+    from estimator.estimation.pipeline import Pipeline
+    from estimator.mavlink.publish import json_line
+    from estimator.physics.vehicle import default_vehicle
+    from estimator.telemetry.decode import FrameParser, TelemetryDecoder
 
     buffers = [bytes(m.get_msgbuf()) for m in messages]
     base, full = [], []  # full: only messages that produced an estimate

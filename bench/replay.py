@@ -26,9 +26,9 @@ from pathlib import Path
 import numpy as np
 from pymavlink import mavutil
 
+from estimator.analysis.replay import replay_log
 from estimator.logs import iter_samples
-from estimator.replay import replay_log
-from estimator.vehicle import Vehicle, default_vehicle, load_vehicle
+from estimator.physics.vehicle import Vehicle, default_vehicle, load_vehicle
 
 REPO = Path(__file__).resolve().parent.parent
 DATA = REPO.parent / "shared" / "data"

@@ -27,15 +27,15 @@ import pytest
 from pymavlink.dialects.v20 import common as mavlink
 from test_sitl import GroundStation, daemon_subprocess
 
-from estimator.decode import FrameParser, TelemetryDecoder
-from estimator.demo import wait_for_daemon
+from estimator.analysis.replay import replay_log, summarize
 from estimator.logs import iter_samples
 from estimator.logs.tlog import STAMP_BYTES, frame_length
-from estimator.mavlink_io import MavlinkLink
-from estimator.publish import json_line
-from estimator.replay import replay_log, summarize
-from estimator.telemetry import ArmedSample, BatterySample, RebootSample, VelocitySample
-from estimator.vehicle import BatterySpec, Vehicle, default_vehicle
+from estimator.mavlink.link import MavlinkLink
+from estimator.mavlink.publish import json_line
+from estimator.physics.vehicle import BatterySpec, Vehicle, default_vehicle
+from estimator.sim.demo import wait_for_daemon
+from estimator.telemetry.decode import FrameParser, TelemetryDecoder
+from estimator.telemetry.samples import ArmedSample, BatterySample, RebootSample, VelocitySample
 
 REPO = Path(__file__).resolve().parent.parent
 SITL_TLOG = REPO.parent / "shared/data/ardupilot_sitl/run1_default_quad.tlog"

@@ -18,7 +18,7 @@ from pyulog import ULog
 
 from estimator.errors import UserError
 from estimator.logs import SampleStream, detect_format, iter_samples
-from estimator.telemetry import ArmedSample, BatterySample, Sample, VelocitySample
+from estimator.telemetry.samples import ArmedSample, BatterySample, Sample, VelocitySample
 
 
 @pytest.fixture(scope="module")

@@ -9,7 +9,7 @@ import pytest
 from tlog_builder import flight_frames, write_tlog
 
 from estimator.cli import main
-from estimator.vehicle import load_vehicle
+from estimator.physics.vehicle import load_vehicle
 
 REPO = Path(__file__).resolve().parent.parent
 IRIS = [

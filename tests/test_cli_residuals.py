@@ -9,11 +9,13 @@ from pathlib import Path
 import pytest
 
 from estimator import cli
-from estimator.effects import Wind, effects_from_tables
-from estimator.pipeline import PipelineSettings
-from estimator.replay import replay_log, summarize
-from estimator.sim import SimConfig, simulate, write_tlog
-from estimator.vehicle import default_vehicle, load_vehicle
+from estimator.analysis.replay import replay_log, summarize
+from estimator.estimation.pipeline import PipelineSettings
+from estimator.physics.effects import Wind, effects_from_tables
+from estimator.physics.vehicle import default_vehicle, load_vehicle
+from estimator.sim.files import write_tlog
+from estimator.sim.run import SimConfig
+from estimator.sim.simulator import simulate
 
 DEFAULT_VEHICLE = Path(cli.__file__).parent / "data" / "default_vehicle.toml"
 WIND = Wind(5.0, 60.0)

@@ -1,4 +1,4 @@
-"""The live demo (:mod:`estimator.demo`) at maximum speed on a short mission: its summary
+"""The live demo (:mod:`estimator.sim.demo`) at maximum speed on a short mission: its summary
 figures come from the flight it flew, and they are sane."""
 
 from __future__ import annotations
@@ -12,7 +12,10 @@ import numpy as np
 import pytest
 from rich.console import Console
 
-from estimator.demo import (
+from estimator.analysis.replay import replay_log
+from estimator.errors import UserError
+from estimator.physics.vehicle import default_vehicle
+from estimator.sim.demo import (
     DEFAULT_WIND,
     DemoSummary,
     cruise_start_s,
@@ -20,11 +23,9 @@ from estimator.demo import (
     run_demo,
     summary_table,
 )
-from estimator.errors import UserError
-from estimator.replay import replay_log
-from estimator.sim import SimConfig, simulate
-from estimator.sim_plans import Leg, Plan
-from estimator.vehicle import default_vehicle
+from estimator.sim.plans import Leg, Plan
+from estimator.sim.run import SimConfig
+from estimator.sim.simulator import simulate
 
 #: Take-off, hover, a 150 m leg, a turn; then the demo's cruise: ~130 s of it in 200 s.
 SHORT = Plan(

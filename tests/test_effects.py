@@ -7,7 +7,8 @@ import math
 import numpy as np
 import pytest
 
-from estimator.effects import (
+from estimator.errors import UserError
+from estimator.physics.effects import (
     EFFECT_TYPES,
     Acceleration,
     AirDensity,
@@ -23,9 +24,8 @@ from estimator.effects import (
     effects_to_tables,
     predict_power_w,
 )
-from estimator.errors import UserError
-from estimator.model import G_MPS2, SEA_LEVEL_DENSITY_KGPM3
-from estimator.vehicle import default_vehicle, load_vehicle
+from estimator.physics.model import G_MPS2, SEA_LEVEL_DENSITY_KGPM3
+from estimator.physics.vehicle import default_vehicle, load_vehicle
 
 VEHICLE = default_vehicle()
 MODEL, MASS_KG = VEHICLE.model, VEHICLE.mass_kg

@@ -1,6 +1,7 @@
 """Acceptance: a simulated flight that hovers, then cruises until the reserve.
 
-The simulator (``estimator.sim``) flies with effects the estimator is not told about (wind,
+The simulator (``estimator.sim.simulator``) flies with effects the estimator is not told about
+(wind,
 an avionics load), a LiPo pack with internal resistance (the voltage sags, the current rises
 at constant power) and sensor noise. The pipeline sees only the MAVLink stream. Endurance
 10 s, 30 s and 2 min after the hover→cruise change must be within 3 % of the true time left;
@@ -15,14 +16,15 @@ from dataclasses import dataclass
 import numpy as np
 import pytest
 
-from estimator.decode import TelemetryDecoder
-from estimator.effects import Avionics, Wind
-from estimator.fusion import FusionSettings
-from estimator.pipeline import Estimate, Pipeline, PipelineSettings
-from estimator.sim import SensorNoise, SimConfig, SimRun, simulate
-from estimator.sim_plans import builtin_plan
-from estimator.telemetry import BatterySample
-from estimator.vehicle import default_vehicle
+from estimator.estimation.fusion import FusionSettings
+from estimator.estimation.pipeline import Estimate, Pipeline, PipelineSettings
+from estimator.physics.effects import Avionics, Wind
+from estimator.physics.vehicle import default_vehicle
+from estimator.sim.plans import builtin_plan
+from estimator.sim.run import SensorNoise, SimConfig, SimRun
+from estimator.sim.simulator import simulate
+from estimator.telemetry.decode import TelemetryDecoder
+from estimator.telemetry.samples import BatterySample
 
 CHECK_AFTER_CHANGE_S = (10.0, 30.0, 120.0)
 PX4_AVERAGE_S = 50.0

@@ -5,21 +5,14 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
+from estimator.analysis.baselines import PolynomialModel
+from estimator.analysis.fit import FitOptions, check_flights, fit_all, fold_labels
+from estimator.analysis.fit_points import PreprocessOptions, preprocess
+from estimator.analysis.theory_fit import Priors, fit_theory
 from estimator.errors import UserError
-from estimator.fit import (
-    FitOptions,
-    PolynomialModel,
-    PreprocessOptions,
-    Priors,
-    check_flights,
-    fit_all,
-    fit_theory,
-    fold_labels,
-    preprocess,
-)
-from estimator.flightgen import NoiseSpec, experiment1, experiment2
 from estimator.logs import FlightSeries
-from estimator.vehicle import default_vehicle
+from estimator.physics.vehicle import default_vehicle
+from estimator.sim.flightgen import NoiseSpec, experiment1, experiment2
 
 VEHICLE = default_vehicle()
 TRUTH = VEHICLE.model
@@ -159,7 +152,7 @@ def test_experiment2_eq2_predicts_circles_better_than_eq1() -> None:
 
 
 def test_paper_experiments_reproduction_writes_its_report(tmp_path) -> None:  # type: ignore[no-untyped-def]
-    from estimator.experiments import reproduce
+    from estimator.sim.experiments import reproduce
 
     result = reproduce(tmp_path, seed=2)
     lines = (tmp_path / "summary.md").read_text().splitlines()

@@ -7,10 +7,10 @@ import math
 import numpy as np
 import pytest
 
-from estimator.battery import PackModel
-from estimator.fusion import EnergyFilter, FusionSettings, ResistanceFilter
-from estimator.telemetry import BatterySample
-from estimator.vehicle import BatterySpec
+from estimator.estimation.fusion import EnergyFilter, FusionSettings, ResistanceFilter
+from estimator.physics.battery import PackModel
+from estimator.physics.vehicle import BatterySpec
+from estimator.telemetry.samples import BatterySample
 
 SPEC = BatterySpec(capacity_ah=10.0, cells=6, reserve_fraction=0.2)
 

@@ -7,8 +7,12 @@ import math
 import numpy as np
 import pytest
 
-from estimator.kinematics import KinematicsFilter, centripetal_accel_mps2, tangential_accel_mps2
-from estimator.telemetry import VelocitySample
+from estimator.physics.kinematics import (
+    KinematicsFilter,
+    centripetal_accel_mps2,
+    tangential_accel_mps2,
+)
+from estimator.telemetry.samples import VelocitySample
 
 
 def circle_samples(rate_hz: float, jitter: float, noise_mps: float, seed: int = 0):

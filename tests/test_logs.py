@@ -10,11 +10,11 @@ import numpy as np
 import pytest
 from tlog_builder import flight_frames, write_tlog
 
-from estimator.decode import FrameParser, TelemetryDecoder
 from estimator.errors import UserError
 from estimator.logs import detect_format, iter_samples, load_flights
 from estimator.logs.cmu import REQUIRED_COLUMNS
-from estimator.telemetry import BatterySample, VelocitySample
+from estimator.telemetry.decode import FrameParser, TelemetryDecoder
+from estimator.telemetry.samples import BatterySample, VelocitySample
 
 REPO = Path(__file__).resolve().parent.parent
 IRIS_MARCH = REPO / "replay/iris/2016-03-14/004/004-F2.log"

@@ -10,7 +10,7 @@ import pytest
 from pymavlink.dialects.v20 import common as mavlink
 
 from estimator.errors import UserError
-from estimator.mavlink_io import MavlinkLink, open_link, parse_url
+from estimator.mavlink.link import MavlinkLink, open_link, parse_url
 
 
 def heartbeat(link: MavlinkLink) -> mavlink.MAVLink_message:

@@ -9,15 +9,15 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from estimator.kinematics import centripetal_accel_mps2
-from estimator.model import (
+from estimator.physics.kinematics import centripetal_accel_mps2
+from estimator.physics.model import (
     G_MPS2,
     HoverParameters,
     PowerModel,
     RotorcraftPhysics,
     kinetic_power_w,
 )
-from estimator.vehicle import default_vehicle
+from estimator.physics.vehicle import default_vehicle
 
 models = st.builds(
     PowerModel,

@@ -11,11 +11,18 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from estimator.effects import Climb, Effect, Mass, Wind, effects_to_tables
+from estimator.estimation.online_effects import (
+    OnlineEffects,
+    TrackPoint,
+    track_samples,
+    wind_from_vector,
+)
 from estimator.logs import iter_samples
-from estimator.online_effects import OnlineEffects, TrackPoint, track_samples, wind_from_vector
-from estimator.sim import SimConfig, simulate, write_tlog
-from estimator.vehicle import Vehicle, default_vehicle
+from estimator.physics.effects import Climb, Effect, Mass, Wind, effects_to_tables
+from estimator.physics.vehicle import Vehicle, default_vehicle
+from estimator.sim.files import write_tlog
+from estimator.sim.run import SimConfig
+from estimator.sim.simulator import simulate
 
 VEHICLE = default_vehicle()
 

@@ -7,13 +7,20 @@ from dataclasses import replace
 
 import pytest
 
-from estimator.battery import PackModel
-from estimator.decode import TelemetryDecoder
-from estimator.effects import Effect, Wind
-from estimator.pipeline import Estimate, Pipeline, PipelineSettings
-from estimator.sim import SimConfig, simulate
-from estimator.telemetry import ArmedSample, BatterySample, RebootSample, Sample, VelocitySample
-from estimator.vehicle import default_vehicle
+from estimator.estimation.pipeline import Estimate, Pipeline, PipelineSettings
+from estimator.physics.battery import PackModel
+from estimator.physics.effects import Effect, Wind
+from estimator.physics.vehicle import default_vehicle
+from estimator.sim.run import SimConfig
+from estimator.sim.simulator import simulate
+from estimator.telemetry.decode import TelemetryDecoder
+from estimator.telemetry.samples import (
+    ArmedSample,
+    BatterySample,
+    RebootSample,
+    Sample,
+    VelocitySample,
+)
 
 VEHICLE = default_vehicle()
 FULL_V = float(PackModel(VEHICLE.battery).ocv_v(1.0))

@@ -17,19 +17,21 @@ import pytest
 from fixtures.dataflash_writer import DataFlashWriter
 from fixtures.flight import write_bin, write_ulg
 
+from estimator.analysis.replay import replay_log, summarize
 from estimator.cli import main
 from estimator.commands.replay import CSV_COLUMNS, flight_names, parse_speed
-from estimator.config import ServiceConfig
-from estimator.decode import FrameParser, TelemetryDecoder
-from estimator.fusion import FusionSettings
+from estimator.estimation.fusion import FusionSettings
+from estimator.estimation.pipeline import Estimate, Pipeline, PipelineSettings
 from estimator.logs import iter_samples
-from estimator.pipeline import Estimate, Pipeline, PipelineSettings
-from estimator.publish import json_line
-from estimator.replay import replay_log, summarize
-from estimator.service import Service
-from estimator.sim import SimConfig, SimRun, simulate, tlog_records, write_tlog
-from estimator.telemetry import Sample
-from estimator.vehicle import default_vehicle, load_vehicle
+from estimator.mavlink.config import ServiceConfig
+from estimator.mavlink.publish import json_line
+from estimator.mavlink.service import Service
+from estimator.physics.vehicle import default_vehicle, load_vehicle
+from estimator.sim.files import tlog_records, write_tlog
+from estimator.sim.run import SimConfig, SimRun
+from estimator.sim.simulator import simulate
+from estimator.telemetry.decode import FrameParser, TelemetryDecoder
+from estimator.telemetry.samples import Sample
 
 REPO = Path(__file__).resolve().parent.parent
 CMU_CRUISE = REPO.parent / "shared/data/cmu_m100_subset/flights_validation_data_clean_cruise.csv"

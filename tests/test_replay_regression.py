@@ -14,8 +14,8 @@ from typing import Any
 
 import pytest
 
-from estimator.replay import FlightReplay, replay_log, summarize
-from estimator.vehicle import load_vehicle
+from estimator.analysis.replay import FlightReplay, replay_log, summarize
+from estimator.physics.vehicle import load_vehicle
 
 REPLAY_DIR = Path(__file__).resolve().parent.parent / "replay"
 EXPECTED = REPLAY_DIR / "expected.json"

@@ -10,7 +10,16 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from estimator.effects import (
+from estimator.analysis.residuals import (
+    ResidualOptions,
+    ResidualResult,
+    Samples,
+    _block_gain_z,
+    analyze,
+    prepare,
+)
+from estimator.logs import FlightSeries, load_flights
+from estimator.physics.effects import (
     Acceleration,
     AirDensity,
     Avionics,
@@ -23,17 +32,10 @@ from estimator.effects import (
     effects_to_tables,
     predict_power_w,
 )
-from estimator.logs import FlightSeries, load_flights
-from estimator.residuals import (
-    ResidualOptions,
-    ResidualResult,
-    Samples,
-    _block_gain_z,
-    analyze,
-    prepare,
-)
-from estimator.sim import SimConfig, simulate, write_tlog
-from estimator.vehicle import Vehicle, default_vehicle
+from estimator.physics.vehicle import Vehicle, default_vehicle
+from estimator.sim.files import write_tlog
+from estimator.sim.run import SimConfig
+from estimator.sim.simulator import simulate
 
 VEHICLE = default_vehicle()
 DURATION_S = {"mixed": 600.0, "straight": 420.0, "circles": None}
@@ -187,7 +189,7 @@ def test_held_out_rows_never_train_and_guard_is_kept(tmp_path: Path) -> None:
 
 
 def _fake_samples(blocks: np.ndarray) -> Samples:
-    from estimator.effects import FlightState
+    from estimator.physics.effects import FlightState
 
     n = len(blocks)
     z = np.zeros(n)

@@ -20,13 +20,14 @@ import pytest
 from pymavlink.dialects.v20 import common as mavlink
 
 from estimator.cli import main as cli_main
-from estimator.config import ServiceConfig
-from estimator.decode import TelemetryDecoder
-from estimator.mavlink_io import MavlinkLink, open_link
-from estimator.pipeline import Estimate, Pipeline
-from estimator.service import Service
-from estimator.sim import SimConfig, simulate
-from estimator.vehicle import default_vehicle
+from estimator.estimation.pipeline import Estimate, Pipeline
+from estimator.mavlink.config import ServiceConfig
+from estimator.mavlink.link import MavlinkLink, open_link
+from estimator.mavlink.service import Service
+from estimator.physics.vehicle import default_vehicle
+from estimator.sim.run import SimConfig
+from estimator.sim.simulator import simulate
+from estimator.telemetry.decode import TelemetryDecoder
 
 Messages = list[tuple[float, mavlink.MAVLink_message]]
 
@@ -423,7 +424,7 @@ async def test_daemon_as_tcp_client_like_ardupilot_sitl(flight: Messages) -> Non
 
 
 def test_shipped_default_config_matches_the_built_in_defaults() -> None:
-    from estimator.config import build_config, load_config_file
+    from estimator.mavlink.config import build_config, load_config_file
 
     path = Path(__file__).resolve().parent.parent / "config" / "default.toml"
     assert build_config(load_config_file(path), {}) == ServiceConfig()
@@ -445,7 +446,7 @@ def test_flags_override_the_config_file(tmp_path: Path) -> None:
 
 
 def test_named_value_names_fit_mavlink_and_are_documented() -> None:
-    from estimator.publish import NAMED_VALUES
+    from estimator.mavlink.publish import NAMED_VALUES
 
     doc = (Path(__file__).resolve().parent.parent / "docs" / "daemon.md").read_text()
     for name in NAMED_VALUES:
@@ -478,7 +479,7 @@ async def test_battery_status_goes_towards_the_autopilot_only_when_configured(
 def test_fusion_table_sets_the_noise_figures_and_rejects_unknown_names(
     tmp_path: Path, capsys: pytest.CaptureFixture[str]
 ) -> None:
-    from estimator.config import build_config, load_config_file
+    from estimator.mavlink.config import build_config, load_config_file
 
     conf = tmp_path / "c.toml"
     conf.write_text("[fusion]\ninternal_resistance_ohm = 0.03\ncapacity_sigma_fraction = 0\n")

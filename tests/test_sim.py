@@ -15,22 +15,17 @@ import pytest
 from pymavlink.dialects.v20 import common as mavlink
 
 from estimator import cli
-from estimator.battery import PackModel
-from estimator.decode import FrameParser, TelemetryDecoder
-from estimator.effects import Mass, Wind, predict_power_w
 from estimator.errors import UserError
-from estimator.mavlink_io import open_link
-from estimator.sim import (
-    DEFAULT_RATES_HZ,
-    SimConfig,
-    SimRun,
-    simulate,
-    tlog_records,
-    write_tlog,
-)
-from estimator.sim_link import SimPlayer
-from estimator.sim_plans import load_plan
-from estimator.telemetry import ArmedSample, BatterySample, VelocitySample
+from estimator.mavlink.link import open_link
+from estimator.physics.battery import PackModel
+from estimator.physics.effects import Mass, Wind, predict_power_w
+from estimator.sim.files import tlog_records, write_tlog
+from estimator.sim.link import SimPlayer
+from estimator.sim.plans import load_plan
+from estimator.sim.run import DEFAULT_RATES_HZ, SimConfig, SimRun
+from estimator.sim.simulator import simulate
+from estimator.telemetry.decode import FrameParser, TelemetryDecoder
+from estimator.telemetry.samples import ArmedSample, BatterySample, VelocitySample
 
 
 @pytest.fixture(scope="module")

@@ -1,9 +1,9 @@
 """End to end over loopback sockets: simulator → daemon → an independent ground station.
 
-The simulator (:mod:`estimator.sim_link`) serves a flight on an ephemeral TCP port of
+The simulator (:mod:`estimator.sim.link`) serves a flight on an ephemeral TCP port of
 127.0.0.1 like ArduPilot SITL does on tcp:5760; the daemon connects to it — either
-``uav-energy run`` as a real subprocess, or :class:`~estimator.service.Service` in this
-process (:func:`estimator.demo.fly_live`) — and publishes towards a ground station that is a
+``uav-energy run`` as a real subprocess, or :class:`~estimator.mavlink.service.Service` in this
+process (:func:`estimator.sim.demo.fly_live`) — and publishes towards a ground station that is a
 plain UDP socket decoded with pymavlink's own codec (none of our link or decode code), and
 JSON lines of every estimate. Each plan is flown clean and with hidden effects the daemon is
 not told about. Checked: what the ground station receives (our HEARTBEAT as component 191,
@@ -28,13 +28,14 @@ import numpy as np
 import pytest
 from pymavlink.dialects.v20 import common as mavlink
 
-from estimator.demo import fly_live, serve_flight
-from estimator.effects import AirDensity, Avionics, Effect, Mass, Voltage, Wind
-from estimator.mavlink_io import MavlinkLink, open_link
-from estimator.publish import NAMED_VALUES, json_line
-from estimator.replay import replay_log
-from estimator.sim import SimConfig, SimRun, simulate
-from estimator.vehicle import default_vehicle
+from estimator.analysis.replay import replay_log
+from estimator.mavlink.link import MavlinkLink, open_link
+from estimator.mavlink.publish import NAMED_VALUES, json_line
+from estimator.physics.effects import AirDensity, Avionics, Effect, Mass, Voltage, Wind
+from estimator.physics.vehicle import default_vehicle
+from estimator.sim.demo import fly_live, serve_flight
+from estimator.sim.run import SimConfig, SimRun
+from estimator.sim.simulator import simulate
 
 EXE = Path(sys.executable).with_name("uav-energy")
 GCS_SYSTEM, OUR_COMPONENT = 1, mavlink.MAV_COMP_ID_ONBOARD_COMPUTER

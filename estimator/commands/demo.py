@@ -7,7 +7,7 @@ from pathlib import Path
 
 from rich.console import Console
 
-from estimator.demo import run_demo, summary_table
+from estimator.sim.demo import run_demo, summary_table
 
 
 def register(subparsers: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:

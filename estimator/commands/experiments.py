@@ -1,6 +1,6 @@
 """``uav-energy experiments``: the seed paper's two experiments, reproduced on the built-in vehicle.
 
-A thin front end to :func:`estimator.experiments.reproduce`: generate experiment 1
+A thin front end to :func:`estimator.sim.experiments.reproduce`: generate experiment 1
 (straight-and-level, 0–14 m/s) and experiment 2 (circles, 1–6 m/s, r = 10 and 20 m), fit on
 experiment 1, predict experiment 2 with eq. (2), write a report, print a summary.
 """
@@ -13,7 +13,7 @@ from pathlib import Path
 from rich.console import Console
 from rich.table import Table
 
-from estimator.experiments import reproduce
+from estimator.sim.experiments import reproduce
 
 
 def register(subparsers: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:

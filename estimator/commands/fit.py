@@ -17,10 +17,12 @@ import numpy as np
 import tomli_w
 from rich.console import Console
 
+from estimator.analysis.fit import FitOptions, FitReport, fit_all
+from estimator.analysis.fit_points import PreprocessOptions, preprocess
+from estimator.analysis.theory_fit import Priors
 from estimator.errors import UserError
-from estimator.fit import FitOptions, FitReport, PreprocessOptions, Priors, fit_all, preprocess
 from estimator.logs import FORMATS, FlightSeries, load_flights
-from estimator.vehicle import BatterySpec, Vehicle
+from estimator.physics.vehicle import BatterySpec, Vehicle
 
 #: Highest per-cell voltage of a charged LiPo under light load, V (for inferring the cell count).
 MAX_CELL_VOLTAGE_V = 4.25
@@ -101,7 +103,7 @@ def run(args: argparse.Namespace) -> int:
         points = preprocess(flights, options.preprocess, mass_kg, args.mass_kg)
         report = fit_all(points, options, progress=lambda msg: status.update(f"fitting: {msg}"))
         if args.report is not None:
-            from estimator.fit_report import write_report
+            from estimator.reports.fit_report import write_report
 
             status.update("writing the report")
             title = args.title or f"Power model fit: {_describe(args.logs)}"

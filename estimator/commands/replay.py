@@ -1,6 +1,6 @@
 """``uav-energy replay LOG... [--vehicle FILE.toml] [--config FILE.toml] [--out CSV]
 [--report DIR] [--json] [--speed max|N]``: recorded flights through the daemon's pipeline
-(:mod:`estimator.replay`), with the daemon's settings when given its ``--config`` file.
+(:mod:`estimator.analysis.replay`), with the daemon's settings when given its ``--config`` file.
 
 Output: a table of the power error per flight on stdout (or one JSON object with ``--json``),
 the estimates as CSV with ``--out``, plots with ``--report``. ``--speed N`` paces the samples at
@@ -36,13 +36,13 @@ from rich.progress import (
 )
 from rich.table import Table
 
-from estimator.config import build_config, load_config_file
+from estimator.analysis.replay import FlightReplay, Summary, replay_stream, summarize
 from estimator.errors import UserError
+from estimator.estimation.pipeline import Estimate, PipelineSettings
 from estimator.logs import FORMATS, iter_samples
-from estimator.pipeline import Estimate, PipelineSettings
-from estimator.replay import FlightReplay, Summary, replay_stream, summarize
-from estimator.telemetry import Sample
-from estimator.vehicle import Vehicle, default_vehicle, load_vehicle
+from estimator.mavlink.config import build_config, load_config_file
+from estimator.physics.vehicle import Vehicle, default_vehicle, load_vehicle
+from estimator.telemetry.samples import Sample
 
 #: CSV columns, in order; every other Estimate field follows them.
 CSV_COLUMNS = (
@@ -160,7 +160,7 @@ def run(args: argparse.Namespace) -> int:
     if args.out is not None:
         write_csv(args.out, flights)
     if args.report is not None:
-        from estimator.replay_report import write_report  # matplotlib only when asked
+        from estimator.reports.replay_report import write_report  # matplotlib only when asked
 
         write_report(flights, args.report, vehicle.name)
     result = result_json(flights, wall_s, vehicle, skipped_logs)

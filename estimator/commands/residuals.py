@@ -1,7 +1,7 @@
 """``uav-energy residuals LOG... --vehicle FILE.toml``: find what the model lacks.
 
 Computes the residual (measured − model power) over the whole flight, tries the candidate
-effects with held-out scoring and greedy forward selection (:mod:`estimator.residuals`),
+effects with held-out scoring and greedy forward selection (:mod:`estimator.analysis.residuals`),
 points at the telemetry channel that best predicts what is left, and optionally writes the
 vehicle file with the chosen effects (``--write``), a report (``--report``) and JSON
 (``--json``). Progress goes to stderr.
@@ -19,12 +19,12 @@ from typing import Any
 import numpy as np
 from rich.console import Console
 
-from estimator.effects import EFFECT_TYPES, Climb, effects_to_tables
+from estimator.analysis.residuals import ResidualOptions, ResidualResult, analyze
 from estimator.errors import UserError
+from estimator.estimation.online_effects import OnlineEffects, track_series
 from estimator.logs import FORMATS, FlightSeries, load_flights
-from estimator.online_effects import OnlineEffects, track_series
-from estimator.residuals import ResidualOptions, ResidualResult, analyze
-from estimator.vehicle import Vehicle, load_vehicle
+from estimator.physics.effects import EFFECT_TYPES, Climb, effects_to_tables
+from estimator.physics.vehicle import Vehicle, load_vehicle
 
 
 def register(subparsers: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
@@ -127,7 +127,7 @@ def run(args: argparse.Namespace) -> int:
             flights, vehicle, options, progress=lambda m: status.update(f"residuals: {m}")
         )
         if args.report is not None:
-            from estimator.residuals_report import write_report
+            from estimator.reports.residuals_report import write_report
 
             status.update("writing the report")
             write_report(result, args.report, _title(args.logs, vehicle))

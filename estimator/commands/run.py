@@ -7,10 +7,10 @@ import asyncio
 import logging
 from typing import Any
 
-from estimator.config import LOG_LEVELS, ServiceConfig, build_config, load_config_file
 from estimator.errors import UserError
-from estimator.service import Service
-from estimator.vehicle import default_vehicle, load_vehicle
+from estimator.mavlink.config import LOG_LEVELS, ServiceConfig, build_config, load_config_file
+from estimator.mavlink.service import Service
+from estimator.physics.vehicle import default_vehicle, load_vehicle
 
 
 def register(subparsers: Any) -> None:

@@ -20,20 +20,15 @@ from typing import BinaryIO
 from rich.console import Console
 from rich.progress import BarColumn, Progress, TextColumn, TimeElapsedColumn
 
-from estimator.effects import AirDensity, Avionics, Climb, Effect, Mass, Voltage, Wind
 from estimator.errors import UserError
-from estimator.mavlink_io import open_link
-from estimator.sim import (
-    SimConfig,
-    SimRun,
-    hidden_effects_summary,
-    simulate,
-    write_tlog,
-    write_truth_csv,
-)
-from estimator.sim_link import SimPlayer
-from estimator.sim_plans import BUILTIN_PLANS
-from estimator.vehicle import default_vehicle, load_vehicle
+from estimator.mavlink.link import open_link
+from estimator.physics.effects import AirDensity, Avionics, Climb, Effect, Mass, Voltage, Wind
+from estimator.physics.vehicle import default_vehicle, load_vehicle
+from estimator.sim.files import hidden_effects_summary, write_tlog, write_truth_csv
+from estimator.sim.link import SimPlayer
+from estimator.sim.plans import BUILTIN_PLANS
+from estimator.sim.run import SimConfig, SimRun
+from estimator.sim.simulator import simulate
 
 #: What ``--low-voltage-losses`` hides: 0.15 Ω between sensor and motors, model exact when full.
 LOW_VOLTAGE_RESISTANCE_OHM = 0.15

@@ -2,7 +2,7 @@
 
 Two views of a log:
 
-- :func:`iter_samples` streams :mod:`estimator.telemetry` samples in time order (replay, the
+- :func:`iter_samples` streams :mod:`estimator.telemetry.samples` samples in time order (replay, the
   daemon-equivalence tests). Counters ``skipped``, ``bad_frames`` and ``truncated`` are
   readable on the returned :class:`SampleStream` after iteration.
 - :func:`load_flights` gives whole flights as numpy arrays (:class:`FlightSeries`) for offline
@@ -26,7 +26,13 @@ import numpy as np
 from numpy.typing import NDArray
 
 from estimator.errors import UserError
-from estimator.telemetry import ArmedSample, BatterySample, RebootSample, Sample, VelocitySample
+from estimator.telemetry.samples import (
+    ArmedSample,
+    BatterySample,
+    RebootSample,
+    Sample,
+    VelocitySample,
+)
 
 FloatArray = NDArray[np.float64]
 

@@ -25,7 +25,7 @@ from scipy.spatial.transform import Rotation
 
 from estimator.errors import UserError
 from estimator.logs import FlightSeries, FloatArray, SampleStream
-from estimator.telemetry import BatterySample, RebootSample, Sample, VelocitySample
+from estimator.telemetry.samples import BatterySample, RebootSample, Sample, VelocitySample
 
 #: DJI TB47D pack of the M100: 6S LiPo, 22.2 V nominal, 4.5 Ah (README.txt of the dataset).
 NOMINAL_VOLTAGE_V = 22.2

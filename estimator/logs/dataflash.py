@@ -1,4 +1,4 @@
-"""ArduPilot DataFlash (.bin) logs → :mod:`estimator.telemetry` samples.
+"""ArduPilot DataFlash (.bin) logs → :mod:`estimator.telemetry.samples` samples.
 
 Records are read with pymavlink's ``DFReader_binary``, whose per-type offset index lets us
 parse only the types we use (no ``mavutil`` connection, no process-wide state). Time is each
@@ -35,7 +35,7 @@ from pymavlink.DFReader import DFReader_binary
 
 from estimator.errors import UserError
 from estimator.logs import SampleStream
-from estimator.telemetry import ArmedSample, BatterySample, Sample, VelocitySample
+from estimator.telemetry.samples import ArmedSample, BatterySample, Sample, VelocitySample
 
 #: Velocity sources, most preferred first.
 VELOCITY_TYPES = ("XKF1", "NKF1", "GPS")

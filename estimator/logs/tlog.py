@@ -18,10 +18,10 @@ import struct
 from collections.abc import Iterator
 from pathlib import Path
 
-from estimator.decode import USED_MESSAGE_IDS, FrameParser, TelemetryDecoder
 from estimator.errors import UserError
 from estimator.logs import SampleStream
-from estimator.telemetry import Sample
+from estimator.telemetry.decode import USED_MESSAGE_IDS, FrameParser, TelemetryDecoder
+from estimator.telemetry.samples import Sample
 
 STAMP_BYTES = 8
 _STX_V1, _STX_V2 = 0xFE, 0xFD

@@ -1,4 +1,4 @@
-"""PX4 ULog (.ulg) logs → :mod:`estimator.telemetry` samples, read with pyulog.
+"""PX4 ULog (.ulg) logs → :mod:`estimator.telemetry.samples` samples, read with pyulog.
 
 Topics used (instance 0 unless said), time from each record's ``timestamp`` (µs since
 boot) / 1e6:
@@ -29,7 +29,7 @@ from pyulog import ULog
 
 from estimator.errors import UserError
 from estimator.logs import SampleStream
-from estimator.telemetry import ArmedSample, BatterySample, Sample, VelocitySample
+from estimator.telemetry.samples import ArmedSample, BatterySample, Sample, VelocitySample
 
 TOPICS = ("vehicle_local_position", "battery_status", "vehicle_status")
 #: ``vehicle_status.arming_state`` value of an armed vehicle (PX4 ≥ 1.8).

@@ -1,0 +1,372 @@
+"""Kalman fusion of the power model with the battery: remaining energy, model bias, endurance.
+
+Two filters (filterpy), both driven only by sample times:
+
+- :class:`EnergyFilter`, state ``[E, b]``: E is the usable chemical energy left above the
+  reserve (Wh), b the scale between the model's power and the power actually drawn (1 = the
+  model is right). Predict: E decreases by ``b · P_model · k · dt`` where k = OCV / V is the
+  pack's internal loss factor (chemical energy leaves at OCV·I, the terminals see V·I).
+  Updates: measured power V·I (observes b·P_model), and the charge the autopilot counted
+  (consumed mAh from a resting-voltage state of charge, via :class:`PackModel`; observes E).
+  The starting-charge uncertainty (resting voltage, capacity) is an offset that no later
+  measurement in this filter can reduce: it is kept out of P and added to the reported σ.
+  Without a current sensor only the model runs: b keeps its prior and random walk, so σ
+  grows, and :attr:`EnergyFilter.model_only` says so.
+- :class:`ResistanceFilter`, state ``[R]``: the pack's internal resistance (Ω) from terminal
+  voltage and current, V = OCV(SoC) − I·R, the SoC from the energy state. It supplies k and
+  the voltage sag that endurance predictions integrate.
+
+Endurance integrates the pack forward at constant terminal power: as the voltage sags the
+current, and with it the I²R loss, rises — what a current-based "charge / average current"
+estimate misses.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+from filterpy.kalman import KalmanFilter
+from numpy.typing import ArrayLike
+
+from estimator.physics.battery import PackModel
+from estimator.physics.model import FloatArray
+from estimator.telemetry.samples import BatterySample
+
+#: Energy levels (fractions of what is left) at which endurance integrates the pack.
+_UNIT_GRID = np.linspace(0.0, 1.0, 24)
+
+
+@dataclass(frozen=True, slots=True)
+class FusionSettings:
+    """Noise figures of the fusion (1σ unless said otherwise).
+
+    bias_prior_sigma: model scale before any measured power (fraction).
+    bias_walk_per_sqrt_s: random walk of the scale, 1/√s (how fast the model's error may
+    change: wind, payload, temperature).
+    model_power_noise_fraction: short-term error of the model's instantaneous power (fraction;
+    white, adds energy process noise).
+    power_noise_fraction, power_noise_floor_w: error of one measured V·I reading.
+    rest_voltage_sigma_v_per_cell: error of the resting cell voltage that gives the start SoC.
+    capacity_sigma_fraction: error of the configured capacity (fraction).
+    charge_sigma_fraction: error of the autopilot's consumed-charge counter (fraction).
+    current_gain_sigma_fraction: gain error of the current sensor (fraction): it biases the
+    measured drain and the consumed charge alike, so no measurement here removes it.
+    state_change_step, state_change_bias_sigma: see :meth:`EnergyFilter.flight_state_changed`.
+    internal_resistance_ohm: the pack's resistance; None estimates it (prior 4 mΩ per cell).
+    voltage_noise_v: error of one terminal-voltage reading (pack), V.
+    resistance_walk_ohm_per_sqrt_s: random walk of the resistance (temperature), Ω/√s.
+    resistance_min_current_a: below this current (A) a voltage reading does not update the
+    resistance (at rest I·R is far below the voltage noise).
+    ocv_curve_sigma_v_per_cell: error of the configured OCV curve, V per cell.
+    """
+
+    bias_prior_sigma: float = 0.10
+    bias_walk_per_sqrt_s: float = 0.003
+    model_power_noise_fraction: float = 0.05
+    power_noise_fraction: float = 0.03
+    power_noise_floor_w: float = 2.0
+    rest_voltage_sigma_v_per_cell: float = 0.01
+    capacity_sigma_fraction: float = 0.01
+    charge_sigma_fraction: float = 0.01
+    internal_resistance_ohm: float | None = None
+    voltage_noise_v: float = 0.05
+    resistance_prior_ohm_per_cell: float = 0.004
+    resistance_walk_ohm_per_sqrt_s: float = 1e-5
+    resistance_min_current_a: float = 1.0
+    ocv_curve_sigma_v_per_cell: float = 0.01
+    current_gain_sigma_fraction: float = 0.01
+    state_change_step: float = 0.05
+    state_change_bias_sigma: float = 1.0
+
+
+class ResistanceFilter:
+    """The pack's internal resistance R (Ω) from V = OCV(SoC) − I·R, with the SoC from the
+    energy state (filterpy, one state with a slow random walk: R falls as the pack warms)."""
+
+    def __init__(self, pack: PackModel, settings: FusionSettings) -> None:
+        self.pack = pack
+        self.settings = settings
+        cells = pack.spec.cells
+        fixed = settings.internal_resistance_ohm
+        kf = KalmanFilter(dim_x=1, dim_z=1)
+        prior = settings.resistance_prior_ohm_per_cell * cells
+        kf.x = np.array([prior if fixed is None else fixed])
+        kf.P = np.array([[0.0 if fixed is not None else prior**2]])
+        ocv_sigma_v = settings.ocv_curve_sigma_v_per_cell * cells
+        kf.R = np.array([[settings.voltage_noise_v**2 + ocv_sigma_v**2]])
+        self._kf = kf
+        self._fixed = fixed is not None
+
+    @property
+    def resistance_ohm(self) -> float:
+        return max(float(self._kf.x[0]), 0.0)
+
+    def update(self, dt_s: float, soc: float, voltage_v: float, current_a: float) -> None:
+        """Fold in a terminal voltage (V) at ``current_a`` (A) and state of charge ``soc``."""
+        if self._fixed:
+            return
+        kf = self._kf
+        if dt_s > 0:
+            kf.P += self.settings.resistance_walk_ohm_per_sqrt_s**2 * dt_s
+        if abs(current_a) < self.settings.resistance_min_current_a:
+            return  # the drop I·R is lost in the voltage noise (a pack at rest)
+        ocv_v = float(self.pack.ocv_v(soc))
+        kf.update(np.array([ocv_v - voltage_v]), H=np.array([[current_a]]))
+        kf.x[0] = min(max(kf.x[0], 0.0), 1.0)
+
+    def terminal_voltage_v(self, ocv_v: ArrayLike, power_w: ArrayLike) -> FloatArray:
+        """Terminal voltage at terminal power ``power_w``: the root of V² − OCV·V + P·R = 0."""
+        ocv, power = np.asarray(ocv_v, dtype=float), np.asarray(power_w, dtype=float)
+        disc = np.maximum(ocv * ocv - 4.0 * power * self.resistance_ohm, 0.0)
+        return np.asarray(0.5 * (ocv + np.sqrt(disc)))
+
+
+def _ocv_slope_v(pack: PackModel, soc: float) -> float:
+    """dOCV/dSoC of the pack at ``soc`` (V per unit SoC), by a central difference."""
+    h = 0.01
+    lo, hi = max(soc - h, 0.0), min(soc + h, 1.0)
+    return float((pack.ocv_v(hi) - pack.ocv_v(lo)) / (hi - lo))
+
+
+@dataclass(frozen=True, slots=True)
+class EnergyEstimate:
+    """Fused energy state: E (Wh, usable above reserve), scale b, their 1σ and covariance."""
+
+    energy_wh: float
+    energy_sigma_wh: float
+    bias: float
+    bias_sigma: float
+    covariance: np.ndarray  # 2×2 over [E, b], including the starting-charge offset
+
+
+class EnergyFilter:
+    """State [E (Wh usable above reserve), b (model scale)]; see the module docstring."""
+
+    def __init__(self, pack: PackModel, settings: FusionSettings | None = None) -> None:
+        self.pack = pack
+        self.settings = settings or FusionSettings()
+        self._kf: KalmanFilter | None = None
+        self._time_s: float | None = None
+        self._soc_ref = 1.0  # SoC when the consumed-charge counter read 0
+        self._offset_sigma_wh = 0.0
+        self._initial_wh = 0.0
+        self._anchor_power_w: float | None = None
+        self._reserve_wh = float(pack.energy_wh(pack.spec.reserve_fraction))
+        self.voltage: ResistanceFilter | None = None
+        self.has_current = False
+        self.has_charge = False
+
+    # -- state ------------------------------------------------------------------------------
+
+    @property
+    def initialized(self) -> bool:
+        return self._kf is not None
+
+    @property
+    def model_only(self) -> bool:
+        """True while no measured current has been fused (the estimate is the model's)."""
+        return not self.has_current
+
+    @property
+    def time_s(self) -> float:
+        """Sample time (s) the energy state is at."""
+        self._require()
+        assert self._time_s is not None
+        return self._time_s
+
+    @property
+    def soc(self) -> float:
+        """State of charge that the energy state implies."""
+        kf = self._require()
+        return float(self.pack.soc_from_energy(max(kf.x[0], 0.0) + self._reserve_wh))
+
+    def estimate(self) -> EnergyEstimate:
+        kf = self._require()
+        cov = np.array(kf.P, dtype=float)
+        cov[0, 0] += self._offset_sigma_wh**2
+        if self.has_current:
+            # A current-sensor gain error g scales both the measured drain and the bias.
+            sigma_g = self.settings.current_gain_sigma_fraction
+            used_wh = self._initial_wh - float(kf.x[0])
+            j = np.array([-used_wh, float(kf.x[1])])
+            cov += sigma_g**2 * np.outer(j, j)
+        return EnergyEstimate(
+            energy_wh=max(float(kf.x[0]), 0.0),
+            energy_sigma_wh=math.sqrt(cov[0, 0]),
+            bias=float(kf.x[1]),
+            bias_sigma=math.sqrt(cov[1, 1]),
+            covariance=cov,
+        )
+
+    def _require(self) -> KalmanFilter:
+        if self._kf is None:
+            raise RuntimeError("EnergyFilter used before the first battery sample")
+        return self._kf
+
+    # -- initialization ---------------------------------------------------------------------
+
+    def initialize(self, sample: BatterySample, power_model_w: float) -> None:
+        """Start from one battery reading: SoC from the voltage at rest (corrected by I·R
+        under load), the charge counter's zero from the consumed mAh already counted."""
+        s, pack, cells = self.settings, self.pack, self.pack.spec.cells
+        r_ohm = (
+            s.internal_resistance_ohm
+            if s.internal_resistance_ohm is not None
+            else s.resistance_prior_ohm_per_cell * cells
+        )
+        current_a = (
+            sample.current_a
+            if sample.current_a is not None
+            else power_model_w / max(sample.voltage_v, 1.0)
+        )
+        soc = float(pack.soc_from_ocv(sample.voltage_v + max(current_a, 0.0) * r_ohm))
+        consumed_ah = (sample.consumed_mah or 0.0) / 1000.0
+        self._soc_ref = min(soc + consumed_ah / pack.spec.capacity_ah, 1.0)
+        energy_wh = float(pack.usable_energy_wh(soc))
+        slope_wh = float(pack.energy_wh(min(soc + 0.01, 1.0)) - pack.energy_wh(max(soc - 0.01, 0)))
+        slope_wh /= min(soc + 0.01, 1.0) - max(soc - 0.01, 0.0)
+        sigma_soc = (s.rest_voltage_sigma_v_per_cell * cells) / max(_ocv_slope_v(pack, soc), 0.05)
+        self._offset_sigma_wh = math.hypot(
+            min(sigma_soc, 0.5) * slope_wh, s.capacity_sigma_fraction * energy_wh
+        )
+        kf = KalmanFilter(dim_x=2, dim_z=1)
+        kf.x = np.array([energy_wh, 1.0])
+        self._initial_wh = energy_wh
+        kf.P = np.diag([0.0, s.bias_prior_sigma**2])
+        self._kf = kf
+        self._time_s = sample.time_s
+        self.voltage = ResistanceFilter(pack, s)
+
+    def rebase(self, time_s: float) -> None:
+        """The autopilot rebooted: its clock restarts at ``time_s`` and its consumed-charge
+        counter at 0. Keep the energy state; re-reference both."""
+        self._require()
+        self._time_s = time_s
+        self._soc_ref = self.soc
+
+    # -- predict / update -------------------------------------------------------------------
+
+    def predict(self, time_s: float, power_model_w: float, loss_factor: float) -> None:
+        """Advance to ``time_s`` drawing ``b · power_model_w`` at the terminals (W), with
+        chemical energy leaving ``loss_factor`` (= OCV/V ≥ 1) times faster."""
+        kf = self._require()
+        assert self._time_s is not None
+        dt = time_s - self._time_s
+        if dt <= 0:
+            return
+        self._time_s = time_s
+        s = self.settings
+        drain_wh = power_model_w * loss_factor * dt / 3600.0
+        f = np.array([[1.0, -drain_wh], [0.0, 1.0]])
+        q_e = (s.model_power_noise_fraction * drain_wh) ** 2
+        q_b = s.bias_walk_per_sqrt_s**2 * dt
+        kf.predict(F=f, Q=np.diag([q_e, q_b]))
+        self._cap_bias_variance()
+
+    def flight_state_changed(self, steady_power_w: float) -> None:
+        """The model's steady power moved: the bias learned at the old flight state transfers
+        only partly to the new one (the model's error depends on the state, e.g. unknown
+        wind matters more in cruise than in hover). Each move of more than
+        ``state_change_step`` (fraction) since the last one adds variance to the bias of
+        (``state_change_bias_sigma`` × relative move)²."""
+        kf = self._require()
+        s = self.settings
+        if self._anchor_power_w is None or self._anchor_power_w <= 0:
+            self._anchor_power_w = steady_power_w
+            return
+        move = abs(steady_power_w - self._anchor_power_w) / self._anchor_power_w
+        if move > s.state_change_step:
+            kf.P[1, 1] += (s.state_change_bias_sigma * move) ** 2
+            self._anchor_power_w = steady_power_w
+            self._cap_bias_variance()
+
+    def _cap_bias_variance(self) -> None:
+        """The bias is never less known than the prior says the model is: without
+        measurements its variance stops at ``bias_prior_sigma²`` (row and column scaled
+        together, so P stays positive semi-definite)."""
+        kf = self._require()
+        cap = self.settings.bias_prior_sigma**2
+        if kf.P[1, 1] > cap:
+            factor = math.sqrt(cap / kf.P[1, 1])
+            kf.P[1, :] *= factor
+            kf.P[:, 1] *= factor
+
+    def update_power(
+        self,
+        measured_w: float,
+        power_model_w: float,
+        model_sigma_w: float = 0.0,
+        readings: int = 1,
+    ) -> None:
+        """Fold in measured terminal power V·I (W) against the model's power (W), whose
+        flight-state uncertainty (e.g. from the filtered acceleration) is ``model_sigma_w``.
+        With ``readings`` > 1 both are means of that many readings: the reading noise averages
+        down by √readings."""
+        kf = self._require()
+        self.has_current = True
+        s = self.settings
+        reading_sigma_w = s.power_noise_fraction * abs(measured_w) + s.power_noise_floor_w
+        sigma_w = math.hypot(reading_sigma_w / math.sqrt(readings), model_sigma_w)
+        kf.update(
+            np.array([measured_w]), R=np.array([[sigma_w**2]]), H=np.array([[0.0, power_model_w]])
+        )
+
+    def update_charge(self, consumed_mah: float) -> None:
+        """Fold in the autopilot's consumed charge (mAh) as the energy it leaves (Wh)."""
+        kf = self._require()
+        self.has_charge = True
+        pack = self.pack
+        soc_now = self._soc_ref - consumed_mah / 1000.0 / pack.spec.capacity_ah
+        energy_wh = float(pack.usable_energy_wh(soc_now))
+        used_wh = float(pack.energy_wh(self._soc_ref) - pack.energy_wh(soc_now))
+        sigma_wh = self.settings.charge_sigma_fraction * abs(used_wh) + 0.2
+        kf.update(np.array([energy_wh]), R=np.array([[sigma_wh**2]]), H=np.array([[1.0, 0.0]]))
+
+    # -- endurance --------------------------------------------------------------------------
+
+    @property
+    def bias(self) -> float:
+        return float(self._require().x[1])
+
+    def endurance_s(
+        self, terminal_power_w: ArrayLike, est: EnergyEstimate | None = None
+    ) -> tuple[FloatArray, FloatArray]:
+        """Time (s) until the reserve at each constant terminal power (W), and its 1σ.
+
+        Integrates the pack forward: at each energy level the OCV, the sagging terminal
+        voltage, the current and the chemical drain P·OCV/V follow from the pack model and
+        the estimated resistance. σ by first-order propagation of [E, b] (each power is
+        ``b`` times a model power, so T scales as 1/b). Non-positive power: infinite time.
+        """
+        est = est or self.estimate()
+        power_w = np.atleast_1d(np.asarray(terminal_power_w, dtype=float))
+        if est.energy_wh <= 0:
+            return np.zeros_like(power_w), np.zeros_like(power_w)
+        assert self.voltage is not None
+        e_grid = est.energy_wh * _UNIT_GRID
+        ocv = self.pack.ocv_v(self.pack.soc_from_energy(self._reserve_wh + e_grid))
+        positive = np.maximum(power_w, 1e-9)[:, None]
+        terminal_v = self.voltage.terminal_voltage_v(ocv[None, :], positive)
+        inv_drain = np.maximum(terminal_v, 1e-3) / (positive * ocv[None, :])
+        step_wh = e_grid[1] - e_grid[0]
+        time_s = (
+            3600.0 * step_wh * (inv_drain.sum(axis=1) - 0.5 * (inv_drain[:, 0] + inv_drain[:, -1]))
+        )
+        d_energy = 3600.0 * inv_drain[:, -1]
+        d_bias = -time_s / max(est.bias, 1e-3)
+        cov = est.covariance
+        var = d_energy**2 * cov[0, 0] + 2 * d_energy * d_bias * cov[0, 1] + d_bias**2 * cov[1, 1]
+        sigma_s = np.sqrt(np.maximum(var, 0.0))
+        off = power_w <= 0
+        time_s[off] = sigma_s[off] = np.inf
+        return time_s, sigma_s
+
+    def loss_factor(self, terminal_power_w: float) -> float:
+        """OCV / V at the current state and terminal power (≥ 1)."""
+        if self.voltage is None or terminal_power_w <= 0:
+            return 1.0
+        ocv_v = float(self.pack.ocv_v(self.soc))
+        v = float(self.voltage.terminal_voltage_v(ocv_v, terminal_power_w))
+        return ocv_v / max(v, 1e-3)

@@ -1,0 +1,571 @@
+"""The one pipeline: telemetry samples in, energy and endurance estimates out.
+
+The daemon feeds it from a socket, replay from a file, tests from lists; time comes only from
+the samples, so the same samples always give the same estimates.
+
+Work happens in *periods* of the sample clock (``estimate_period_s``, 0.5 s by default): each
+velocity sample runs the kinematics (causal Kalman filter, scalar arithmetic) and is queued;
+each battery sample is queued. The sample that reaches the end of a period closes it, and then,
+once for the whole period:
+
+1. the model power after every queued velocity sample, in one vectorized call of
+   :func:`estimator.physics.effects.predict_power_w` (the one place power is predicted);
+2. the energy filter integrates that power over the period (each power holds until the next
+   sample);
+3. the period's battery readings update the fusion (:mod:`estimator.estimation.fusion`): their mean
+   measured power against the mean model power in force when each arrived, the latest
+   consumed charge and the latest terminal voltage;
+4. the online wind/mass tracker takes the latest reading (every ``track_period_s``);
+5. one :class:`Estimate` is published.
+
+Per-sample numpy work would cost more than decoding the sample; per period it is amortized
+over every sample of the period. A :class:`RebootSample` closes the open period, restarts the
+kinematics and moves the clocks, keeping the energy state.
+
+Endurance figures are at a *steady* power: level flight at the current horizontal speed (and
+centripetal acceleration: a steady turn continues), without the transient kinetic and climb
+terms, scaled by the fused bias.
+"""
+
+from __future__ import annotations
+
+import math
+from collections import Counter
+from collections.abc import Sequence
+from dataclasses import dataclass, field, fields
+
+import numpy as np
+
+from estimator.estimation.fusion import EnergyFilter, FusionSettings
+from estimator.estimation.online_effects import OnlineEffects, TrackerReading
+from estimator.physics.battery import PackModel
+from estimator.physics.effects import (
+    Climb,
+    Effect,
+    FlightState,
+    effects_from_tables,
+    predict_power_w,
+)
+from estimator.physics.kinematics import KinematicsFilter, KinematicsSettings, KinematicState
+from estimator.physics.vehicle import Vehicle
+from estimator.telemetry.samples import (
+    ArmedSample,
+    BatterySample,
+    RebootSample,
+    Sample,
+    VelocitySample,
+)
+
+#: Speeds (m/s) on which V_me and V_mr are searched, with the vehicle's effects applied.
+_SPEED_GRID_MPS = np.linspace(0.0, 30.0, 601)
+#: Tracked wind and mass replace the file's once the wind is known to this 1σ (m/s) and they
+#: predict the measured power better (one step ahead) than the file's.
+#: Before that (hover, one-direction flight) wind and mass trade off against each other and
+#: the point estimate is biased by the curvature of P(V).
+_TRACKED_WIND_SIGMA_MPS = 1.0
+#: Gain of the moving averages that score tracked against vehicle-file effects (per update).
+_SCORE_GAIN = 1.0 / 30.0
+#: Above this horizontal speed (m/s) the course over ground is the direction of flight.
+_TRACK_MIN_SPEED_MPS = 1.0
+#: How often (s, sample clock) V_me, V_mr and hover power follow the tracked wind and mass.
+_SPEEDS_REFRESH_S = 5.0
+
+
+@dataclass(frozen=True, slots=True)
+class PipelineSettings:
+    """battery_stale_s: estimates are ``stale`` when the newest battery sample is older than
+    this on the sample clock.  add_climb_effect: add a default :class:`Climb` effect when the
+    vehicle file has none (climbing costs m·g·v_c/η).  track_effects: follow wind and mass
+    online from measured power (:class:`~estimator.estimation.online_effects.OnlineEffects`),
+    starting
+    from the vehicle file's values; off keeps those values for the whole flight.
+    estimate_period_s: one estimate per this much sample clock (s); see the module
+    docstring. track_period_s: the online tracker takes one reading per this much sample
+    clock (s): wind and payload change over tens of seconds, and readings close together
+    share their errors (gusts, ESC ripple)."""
+
+    kinematics: KinematicsSettings = field(default_factory=KinematicsSettings)
+    fusion: FusionSettings = field(default_factory=FusionSettings)
+    battery_stale_s: float = 5.0
+    add_climb_effect: bool = True
+    track_effects: bool = True
+    estimate_period_s: float = 1.0
+    track_period_s: float = 2.0
+
+
+@dataclass(frozen=True, slots=True)
+class Estimate:
+    """One published estimate. Powers in W, energy in Wh, times in s, speeds m/s, range m.
+
+    power_model_w: the model's power for the current flight state (before the bias).
+    power_measured_w: latest V·I, None without a current sensor.
+    endurance_s: time to the reserve if the current steady power continues (1σ alongside).
+    hover_endurance_s / vme_endurance_s: the same when hovering / flying at V_me.
+    range_vmr_m: distance over ground (no wind) at V_mr until the reserve.
+    bias: measured over modelled power (1 = the model is right).
+    model_only: no measured current fused (uncertainty is wider).
+    *_sigma_*: 1σ of the quantity named before it (first-order propagation).
+    stale: battery telemetry older than the configured limit (or, in the daemon, a silent
+    link).
+    """
+
+    time_s: float
+    speed_mps: float
+    accel_tangential_mps2: float
+    accel_centripetal_mps2: float
+    climb_mps: float
+    power_model_w: float
+    power_measured_w: float | None
+    energy_remaining_wh: float
+    energy_remaining_sigma_wh: float
+    endurance_s: float
+    endurance_sigma_s: float
+    hover_endurance_s: float
+    vme_endurance_s: float
+    v_me_mps: float
+    range_vmr_m: float
+    bias: float
+    bias_sigma: float
+    model_only: bool
+    stale: bool
+    soc: float = math.nan
+    voltage_v: float = math.nan
+    resistance_ohm: float = math.nan
+    steady_power_w: float = math.nan
+    hover_endurance_sigma_s: float = math.nan
+    vme_endurance_sigma_s: float = math.nan
+    range_vmr_sigma_m: float = math.nan
+
+    def as_dict(self) -> dict[str, float | bool | None]:
+        return {name: getattr(self, name) for name in _ESTIMATE_FIELDS}
+
+
+_ESTIMATE_FIELDS = tuple(f.name for f in fields(Estimate))
+
+
+@dataclass(frozen=True, slots=True)
+class PowerReading:
+    """A battery reading with a current, against the model power in force when it arrived
+    (a prediction: the reading was not yet fused). Powers W, time s; armed None = unknown;
+    alt_m: height over home of the latest velocity sample (None = unknown)."""
+
+    time_s: float
+    measured_w: float
+    model_w: float
+    armed: bool | None
+    alt_m: float | None
+
+
+@dataclass(frozen=True, slots=True)
+class _Reading:
+    """A queued battery sample, the number of events of the period before it, and the armed
+    state, height over home (m) and kinematic state when it arrived (None = unknown)."""
+
+    sample: BatterySample
+    events_before: int
+    armed: bool | None
+    alt_m: float | None
+    state: KinematicState | None
+
+
+@dataclass(frozen=True, slots=True)
+class _Event:
+    """A sample that changes the model power: a new kinematic state (None after a reboot),
+    the armed state then (None = unknown) and the battery voltage then (V, NaN unknown)."""
+
+    time_s: float
+    state: KinematicState | None
+    armed: bool | None
+    voltage_v: float
+
+
+class Pipeline:
+    """Samples in (:meth:`process`), estimates out; ``counts`` says what it did and skipped.
+
+    ``readings`` holds the :class:`PowerReading` of the period that the last estimate closed.
+    """
+
+    def __init__(self, vehicle: Vehicle, settings: PipelineSettings | None = None) -> None:
+        self.vehicle = vehicle
+        self.settings = settings or PipelineSettings()
+        if not (self.settings.estimate_period_s > 0 and self.settings.track_period_s > 0):
+            raise ValueError("estimate_period_s and track_period_s must be > 0")
+        effects: list[Effect] = effects_from_tables(vehicle.effects)
+        if self.settings.add_climb_effect and not any(isinstance(e, Climb) for e in effects):
+            effects.append(Climb())
+        self.effects: tuple[Effect, ...] = tuple(effects)
+        self.file_effects = self.effects
+        # one-step-ahead squared power errors (W², moving averages) of the tracked effects and
+        # of the vehicle file's: the tracked ones are used only while they predict better
+        self._tracked_sq_w2 = 0.0
+        self._file_sq_w2 = 0.0
+        self.online = (
+            OnlineEffects(vehicle.model, vehicle.mass_kg, self.effects)
+            if self.settings.track_effects
+            else None
+        )
+        self._speeds_time_s = -math.inf
+        self._track_bin: int | None = None  # track_period_s bin of the last tracker step
+        self._track_queue: list[TrackerReading] = []  # readings for the next tracker step
+        self._track_rad = 0.0  # course over ground, rad from north (last one while moving)
+        self.pack = PackModel(vehicle.battery)
+        self.kinematics = KinematicsFilter(self.settings.kinematics)
+        self.energy = EnergyFilter(self.pack, self.settings.fusion)
+        self.counts: Counter[str] = Counter()
+        self.last: Estimate | None = None
+        self.readings: list[PowerReading] = []
+        self._state: KinematicState | None = None
+        self._armed: bool | None = None
+        self._battery: BatterySample | None = None
+        self._resistance_time_s: float | None = None
+        # the open period: power-changing samples and battery readings (with the number of
+        # events before each), and when it ends
+        self._events: list[_Event] = []
+        self._pending: list[_Reading] = []
+        self._period_end_s = math.inf
+        self._power_model_w = 0.0  # in force after the last closed period's last event
+        self._steady_power_w = 0.0
+        self._time_s: float | None = None  # newest sample time (ordering)
+        self._loss_factor = 1.0
+        self._refresh_speeds()
+
+    # -- power: every prediction goes through predict_power_w ----------------------------------
+
+    def _predict(
+        self,
+        states: Sequence[KinematicState],
+        steady_speeds_mps: np.ndarray,
+        accel_centripetal_mps2: float = 0.0,
+        voltages_v: Sequence[float] = (),
+        time_s: float = 0.0,
+    ) -> np.ndarray:
+        """Model power (W): one row per kinematic state (at its battery voltage in
+        ``voltages_v``, V), then level flight at each steady speed along the current track (it
+        matters in wind) in a steady turn with a⊥ as given, at ``time_s`` and the latest
+        voltage; with the effects in use."""
+        k = len(states)
+        north, east = math.cos(self._track_rad), math.sin(self._track_rad)
+        latest_v = math.nan if self._battery is None else self._battery.voltage_v
+        rows = np.empty((k + len(steady_speeds_mps), 8))
+        if k:
+            rows[:k] = [
+                (s.time_s, s.vn_mps, s.ve_mps, s.vd_mps, s.an_mps2, s.ae_mps2, 0.0, v)
+                for s, v in zip(states, voltages_v or [latest_v] * k, strict=True)
+            ]
+        # steady rows: level, along the track, a⊥ across it
+        rows[k:] = (
+            time_s,
+            0.0,
+            0.0,
+            0.0,
+            -east * accel_centripetal_mps2,
+            north * accel_centripetal_mps2,
+            0.0,
+            latest_v,
+        )
+        rows[k:, 1] = north * steady_speeds_mps
+        rows[k:, 2] = east * steady_speeds_mps
+        flight = FlightState(*rows.T)
+        power = predict_power_w(self.vehicle.model, self.vehicle.mass_kg, flight, self.effects)
+        return np.maximum(power, 0.0)
+
+    def _refresh_speeds(self) -> None:
+        """V_me, V_mr and their powers, and hover power, with the current effects."""
+        power = self._predict((), _SPEED_GRID_MPS, time_s=self._time_s or 0.0)
+        i_me = int(np.argmin(power))
+        i_mr = int(np.argmin(power[1:] / _SPEED_GRID_MPS[1:])) + 1
+        self.v_me_mps, self.v_mr_mps = float(_SPEED_GRID_MPS[i_me]), float(_SPEED_GRID_MPS[i_mr])
+        self._p_me_w, self._p_mr_w = float(power[i_me]), float(power[i_mr])
+        self._p_hover_w = float(power[0])
+
+    def _event_powers_w(self, events: Sequence[_Event], time_s: float) -> list[float]:
+        """Model power after each of ``events`` (W), in one prediction; also sets the steady
+        power of the latest state (at ``time_s``). Disarmed: 0; armed with no kinematic state
+        yet: hover."""
+        rows = [e for e in events if e.state is not None and e.armed is not False]
+        state = self._state
+        steady = state is not None and self._armed is not False
+        predicted: list[float] = []
+        if rows or steady:
+            if state is not None and state.speed_mps > _TRACK_MIN_SPEED_MPS:
+                self._track_rad = math.atan2(state.ve_mps, state.vn_mps)
+            predicted = self._predict(
+                [e.state for e in rows if e.state is not None],
+                np.array([state.speed_mps] if steady and state is not None else []),
+                0.0 if state is None else state.accel_centripetal_mps2,
+                voltages_v=[e.voltage_v for e in rows],
+                time_s=time_s,
+            ).tolist()
+        if steady:
+            self._steady_power_w = predicted.pop()
+        else:
+            self._steady_power_w = 0.0 if self._armed is False else self._p_hover_w
+        rows_w = iter(predicted)
+        return [
+            0.0 if e.armed is False else self._p_hover_w if e.state is None else next(rows_w)
+            for e in events
+        ]
+
+    def _kinetic_sigma_w(self) -> float:
+        """1σ of the kinetic term m vᵀa from the filtered acceleration's uncertainty, W."""
+        state = self._state
+        if state is None:
+            return 0.0
+        return self.vehicle.mass_kg * state.speed_mps * state.accel_sigma_mps2
+
+    # -- samples ------------------------------------------------------------------------------
+
+    def process(self, sample: Sample) -> Estimate | None:
+        """Fold in one sample; return the new estimate when it closed a period."""
+        if isinstance(sample, VelocitySample):
+            self.counts["velocity"] += 1
+            if self._out_of_order(sample.time_s, "velocity_out_of_order"):
+                return None
+            self._state = self.kinematics.update(sample)
+            if not self.energy.initialized:
+                self.counts["velocity_before_battery"] += 1
+                return None
+            self._queue_event(sample.time_s)
+        elif isinstance(sample, BatterySample):
+            self.counts["battery"] += 1
+            if not math.isfinite(sample.voltage_v) or sample.voltage_v <= 0:
+                self.counts["battery_invalid"] += 1
+                return None
+            if self._out_of_order(sample.time_s, "battery_out_of_order"):
+                return None
+            if not self.energy.initialized:
+                self._initialize(sample)
+                return None
+            alt_m = None if self._state is None else self._state.alt_m
+            reading = _Reading(sample, len(self._events), self._armed, alt_m, self._state)
+            self._pending.append(reading)
+            self._battery = sample
+        elif isinstance(sample, ArmedSample):
+            self.counts["armed" if sample.armed else "disarmed"] += 1
+            self._armed = sample.armed
+            if self.energy.initialized:
+                self._queue_event(sample.time_s)
+            return None
+        elif isinstance(sample, RebootSample):
+            return self._reboot(sample)
+        else:
+            self.counts["unknown_sample"] += 1
+            return None
+        self._time_s = sample.time_s
+        if sample.time_s < self._period_end_s:
+            return None
+        return self._close_period(sample.time_s)
+
+    def flush(self) -> Estimate | None:
+        """Close the open period at the newest sample's time (end of a log): the estimate of
+        its samples, or None when there is nothing to close."""
+        if not self.energy.initialized or self._time_s is None:
+            return None
+        if not self._events and not self._pending:
+            return None
+        return self._close_period(self._time_s)
+
+    def _out_of_order(self, time_s: float, counter: str) -> bool:
+        if self._time_s is not None and time_s < self._time_s:
+            self.counts[counter] += 1
+            return True
+        return False
+
+    def _queue_event(self, time_s: float) -> None:
+        voltage_v = math.nan if self._battery is None else self._battery.voltage_v
+        self._events.append(_Event(time_s, self._state, self._armed, voltage_v))
+
+    def _initialize(self, sample: BatterySample) -> None:
+        """First valid battery sample: start the energy state at the model power now."""
+        self._battery = sample
+        self._time_s = sample.time_s
+        now = _Event(sample.time_s, self._state, self._armed, sample.voltage_v)
+        self._power_model_w = self._event_powers_w([now], sample.time_s)[0]
+        self.energy.initialize(sample, self._power_model_w)
+        self._resistance_time_s = sample.time_s
+        self._start_period(sample.time_s)
+        self.counts["energy_initialized"] += 1
+
+    def _start_period(self, time_s: float) -> None:
+        period = self.settings.estimate_period_s
+        self._period_end_s = (math.floor(time_s / period) + 1.0) * period
+
+    def _reboot(self, sample: RebootSample) -> Estimate | None:
+        """Close the old clock's period, then restart the kinematics on the new clock."""
+        self.counts["reboot"] += 1
+        estimate = self.flush()
+        self.kinematics.reset()
+        self._track_queue, self._track_bin, self._speeds_time_s = [], None, -math.inf
+        if self.online is not None:
+            self.online.restart_clock()
+        self._state = None
+        self._armed = None
+        self._battery = None
+        if self.energy.initialized:
+            self.energy.rebase(sample.time_s)
+            self._resistance_time_s = sample.time_s
+            self._queue_event(sample.time_s)
+            self._start_period(sample.time_s)
+        if self._time_s is not None:
+            self._time_s = sample.time_s
+        return estimate
+
+    # -- one period -----------------------------------------------------------------------------
+
+    def _close_period(self, time_s: float) -> Estimate:
+        powers_w = self._event_powers_w(self._events, time_s)
+        self._integrate(time_s, powers_w)
+        # each reading against the power in force when it arrived
+        model_w = [
+            powers_w[r.events_before - 1] if r.events_before else self._power_model_w
+            for r in self._pending
+        ]
+        if powers_w:
+            self._power_model_w = powers_w[-1]
+        self._fuse(model_w)
+        self._events, self._pending = [], []
+        self._start_period(time_s)
+        return self._emit(time_s)
+
+    def _integrate(self, time_s: float, powers_w: list[float]) -> None:
+        """Energy predict to ``time_s`` at the period's mean model power (each power holds
+        until the next event); the pack's loss factor OCV/V is the one of the last battery
+        update (it changes slowly)."""
+        start_s = self.energy.time_s
+        if time_s <= start_s:
+            return
+        energy_ws, t, p = 0.0, start_s, self._power_model_w
+        for event, power_w in zip(self._events, powers_w, strict=True):
+            if event.time_s > t:
+                energy_ws += p * (event.time_s - t)
+                t = event.time_s
+            p = power_w
+        energy_ws += p * (time_s - t)
+        self.energy.predict(time_s, energy_ws / (time_s - start_s), self._loss_factor)
+        if self._steady_power_w > 0:
+            self.energy.flight_state_changed(self._steady_power_w)
+
+    def _fuse(self, model_w: list[float]) -> None:
+        """The period's battery readings into the fusion and the online tracker; ``model_w``
+        is the model power in force when each arrived (W)."""
+        pending = self._pending
+        if not pending:
+            self.readings = []
+            return
+        # readings with a current: (queued reading, model power then, measured power)
+        scored = [
+            (r, p_w, measured_w)
+            for r, p_w in zip(pending, model_w, strict=True)
+            if (measured_w := r.sample.power_w) is not None
+        ]
+        self.readings = [
+            PowerReading(r.sample.time_s, measured_w, p_w, r.armed, r.alt_m)
+            for r, p_w, measured_w in scored
+        ]
+        powered = [(r, p_w, measured_w) for r, p_w, measured_w in scored if p_w > 0]
+        latest = pending[-1].sample
+        if powered:
+            n = len(powered)
+            self.energy.update_power(
+                sum(measured_w for _, _, measured_w in powered) / n,
+                sum(p_w for _, p_w, _ in powered) / n,
+                self._kinetic_sigma_w(),
+                n,
+            )
+            self._track_queue += [
+                TrackerReading(r.state, measured_w, r.sample.voltage_v)
+                for r, _, measured_w in powered
+                if r.state is not None
+            ]
+            self._track_effects(latest.time_s)
+        charge = [r.sample.consumed_mah for r in pending if r.sample.consumed_mah is not None]
+        if charge:
+            self.energy.update_charge(charge[-1])
+        current_a = latest.current_a
+        if current_a is None:
+            current_a = self.energy.bias * model_w[-1] / latest.voltage_v
+        assert self.energy.voltage is not None and self._resistance_time_s is not None
+        dt = max(latest.time_s - self._resistance_time_s, 0.0)
+        self._resistance_time_s = latest.time_s
+        self.energy.voltage.update(dt, self.energy.soc, latest.voltage_v, current_a)
+        self._loss_factor = self.energy.loss_factor(self.energy.bias * self._power_model_w)
+
+    def _track_effects(self, time_s: float) -> None:
+        """Follow wind and mass with the readings queued since the last tracker step, once
+        per ``track_period_s`` (after the fusion step, so each reading is fused with the
+        effects that predicted it). Tracked and file effects are scored on each step's
+        readings, as predicted before the step."""
+        online = self.online
+        if online is None or not self._track_queue:
+            return
+        track_bin = math.floor(time_s / self.settings.track_period_s)
+        if track_bin == self._track_bin:
+            return
+        self._track_bin = track_bin
+        readings, self._track_queue = self._track_queue, []
+        steps = online.steps
+        tracked = online.update_readings(readings)
+        if online.steps == steps:
+            return  # nothing used (idle, vertical motion, bad values)
+        measured_w, tracked_w, file_w = online.last_step_w
+        self._tracked_sq_w2 += _SCORE_GAIN * ((measured_w - tracked_w) ** 2 - self._tracked_sq_w2)
+        self._file_sq_w2 += _SCORE_GAIN * ((measured_w - file_w) ** 2 - self._file_sq_w2)
+        sigma = online.sigma
+        identified = max(sigma["wind_n_mps"], sigma["wind_e_mps"]) <= _TRACKED_WIND_SIGMA_MPS
+        in_use = self.effects != self.file_effects
+        if self._tracked_sq_w2 >= self._file_sq_w2:
+            chosen = self.file_effects  # the tracker went astray: the file's model is better
+        elif identified or in_use:
+            chosen = tracked
+        else:
+            return  # not identified yet: keep the file's effects (the fusion bias absorbs it)
+        if chosen == self.file_effects and not in_use:
+            return
+        self.counts["tracked_effects" if chosen is tracked else "file_effects"] += 1
+        self.effects = chosen
+        if time_s - self._speeds_time_s >= _SPEEDS_REFRESH_S:
+            self._refresh_speeds()
+            self._speeds_time_s = time_s
+
+    def _emit(self, time_s: float) -> Estimate:
+        est = self.energy.estimate()
+        state = self._state
+        steady_w = est.bias * self._steady_power_w
+        model_w = np.array([self._steady_power_w, self._p_hover_w, self._p_me_w, self._p_mr_w])
+        times_s, sigmas_s = self.energy.endurance_s(est.bias * model_w, est)
+        endurance_s, hover_s, vme_s, vmr_s = (float(x) for x in times_s)
+        endurance_sigma_s, hover_sigma_s, vme_sigma_s, vmr_sigma_s = (float(x) for x in sigmas_s)
+        battery = self._battery
+        stale = battery is None or time_s - battery.time_s > self.settings.battery_stale_s
+        voltage = self.energy.voltage
+        estimate = Estimate(
+            time_s=time_s,
+            speed_mps=0.0 if state is None else state.speed_mps,
+            accel_tangential_mps2=0.0 if state is None else state.accel_tangential_mps2,
+            accel_centripetal_mps2=0.0 if state is None else state.accel_centripetal_mps2,
+            climb_mps=0.0 if state is None else state.climb_mps,
+            power_model_w=self._power_model_w,
+            power_measured_w=None if battery is None else battery.power_w,
+            energy_remaining_wh=est.energy_wh,
+            energy_remaining_sigma_wh=est.energy_sigma_wh,
+            endurance_s=endurance_s,
+            endurance_sigma_s=endurance_sigma_s,
+            hover_endurance_s=hover_s,
+            vme_endurance_s=vme_s,
+            v_me_mps=self.v_me_mps,
+            range_vmr_m=self.v_mr_mps * vmr_s,
+            bias=est.bias,
+            bias_sigma=est.bias_sigma,
+            model_only=self.energy.model_only,
+            stale=stale,
+            soc=self.energy.soc,
+            voltage_v=math.nan if battery is None else battery.voltage_v,
+            resistance_ohm=math.nan if voltage is None else voltage.resistance_ohm,
+            steady_power_w=steady_w,
+            hover_endurance_sigma_s=hover_sigma_s,
+            vme_endurance_sigma_s=vme_sigma_s,
+            range_vmr_sigma_m=self.v_mr_mps * vmr_sigma_s,
+        )
+        self.last = estimate
+        self.counts["estimates"] += 1
+        return estimate

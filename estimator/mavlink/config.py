@@ -1,0 +1,213 @@
+"""Daemon configuration: a TOML file (``config/default.toml`` documents every key) overlaid by
+command-line flags, validated into a frozen :class:`ServiceConfig`.
+
+Every problem is one sentence in a :class:`~estimator.errors.UserError` naming the key.
+"""
+
+from __future__ import annotations
+
+import logging
+import math
+from dataclasses import dataclass, fields, replace
+from pathlib import Path
+from typing import TYPE_CHECKING, Any
+
+from estimator.errors import UserError
+from estimator.mavlink.link import parse_url
+from estimator.toml_files import read_toml
+
+if TYPE_CHECKING:
+    from estimator.estimation.pipeline import PipelineSettings
+
+LOG_LEVELS = ("debug", "info", "warning", "error")
+
+
+@dataclass(frozen=True)
+class ServiceConfig:
+    """What ``uav-energy run`` does. Rates in Hz, times in s (wall clock of the daemon).
+
+    connect: autopilot link.  publish: links towards ground stations / other programs.
+    target_system/target_component: the autopilot (0: the first autopilot HEARTBEAT).
+    system_id: our MAVLink system id (component is always 191, onboard computer).
+    request_streams: ask the autopilot for telemetry (REQUEST_DATA_STREAM and
+    SET_MESSAGE_INTERVAL) at velocity_rate_hz and battery_rate_hz.
+    publish_rate_hz: NAMED_VALUE_FLOAT and BATTERY_STATUS rate (0: with every estimate).
+    battery_id: BATTERY_STATUS id of our estimate (distinct from the autopilot's 0).
+    values_to_autopilot: also send HEARTBEAT/NAMED_VALUE_FLOAT on the connect link.
+    battery_status_to_autopilot: also send BATTERY_STATUS there (PX4 then treats it as a
+    battery of its own: only if you mean it).
+    json: "" (off), "-" (stdout) or "udp:HOST:PORT"; json_rate_hz 0: every estimate.
+    stale_after_s: no telemetry for this long marks estimates stale.
+    vehicle: vehicle TOML file ("" = the built-in default vehicle).
+    track_effects: follow wind and mass online (:mod:`estimator.estimation.online_effects`) instead
+    of
+    keeping the vehicle file's values for the whole flight.
+    log_level: debug, info, warning or error.
+    fusion: noise figures overriding :class:`~estimator.estimation.fusion.FusionSettings` defaults
+    (the ``[fusion]`` table), as (name, value) pairs.
+    """
+
+    connect: str = "udpin:0.0.0.0:14550"
+    publish: tuple[str, ...] = ()
+    target_system: int = 0
+    target_component: int = 0
+    system_id: int = 1
+    request_streams: bool = True
+    velocity_rate_hz: float = 10.0
+    battery_rate_hz: float = 2.0
+    publish_rate_hz: float = 1.0
+    battery_id: int = 9
+    values_to_autopilot: bool = False
+    battery_status_to_autopilot: bool = False
+    json: str = ""
+    json_rate_hz: float = 0.0
+    stale_after_s: float = 3.0
+    vehicle: str = ""
+    track_effects: bool = True
+    log_level: str = "info"
+    fusion: tuple[tuple[str, float], ...] = ()
+
+    def pipeline_settings(self) -> PipelineSettings:
+        """The pipeline's settings this configuration asks for."""
+        from estimator.estimation.fusion import FusionSettings
+        from estimator.estimation.pipeline import PipelineSettings
+
+        return PipelineSettings(
+            fusion=FusionSettings(**dict(self.fusion)), track_effects=self.track_effects
+        )
+
+    @property
+    def log_level_number(self) -> int:
+        return int(getattr(logging, self.log_level.upper()))
+
+
+#: TOML section and key → ServiceConfig field.
+_KEYS = {
+    ("link", "connect"): "connect",
+    ("link", "target_system"): "target_system",
+    ("link", "target_component"): "target_component",
+    ("link", "system_id"): "system_id",
+    ("link", "request_streams"): "request_streams",
+    ("link", "velocity_rate_hz"): "velocity_rate_hz",
+    ("link", "battery_rate_hz"): "battery_rate_hz",
+    ("link", "stale_after_s"): "stale_after_s",
+    ("publish", "urls"): "publish",
+    ("publish", "rate_hz"): "publish_rate_hz",
+    ("publish", "battery_id"): "battery_id",
+    ("publish", "values_to_autopilot"): "values_to_autopilot",
+    ("publish", "battery_status_to_autopilot"): "battery_status_to_autopilot",
+    ("publish", "json"): "json",
+    ("publish", "json_rate_hz"): "json_rate_hz",
+    ("vehicle", "file"): "vehicle",
+    ("vehicle", "track_effects"): "track_effects",
+    ("log", "level"): "log_level",
+}
+
+
+def load_config_file(path: str | Path) -> dict[str, Any]:
+    """Read a config TOML into ServiceConfig field values (unknown keys are errors)."""
+    doc = read_toml(path, "config")
+    values: dict[str, Any] = {}
+    for section, table in doc.items():
+        if not isinstance(table, dict):
+            raise UserError(f"config file {path}: '{section}' must be a [section]")
+        if section == "fusion":
+            values["fusion"] = table
+            continue
+        for key, value in table.items():
+            name = _KEYS.get((section, key))
+            if name is None:
+                raise UserError(f"config file {path}: unknown key [{section}] {key}")
+            values[name] = value
+    return values
+
+
+def build_config(file_values: dict[str, Any], overrides: dict[str, Any]) -> ServiceConfig:
+    """Defaults ← file values ← command-line overrides (None = not given), validated."""
+    merged = {**file_values, **{k: v for k, v in overrides.items() if v is not None}}
+    types = {f.name: str(f.type) for f in fields(ServiceConfig)}
+    checked = {name: _coerce(name, value, types[name]) for name, value in merged.items()}
+    config = replace(ServiceConfig(), **checked)
+    validate(config)
+    return config
+
+
+def _coerce(name: str, value: Any, type_name: str) -> Any:
+    if name == "fusion":
+        return _fusion_pairs(value)
+    if type_name == "tuple[str, ...]":
+        items = [value] if isinstance(value, str) else value
+        if not isinstance(items, list | tuple) or not all(isinstance(x, str) for x in items):
+            raise UserError(f"config '{name}' must be a list of connection strings")
+        return tuple(items)
+    if type_name == "bool":
+        if not isinstance(value, bool):
+            raise UserError(f"config '{name}' must be true or false, got {value!r}")
+        return value
+    if type_name == "int":
+        if isinstance(value, bool) or not isinstance(value, int):
+            raise UserError(f"config '{name}' must be an integer, got {value!r}")
+        return value
+    if type_name == "float":
+        if (
+            isinstance(value, bool)
+            or not isinstance(value, int | float)
+            or not math.isfinite(value)
+        ):
+            raise UserError(f"config '{name}' must be a finite number, got {value!r}")
+        return float(value)
+    if not isinstance(value, str):
+        raise UserError(f"config '{name}' must be a string, got {value!r}")
+    return value
+
+
+def _fusion_pairs(table: Any) -> tuple[tuple[str, float], ...]:
+    """Validate a ``[fusion]`` table: known FusionSettings names, finite numbers ≥ 0."""
+    from estimator.estimation.fusion import FusionSettings
+
+    if isinstance(table, tuple):
+        table = dict(table)
+    if not isinstance(table, dict):
+        raise UserError("config [fusion] must be a table of noise figures")
+    known = {f.name for f in fields(FusionSettings)}
+    pairs = []
+    for key, value in table.items():
+        if key not in known:
+            raise UserError(
+                f"config [fusion] has no setting '{key}' (known: {', '.join(sorted(known))})"
+            )
+        number = isinstance(value, int | float) and not isinstance(value, bool)
+        if not number or not math.isfinite(value) or value < 0:
+            raise UserError(f"config [fusion] {key} must be a finite number ≥ 0, got {value!r}")
+        pairs.append((key, float(value)))
+    return tuple(sorted(pairs))
+
+
+def validate(config: ServiceConfig) -> None:
+    """Check ranges and connection strings; one UserError per first problem found."""
+    parse_url(config.connect)
+    for url in config.publish:
+        parse_url(url)
+    for name, lo, hi in (
+        ("target_system", 0, 255),
+        ("target_component", 0, 255),
+        ("system_id", 1, 255),
+        ("battery_id", 0, 255),
+    ):
+        value = getattr(config, name)
+        if not lo <= value <= hi:
+            raise UserError(f"config '{name}' must be in [{lo}, {hi}], got {value}")
+    for name in ("velocity_rate_hz", "battery_rate_hz"):
+        if not 0 < getattr(config, name) <= 100:
+            raise UserError(f"config '{name}' must be in (0, 100] Hz")
+    for name in ("publish_rate_hz", "json_rate_hz"):
+        if not 0 <= getattr(config, name) <= 100:
+            raise UserError(f"config '{name}' must be in [0, 100] Hz (0: every estimate)")
+    if config.stale_after_s <= 0:
+        raise UserError("config 'stale_after_s' must be > 0")
+    if config.json not in ("", "-") and not config.json.startswith("udp:"):
+        raise UserError(f"config 'json' must be '', '-' or udp:HOST:PORT, got {config.json!r}")
+    if config.json.startswith("udp:"):
+        parse_url("udpout:" + config.json[4:])
+    if config.log_level not in LOG_LEVELS:
+        raise UserError(f"config 'log_level' must be one of {', '.join(LOG_LEVELS)}")

@@ -1,0 +1,559 @@
+"""asyncio MAVLink transport: UDP, TCP and serial links with pymavlink's generated codec.
+
+No ``mavutil`` (it changes process-wide state), no threads, no blocking calls on the loop.
+Connection strings follow ArduPilot/mavutil usage:
+
+- ``udpin:HOST:PORT``  bind and listen; replies go to every peer heard from (up to 16);
+- ``udpout:HOST:PORT`` send to HOST:PORT; replies arrive on our ephemeral port;
+- ``tcp:HOST:PORT``    TCP client that reconnects (1 s back-off) when the peer goes away;
+- ``tcpin:HOST:PORT``  TCP server; sends go to every connected client (used by simulators);
+- ``DEV[:BAUD]``       a serial device (``/dev/ttyACM0:115200``), raw mode, non-blocking fd,
+  reopened every second after a failure (a USB autopilot rebooting); ``serial:DEV[:BAUD]``
+  is accepted too.
+
+A link parses what it receives into pymavlink messages (bad frames are counted, never
+raised) and queues them for :meth:`MavlinkLink.recv`; a flood beyond ``max_pending``
+messages drops the oldest ones (counted). Outgoing messages are packed with the link's own
+system/component id and sequence (:attr:`MavlinkLink.mav` is that encoder)::
+
+    link = await open_link("udpin:127.0.0.1:14550", source_system=1, source_component=191)
+    link.send(link.mav.heartbeat_encode(18, 8, 0, 0, 4))
+    for msg in await link.recv():
+        ...
+    await link.close()
+"""
+
+from __future__ import annotations
+
+import asyncio
+import contextlib
+import logging
+import os
+import socket
+import termios
+import tty
+from collections import Counter, deque
+from collections.abc import Callable
+from dataclasses import dataclass
+from typing import Any
+
+from pymavlink.dialects.v20 import common as mavlink
+
+from estimator.errors import UserError
+from estimator.telemetry.decode import FrameParser
+
+log = logging.getLogger(__name__)
+
+#: Most UDP peers a ``udpin`` link answers; the oldest is forgotten beyond this.
+MAX_UDP_PEERS = 16
+#: Seconds between attempts to reconnect a TCP client or reopen a serial device.
+TCP_RECONNECT_S = 1.0
+UDP_RECEIVE_BUFFER_BYTES = 1 << 20
+DEFAULT_BAUD = 115200
+_BAUD_RATES = {
+    int(name[1:]): getattr(termios, name)
+    for name in dir(termios)
+    if name.startswith("B") and name[1:].isdigit()
+}
+
+
+@dataclass(frozen=True, slots=True)
+class LinkAddress:
+    """A parsed connection string. ``kind`` is udpin, udpout, tcp, tcpin or serial."""
+
+    kind: str
+    host: str = ""
+    port: int = 0
+    device: str = ""
+    baud: int = DEFAULT_BAUD
+
+    def __str__(self) -> str:
+        if self.kind == "serial":
+            return f"{self.device}:{self.baud}"
+        return f"{self.kind}:{self.host}:{self.port}"
+
+
+def parse_url(url: str) -> LinkAddress:
+    """Parse a connection string; a malformed one is a UserError naming the accepted forms."""
+    forms = "udpin:HOST:PORT, udpout:HOST:PORT, tcp:HOST:PORT, tcpin:HOST:PORT or DEV[:BAUD]"
+    text = url.strip()
+    kind, _, rest = text.partition(":")
+    if kind in ("udpin", "udpout", "tcp", "tcpin"):
+        host, sep, port_text = rest.rpartition(":")
+        if not sep or not host or not port_text.isdigit() or not 0 <= int(port_text) < 65536:
+            raise UserError(f"connection string {url!r} is not valid: use {forms}")
+        return LinkAddress(kind, host=host, port=int(port_text))
+    if kind == "serial":
+        text = rest
+    device, sep, baud_text = text.rpartition(":")
+    if not sep:
+        device, baud_text = text, str(DEFAULT_BAUD)
+    if not device.startswith("/") or not baud_text.isdigit():
+        raise UserError(f"connection string {url!r} is not valid: use {forms}")
+    if int(baud_text) not in _BAUD_RATES:
+        raise UserError(f"serial baud rate {baud_text} in {url!r} is not a standard rate")
+    return LinkAddress("serial", device=device, baud=int(baud_text))
+
+
+class MavlinkLink:
+    """One MAVLink connection: received messages queue up for :meth:`recv`; :meth:`send`
+    packs with our ids. Counters: ``counts['bad_frames']``, ``['dropped']`` (queue overflow),
+    ``['rx_messages']``, ``['tx_messages']``, ``['tx_dropped']`` (no peer / not connected),
+    ``['reconnects']``."""
+
+    def __init__(
+        self,
+        address: LinkAddress,
+        source_system: int,
+        source_component: int,
+        max_pending: int,
+    ) -> None:
+        self.address = address
+        self.mav = mavlink.MAVLink(None, srcSystem=source_system, srcComponent=source_component)
+        self.counts: Counter[str] = Counter()
+        self._pending: deque[mavlink.MAVLink_message] = deque()
+        self._max_pending = max_pending
+        self._ready = asyncio.Event()
+        self._closed = False
+        self._transport: _Transport | None = None
+        self._listener: Callable[[list[mavlink.MAVLink_message]], None] | None = None
+
+    @property
+    def url(self) -> str:
+        return str(self.address)
+
+    @property
+    def local_address(self) -> tuple[str, int] | None:
+        """(host, port) we listen on for udpin/tcpin/udpout (useful after binding port 0)."""
+        return None if self._transport is None else self._transport.local_address()
+
+    @property
+    def bad_frames(self) -> int:
+        return self.counts["bad_frames"]
+
+    @property
+    def closed(self) -> bool:
+        return self._closed
+
+    # -- receiving --------------------------------------------------------------------------
+
+    def _deliver(self, messages: list[mavlink.MAVLink_message], bad_frames: int) -> None:
+        """Called by the transport with each parsed chunk."""
+        if bad_frames:
+            self.counts["bad_frames"] += bad_frames
+        if not messages:
+            return
+        self.counts["rx_messages"] += len(messages)
+        if self._listener is not None:
+            self._listener(messages)
+            return
+        self._pending.extend(messages)
+        overflow = len(self._pending) - self._max_pending
+        if overflow > 0:
+            for _ in range(overflow):
+                self._pending.popleft()
+            self.counts["dropped"] += overflow
+        self._ready.set()
+
+    def set_listener(
+        self, listener: Callable[[list[mavlink.MAVLink_message]], None] | None
+    ) -> None:
+        """Hand each parsed chunk to ``listener`` as it arrives, in the transport's callback
+        (no queue, no task switch: the lowest latency); None goes back to :meth:`recv`.
+        The listener must not block and should not raise."""
+        self._listener = listener
+
+    async def recv(self) -> list[mavlink.MAVLink_message]:
+        """Wait for at least one message and return everything queued, oldest first.
+
+        Returns an empty list once the link is closed.
+        """
+        while not self._pending and not self._closed:
+            self._ready.clear()
+            await self._ready.wait()
+        out = list(self._pending)
+        self._pending.clear()
+        return out
+
+    # -- sending ----------------------------------------------------------------------------
+
+    def send(self, msg: mavlink.MAVLink_message) -> None:
+        """Pack ``msg`` with this link's system/component id and sequence, and send it."""
+        self.send_bytes(msg.pack(self.mav))
+
+    def send_bytes(self, data: bytes) -> None:
+        """Send raw bytes (already-packed frames, or anything a test wants to inject)."""
+        if self._closed or self._transport is None or not self._transport.write(data):
+            self.counts["tx_dropped"] += 1
+            return
+        self.counts["tx_messages"] += 1
+
+    async def close(self) -> None:
+        """Close the link; pending :meth:`recv` calls return an empty list."""
+        if self._closed:
+            return
+        self._closed = True
+        self._ready.set()
+        if self._transport is not None:
+            await self._transport.close()
+
+
+async def open_link(
+    url: str,
+    *,
+    source_system: int = 1,
+    source_component: int = mavlink.MAV_COMP_ID_ONBOARD_COMPUTER,
+    max_pending: int = 10_000,
+) -> MavlinkLink:
+    """Open a link from a connection string (see the module docstring).
+
+    Failing to bind or open a device is a UserError; a ``tcp`` client that cannot connect yet
+    keeps trying in the background (sends are dropped and counted meanwhile).
+    """
+    address = parse_url(url)
+    link = MavlinkLink(address, source_system, source_component, max_pending)
+    opener = {
+        "udpin": _UdpTransport.open,
+        "udpout": _UdpTransport.open,
+        "tcp": _TcpClientTransport.open,
+        "tcpin": _TcpServerTransport.open,
+        "serial": _SerialTransport.open,
+    }[address.kind]
+    try:
+        link._transport = await opener(link)
+    except OSError as exc:
+        raise UserError(f"cannot open {url}: {exc.strerror or exc}") from None
+    return link
+
+
+# -- transports ---------------------------------------------------------------------------------
+
+
+class _Transport:
+    async def close(self) -> None:
+        raise NotImplementedError
+
+    def local_address(self) -> tuple[str, int] | None:
+        return None
+
+    def write(self, data: bytes) -> bool:
+        """Queue ``data`` for sending; False when there is nowhere to send it."""
+        raise NotImplementedError
+
+
+class _StreamProtocol(asyncio.Protocol):
+    """A byte stream (TCP connection) with its own frame parser."""
+
+    def __init__(self, link: MavlinkLink, on_lost: Any = None) -> None:
+        self.link = link
+        self.parser = FrameParser()
+        self.transport: asyncio.Transport | None = None
+        self.lost = asyncio.get_running_loop().create_future()
+        self._on_lost = on_lost
+
+    def connection_made(self, transport: asyncio.BaseTransport) -> None:
+        assert isinstance(transport, asyncio.Transport)
+        self.transport = transport
+
+    def data_received(self, data: bytes) -> None:
+        before = self.parser.bad_frames
+        messages = self.parser.feed(data)
+        self.link._deliver(messages, self.parser.bad_frames - before)
+
+    def connection_lost(self, exc: Exception | None) -> None:
+        self.transport = None
+        if not self.lost.done():
+            self.lost.set_result(None)
+        if self._on_lost is not None:
+            self._on_lost(self)
+
+
+class _DatagramProtocol(asyncio.DatagramProtocol):
+    """Each datagram is parsed on its own, so a truncated frame never swallows the next one."""
+
+    def __init__(self, link: MavlinkLink, peers: dict[Any, None] | None) -> None:
+        self.link = link
+        self.peers = peers
+
+    def datagram_received(self, data: bytes, addr: Any) -> None:
+        parser = FrameParser()
+        messages = parser.feed(data)
+        self.link._deliver(messages, parser.bad_frames)
+        if self.peers is not None and messages:
+            if addr in self.peers:
+                return
+            self.peers[addr] = None
+            if len(self.peers) > MAX_UDP_PEERS:
+                del self.peers[next(iter(self.peers))]
+
+    def error_received(self, exc: Exception) -> None:
+        # ICMP port unreachable from a peer that went away: count, keep going.
+        self.link.counts["socket_errors"] += 1
+
+
+class _UdpTransport(_Transport):
+    def __init__(self, transport: asyncio.DatagramTransport, peers: dict[Any, None] | None):
+        self.transport = transport
+        self.peers = peers
+
+    @classmethod
+    async def open(cls, link: MavlinkLink) -> _UdpTransport:
+        loop = asyncio.get_running_loop()
+        addr = link.address
+        peers: dict[Any, None] | None = {} if addr.kind == "udpin" else None
+        if addr.kind == "udpin":
+            transport, _ = await loop.create_datagram_endpoint(
+                lambda: _DatagramProtocol(link, peers), local_addr=(addr.host, addr.port)
+            )
+            sock = transport.get_extra_info("socket")
+            if sock is not None:  # absorb bursts while the loop is busy (kernel may cap it)
+                sock.setsockopt(socket.SOL_SOCKET, socket.SO_RCVBUF, UDP_RECEIVE_BUFFER_BYTES)
+        else:
+            transport, _ = await loop.create_datagram_endpoint(
+                lambda: _DatagramProtocol(link, None), remote_addr=(addr.host, addr.port)
+            )
+        return cls(transport, peers)
+
+    def write(self, data: bytes) -> bool:
+        if self.peers is None:
+            self.transport.sendto(data)
+            return True
+        for peer in self.peers:
+            self.transport.sendto(data, peer)
+        return bool(self.peers)
+
+    def local_address(self) -> tuple[str, int] | None:
+        host, port = self.transport.get_extra_info("sockname")[:2]
+        return str(host), int(port)
+
+    async def close(self) -> None:
+        self.transport.close()
+
+
+class _TcpClientTransport(_Transport):
+    """Connects, and reconnects after a loss, until closed."""
+
+    def __init__(self, link: MavlinkLink) -> None:
+        self.link = link
+        self.protocol: _StreamProtocol | None = None
+        self.task: asyncio.Task[None] | None = None
+
+    @classmethod
+    async def open(cls, link: MavlinkLink) -> _TcpClientTransport:
+        self = cls(link)
+        self.task = asyncio.get_running_loop().create_task(self._run())
+        return self
+
+    async def _run(self) -> None:
+        loop = asyncio.get_running_loop()
+        addr = self.link.address
+        first = True
+        while not self.link.closed:
+            try:
+                _, protocol = await loop.create_connection(
+                    lambda: _StreamProtocol(self.link), addr.host, addr.port
+                )
+            except OSError as exc:
+                if first:
+                    log.warning(
+                        "tcp %s:%d: cannot connect (%s), retrying", addr.host, addr.port, exc
+                    )
+                first = False
+                await asyncio.sleep(TCP_RECONNECT_S)
+                continue
+            log.info("tcp %s:%d: connected", addr.host, addr.port)
+            self.protocol = protocol
+            await protocol.lost
+            self.protocol = None
+            if self.link.closed:
+                return
+            self.link.counts["reconnects"] += 1
+            log.warning("tcp %s:%d: connection lost, reconnecting", addr.host, addr.port)
+            first = True
+            await asyncio.sleep(TCP_RECONNECT_S)
+
+    def write(self, data: bytes) -> bool:
+        protocol = self.protocol
+        if protocol is None or protocol.transport is None:
+            return False
+        protocol.transport.write(data)
+        return True
+
+    async def close(self) -> None:
+        if self.protocol is not None and self.protocol.transport is not None:
+            self.protocol.transport.close()
+        if self.task is not None:
+            self.task.cancel()
+            with contextlib.suppress(asyncio.CancelledError):
+                await self.task
+
+
+class _TcpServerTransport(_Transport):
+    """Accepts any number of clients; sends go to all of them."""
+
+    def __init__(self, link: MavlinkLink) -> None:
+        self.link = link
+        self.clients: set[_StreamProtocol] = set()
+        self.server: asyncio.Server | None = None
+
+    @classmethod
+    async def open(cls, link: MavlinkLink) -> _TcpServerTransport:
+        self = cls(link)
+        loop = asyncio.get_running_loop()
+
+        def factory() -> _StreamProtocol:
+            protocol = _StreamProtocol(link, on_lost=self.clients.discard)
+            self.clients.add(protocol)
+            return protocol
+
+        self.server = await loop.create_server(
+            factory, link.address.host, link.address.port, reuse_address=True
+        )
+        return self
+
+    def write(self, data: bytes) -> bool:
+        sent = False
+        for client in list(self.clients):
+            if client.transport is not None:
+                client.transport.write(data)
+                sent = True
+        return sent
+
+    def local_address(self) -> tuple[str, int] | None:
+        assert self.server is not None
+        host, port = self.server.sockets[0].getsockname()[:2]
+        return str(host), int(port)
+
+    async def close(self) -> None:
+        for client in list(self.clients):
+            if client.transport is not None:
+                client.transport.close()
+        if self.server is not None:
+            self.server.close()
+            await self.server.wait_closed()
+
+
+def _open_tty(device: str, baud: int) -> int:
+    """Open ``device`` raw, non-blocking, at ``baud``; OSError when it is not a tty."""
+    fd = os.open(device, os.O_RDWR | os.O_NOCTTY | os.O_NONBLOCK)
+    try:
+        tty.setraw(fd)
+        attrs = termios.tcgetattr(fd)
+        attrs[4] = attrs[5] = _BAUD_RATES[baud]  # ispeed, ospeed
+        attrs[2] |= termios.CLOCAL | termios.CREAD
+        termios.tcsetattr(fd, termios.TCSANOW, attrs)
+    except termios.error as exc:
+        os.close(fd)
+        raise OSError(f"{device} is not a serial port ({exc})") from None
+    return fd
+
+
+class _SerialTransport(_Transport):
+    """A tty in raw mode on a non-blocking fd, read with ``loop.add_reader``.
+
+    When the device fails or hangs up (a USB autopilot rebooting), it is closed and reopened
+    every second until it is back (``counts['reconnects']``)."""
+
+    def __init__(self, link: MavlinkLink, fd: int) -> None:
+        self.link = link
+        self.fd: int | None = None
+        self.parser = FrameParser()
+        self.out = bytearray()
+        self.loop = asyncio.get_running_loop()
+        self.reopen_task: asyncio.Task[None] | None = None
+        self._attach(fd)
+
+    @classmethod
+    async def open(cls, link: MavlinkLink) -> _SerialTransport:
+        return cls(link, _open_tty(link.address.device, link.address.baud))
+
+    def _attach(self, fd: int) -> None:
+        self.fd = fd
+        self.parser = FrameParser()
+        self.loop.add_reader(fd, self._readable)
+
+    def _detach(self, reason: str) -> None:
+        """Drop the fd after a failure and start reopening the device."""
+        if self.fd is None:
+            return
+        log.warning("serial %s: %s, reopening", self.link.address.device, reason)
+        self.link.counts["socket_errors"] += 1
+        self._close_fd()
+        if not self.link.closed:
+            self.reopen_task = self.loop.create_task(self._reopen())
+
+    async def _reopen(self) -> None:
+        addr = self.link.address
+        while not self.link.closed:
+            await asyncio.sleep(TCP_RECONNECT_S)
+            try:
+                fd = _open_tty(addr.device, addr.baud)
+            except OSError:
+                continue
+            self.link.counts["reconnects"] += 1
+            log.info("serial %s: reopened", addr.device)
+            self._attach(fd)
+            return
+
+    def _readable(self) -> None:
+        assert self.fd is not None
+        try:
+            data = os.read(self.fd, 4096)
+        except BlockingIOError:
+            return
+        except OSError as exc:
+            self._detach(f"read failed ({exc.strerror or exc})")
+            return
+        if not data:
+            self._detach("hung up")
+            return
+        before = self.parser.bad_frames
+        messages = self.parser.feed(data)
+        self.link._deliver(messages, self.parser.bad_frames - before)
+
+    def write(self, data: bytes) -> bool:
+        if self.fd is None:
+            return False
+        if self.out:
+            self.out.extend(data)
+            return True
+        try:
+            n = os.write(self.fd, data)
+        except BlockingIOError:
+            n = 0
+        except OSError:
+            return False
+        if n < len(data):
+            self.out.extend(data[n:])
+            self.loop.add_writer(self.fd, self._writable)
+        return True
+
+    def _writable(self) -> None:
+        assert self.fd is not None
+        try:
+            n = os.write(self.fd, self.out)
+        except BlockingIOError:
+            return
+        except OSError:
+            self.out.clear()
+            n = 0
+        del self.out[:n]
+        if not self.out:
+            self.loop.remove_writer(self.fd)
+
+    def _close_fd(self) -> None:
+        if self.fd is None:
+            return
+        self.loop.remove_reader(self.fd)
+        if self.out:
+            self.loop.remove_writer(self.fd)
+            self.out.clear()
+        os.close(self.fd)
+        self.fd = None
+
+    async def close(self) -> None:
+        if self.reopen_task is not None:
+            self.reopen_task.cancel()
+            with contextlib.suppress(asyncio.CancelledError):
+                await self.reopen_task
+        self._close_fd()

@@ -1,0 +1,343 @@
+"""The onboard daemon: autopilot link in, :class:`Pipeline`, estimates out (asyncio, one thread).
+
+Messages are handled in the link's receive callback as their datagram arrives (decode →
+pipeline → JSON lines; no queue, no task switch). Tasks: publish (NAMED_VALUE_FLOAT and
+BATTERY_STATUS at the configured rate), heartbeat + watchdog (1 Hz: our HEARTBEAT, stale
+detection, stream requests until telemetry flows, counters of bad input), and a drain per
+output link. Wall clock is used only for these timers; the estimates run on the autopilot's
+clock.
+One log line per event: autopilot found, streams requested, energy initialized, model-only
+mode, reboot, link silent (stale) / resumed, bad frames and floods (at most one line per
+10 s each).
+"""
+
+from __future__ import annotations
+
+import asyncio
+import contextlib
+import gc
+import logging
+import signal
+import sys
+from dataclasses import replace
+
+from pymavlink.dialects.v20 import common as mavlink
+
+from estimator.estimation.pipeline import Estimate, Pipeline, PipelineSettings
+from estimator.mavlink import publish
+from estimator.mavlink.config import ServiceConfig
+from estimator.mavlink.link import MavlinkLink, open_link, parse_url
+from estimator.physics.vehicle import Vehicle
+from estimator.telemetry.decode import TelemetryDecoder
+
+log = logging.getLogger("uav_energy.service")
+
+OWN_COMPONENT = mavlink.MAV_COMP_ID_ONBOARD_COMPUTER
+#: Seconds between stream requests while telemetry is missing.
+REQUEST_RETRY_S = 5.0
+#: Seconds between "bad input" log lines.
+COUNTER_LOG_S = 10.0
+#: JSON lines waiting for a slow stdout reader beyond this are dropped (counted).
+JSON_BUFFER_LIMIT_BYTES = 1 << 20
+_STREAMS = (
+    (mavlink.MAVLINK_MSG_ID_GLOBAL_POSITION_INT, "velocity"),
+    (mavlink.MAVLINK_MSG_ID_LOCAL_POSITION_NED, "velocity"),
+    (mavlink.MAVLINK_MSG_ID_SYS_STATUS, "battery"),
+    (mavlink.MAVLINK_MSG_ID_BATTERY_STATUS, "battery"),
+)
+
+
+class Service:
+    """One daemon instance. ``await run(stop)`` until ``stop`` is set (or a signal arrives)."""
+
+    def __init__(
+        self,
+        config: ServiceConfig,
+        vehicle: Vehicle,
+        settings: PipelineSettings | None = None,
+    ) -> None:
+        self.config = config
+        if settings is None:
+            settings = config.pipeline_settings()
+        self.pipeline = Pipeline(vehicle, settings)
+        target = None
+        if config.target_system:
+            target = (config.target_system, config.target_component or 1)
+        self.decoder = TelemetryDecoder(target=target, own=(config.system_id, OWN_COMPONENT))
+        self.latest: Estimate | None = None
+        self.stale = False
+        self.internal_errors = 0
+        self.link: MavlinkLink | None = None
+        self.outputs: list[MavlinkLink] = []
+        self._json_udp: asyncio.DatagramTransport | None = None
+        self._json_pipe: asyncio.WriteTransport | None = None
+        self.json_dropped = 0
+        self._last_rx_s: float | None = None
+        self._last_json_s = -1e9
+        self._last_request_s = -1e9
+        self._streams_ok = False
+        self._logged: dict[str, tuple[int, float]] = {}
+        # BATTERY_STATUS.battery_remaining is a share of a full pack's usable energy.
+        self._full_usable_wh = float(self.pipeline.pack.usable_energy_wh(1.0))
+
+    # -- lifecycle --------------------------------------------------------------------------
+
+    async def run(self, stop: asyncio.Event | None = None) -> int:
+        """Open the links, run until ``stop`` (or SIGINT/SIGTERM), close everything."""
+        stop = stop or asyncio.Event()
+        loop = asyncio.get_running_loop()
+        installed = []
+        for sig in (signal.SIGINT, signal.SIGTERM):
+            with contextlib.suppress(NotImplementedError, RuntimeError):
+                loop.add_signal_handler(sig, stop.set)
+                installed.append(sig)
+        cfg = self.config
+        self.link = await open_link(cfg.connect, source_system=cfg.system_id)
+        try:
+            for url in cfg.publish:
+                self.outputs.append(await open_link(url, source_system=cfg.system_id))
+            if cfg.json.startswith("udp:"):
+                addr = parse_url("udpout:" + cfg.json[4:])
+                self._json_udp, _ = await loop.create_datagram_endpoint(
+                    asyncio.DatagramProtocol, remote_addr=(addr.host, addr.port)
+                )
+            elif cfg.json == "-":
+                self._json_pipe = await _stdout_transport()
+            log.info(
+                "started: autopilot link %s, %d output(s), vehicle %s",
+                cfg.connect,
+                len(self.outputs),
+                self.pipeline.vehicle.name,
+            )
+            self.link.set_listener(self._on_messages)
+            gc.freeze()  # start-up objects (modules, codecs) leave the collector's scans
+            tasks = [
+                loop.create_task(self._publish_loop()),
+                loop.create_task(self._heartbeat_loop()),
+                *(loop.create_task(_drain(out)) for out in self.outputs),
+            ]
+            await stop.wait()
+            for task in tasks:
+                task.cancel()
+            for task in tasks:
+                with contextlib.suppress(asyncio.CancelledError):
+                    await task
+            if (last := self.pipeline.flush()) is not None:  # the samples of the open period
+                self._deliver(last, loop.time())
+        finally:
+            for link in [self.link, *self.outputs]:
+                await link.close()
+            if self._json_udp is not None:
+                self._json_udp.close()
+            if self._json_pipe is not None:
+                self._json_pipe.close()
+            for sig in installed:
+                loop.remove_signal_handler(sig)
+        log.info("stopped: %s", _format_counts(self.counters()))
+        return 0
+
+    def counters(self) -> dict[str, int]:
+        """Everything counted so far: link, decoder and pipeline counters."""
+        out: dict[str, int] = {}
+        if self.link is not None:
+            out.update({f"link_{k}": v for k, v in self.link.counts.items()})
+        out.update({f"decode_{k}": v for k, v in self.decoder.counts.items()})
+        out.update({f"pipeline_{k}": v for k, v in self.pipeline.counts.items()})
+        out.update(internal_errors=self.internal_errors, json_dropped=self.json_dropped)
+        return out
+
+    # -- receive ----------------------------------------------------------------------------
+
+    def _on_messages(self, messages: list[mavlink.MAVLink_message]) -> None:
+        """Link listener: handle each message as its datagram arrives."""
+        now_s = asyncio.get_running_loop().time()
+        for msg in messages:
+            try:
+                self._handle(msg, now_s)
+            except Exception as exc:  # never die on one message: log it, count, go on
+                self.internal_errors += 1
+                if self.internal_errors <= 10 or self.internal_errors % 1000 == 0:
+                    log.error(
+                        "internal error #%d on %s skipped: %r",
+                        self.internal_errors,
+                        msg.get_type(),
+                        exc,
+                    )
+
+    def _handle(self, msg: mavlink.MAVLink_message, now_s: float) -> None:
+        had_target = self.decoder.target is not None
+        reboots = self.decoder.counts["reboots"]
+        samples = self.decoder.decode(msg)
+        if not had_target and self.decoder.target is not None:
+            log.info("autopilot found: system %d component %d", *self.decoder.target)
+            self._request_streams(now_s)
+        if self.decoder.counts["reboots"] != reboots:
+            log.warning("autopilot rebooted (clock went back to %.1f s)", self.decoder.clock_s)
+            self._streams_ok = False
+            self._request_streams(now_s)
+        if not samples:
+            return
+        self._last_rx_s = now_s
+        if self.stale:
+            self.stale = False
+            log.info("telemetry resumed: estimates live again")
+        was_initialized = self.pipeline.energy.initialized
+        for sample in samples:
+            estimate = self.pipeline.process(sample)
+            if estimate is not None:
+                self._deliver(estimate, now_s)
+        if not was_initialized and self.pipeline.energy.initialized:
+            log.info("energy initialized: SoC %.0f %%", 100 * self.pipeline.energy.soc)
+        if (
+            self.latest is not None
+            and not self._streams_ok
+            and self.pipeline.counts["velocity"]
+            and self.pipeline.counts["battery"]
+        ):
+            self._streams_ok = True
+            mode = "model only (no current sensor)" if self.latest.model_only else "fused"
+            log.info("telemetry flowing: estimating, %s", mode)
+
+    def _request_streams(self, now_s: float) -> None:
+        """REQUEST_DATA_STREAM (ArduPilot) and SET_MESSAGE_INTERVAL (both stacks)."""
+        if not self.config.request_streams or self.link is None or self.decoder.target is None:
+            return
+        self._last_request_s = now_s
+        sysid, compid = self.decoder.target
+        mav, cfg = self.link.mav, self.config
+        for stream, rate in (
+            (mavlink.MAV_DATA_STREAM_POSITION, cfg.velocity_rate_hz),
+            (mavlink.MAV_DATA_STREAM_EXTENDED_STATUS, cfg.battery_rate_hz),
+        ):
+            self.link.send(mav.request_data_stream_encode(sysid, compid, stream, round(rate), 1))
+        for msg_id, kind in _STREAMS:
+            rate = cfg.velocity_rate_hz if kind == "velocity" else cfg.battery_rate_hz
+            self.link.send(
+                mav.command_long_encode(
+                    sysid,
+                    compid,
+                    mavlink.MAV_CMD_SET_MESSAGE_INTERVAL,
+                    0,
+                    msg_id,
+                    1e6 / rate,
+                    0,
+                    0,
+                    0,
+                    0,
+                    0,
+                )
+            )
+        log.info(
+            "streams requested: velocity %.0f Hz, battery %.1f Hz",
+            cfg.velocity_rate_hz,
+            cfg.battery_rate_hz,
+        )
+
+    # -- publish ----------------------------------------------------------------------------
+
+    def _current(self) -> Estimate | None:
+        if self.latest is not None and self.stale and not self.latest.stale:
+            return replace(self.latest, stale=True)
+        return self.latest
+
+    def _deliver(self, estimate: Estimate, now_s: float) -> None:
+        """A new estimate: keep it for the publish loop, send it now where configured."""
+        self.latest = estimate
+        if self.config.publish_rate_hz == 0:
+            self._publish(estimate)
+        if self.config.json and (
+            self.config.json_rate_hz == 0
+            or now_s - self._last_json_s >= 1.0 / self.config.json_rate_hz
+        ):
+            self._last_json_s = now_s
+            self._write_json(estimate)
+
+    def _publish(self, estimate: Estimate) -> None:
+        cfg = self.config
+        targets = list(self.outputs)
+        if cfg.values_to_autopilot and self.link is not None:
+            targets.append(self.link)
+        for link in targets:
+            for msg in publish.named_values(link, estimate):
+                link.send(msg)
+            if link is not self.link or cfg.battery_status_to_autopilot:
+                link.send(
+                    publish.battery_status(link, estimate, cfg.battery_id, self._full_usable_wh)
+                )
+
+    def _write_json(self, estimate: Estimate) -> None:
+        """One estimate as a JSON object: a datagram each over UDP, a line on stdout."""
+        line = publish.json_line(estimate)
+        if self._json_udp is not None:
+            self._json_udp.sendto(line.encode())
+        elif self._json_pipe is not None:
+            # never block the loop on a slow reader: drop lines beyond the buffer limit
+            if self._json_pipe.get_write_buffer_size() > JSON_BUFFER_LIMIT_BYTES:
+                self.json_dropped += 1
+                return
+            self._json_pipe.write((line + "\n").encode())
+        else:  # stdout is a regular file: a blocking write, but a file never stalls long
+            sys.stdout.write(line + "\n")
+            sys.stdout.flush()
+
+    async def _publish_loop(self) -> None:
+        rate = self.config.publish_rate_hz
+        if rate == 0:
+            return
+        while True:
+            await asyncio.sleep(1.0 / rate)
+            estimate = self._current()
+            if estimate is not None:
+                self._publish(estimate)
+
+    async def _heartbeat_loop(self) -> None:
+        loop = asyncio.get_running_loop()
+        while True:
+            estimate = self._current()
+            for link in [*self.outputs, self.link]:
+                if link is not None:
+                    link.send(publish.heartbeat(link, estimate))
+            self._watchdog(loop.time())
+            await asyncio.sleep(1.0)
+
+    def _watchdog(self, now_s: float) -> None:
+        silent_s = None if self._last_rx_s is None else now_s - self._last_rx_s
+        if silent_s is not None and silent_s > self.config.stale_after_s and not self.stale:
+            self.stale = True
+            log.warning("link silent for %.1f s: estimates marked stale", silent_s)
+            if self.config.publish_rate_hz == 0 and (estimate := self._current()) is not None:
+                self._publish(estimate)
+        if (
+            not self._streams_ok
+            and self.decoder.target is not None
+            and now_s - self._last_request_s >= REQUEST_RETRY_S
+        ):
+            self._request_streams(now_s)
+        if self.link is None:
+            return
+        for key, what in (("bad_frames", "bad frames"), ("dropped", "messages dropped (flood)")):
+            value = self.link.counts[key]
+            logged_value, logged_s = self._logged.get(key, (0, -1e9))
+            if value != logged_value and now_s - logged_s >= COUNTER_LOG_S:
+                log.warning("%d %s so far (input skipped)", value, what)
+                self._logged[key] = (value, now_s)
+
+
+async def _stdout_transport() -> asyncio.WriteTransport | None:
+    """A non-blocking transport on stdout (pipe, socket, tty); None for a regular file."""
+    loop = asyncio.get_running_loop()
+    try:
+        transport, _ = await loop.connect_write_pipe(asyncio.Protocol, sys.stdout)
+    except (ValueError, OSError, AttributeError):
+        return None
+    return transport
+
+
+async def _drain(link: MavlinkLink) -> None:
+    """Consume what an output link receives (GCS heartbeats), so its queue stays empty."""
+    while await link.recv():
+        pass
+
+
+def _format_counts(counts: dict[str, int]) -> str:
+    return ", ".join(f"{k}={v}" for k, v in sorted(counts.items()) if v) or "nothing received"

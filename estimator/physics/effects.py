@@ -1,0 +1,456 @@
+"""Power effects the base model lacks, and the one function that predicts power from state.
+
+:func:`predict_power_w` is the single place where electrical power is predicted from a flight
+state: the pipeline, the residual tool and the simulator's hidden truth all call it. It works
+on whole arrays (vectorized numpy) in this order:
+
+1. *frame* effects change what the model sees: ``wind`` turns ground velocity into air
+   velocity, ``mass`` and ``air_density`` rescale the model (Zeng et al.'s W and ρ laws,
+   :meth:`PowerModel.rescaled`);
+2. eq. (2) of the seed paper at horizontal airspeed V with centripetal acceleration a⊥ (both
+   in the air-mass frame), plus the kinetic term m vᵀa;
+3. *propulsion* effects add power the rotors need: ``climb``, ``acceleration``, ``turn``;
+4. *electrical* effects act at the battery: ``voltage`` (wiring/ESC losses that grow as the
+   pack sags), ``avionics`` (a constant or stepped load).
+
+Each effect is a frozen dataclass whose fields are its parameters (names are part of the
+output format, see ``docs/sim.md``). ``at_s`` parameters are times on the flight's own clock
+(the ``time_s`` of the :class:`FlightState`), ``None`` meaning "from the start".
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Mapping, Sequence
+from dataclasses import asdict, dataclass, fields, replace
+from typing import Any, ClassVar
+
+import numpy as np
+from numpy.typing import ArrayLike
+
+from estimator.errors import UserError
+from estimator.physics.kinematics import centripetal_accel_mps2
+from estimator.physics.model import G_MPS2, SEA_LEVEL_DENSITY_KGPM3, FloatArray, PowerModel
+
+
+def _arr(x: ArrayLike) -> FloatArray:
+    return np.asarray(x, dtype=float)
+
+
+@dataclass(frozen=True)
+class FlightState:
+    """Flight state over time, all arrays of the same length.
+
+    time_s: flight clock (autopilot time), s.  vn/ve/vd_mps: velocity over ground, NED, m/s.
+    an/ae_mps2: horizontal acceleration over ground, NED, m/s².  alt_m: altitude above home, m.
+    voltage_v: battery terminal voltage, V (NaN where unknown; only ``voltage`` uses it).
+    """
+
+    time_s: FloatArray
+    vn_mps: FloatArray
+    ve_mps: FloatArray
+    vd_mps: FloatArray
+    an_mps2: FloatArray
+    ae_mps2: FloatArray
+    alt_m: FloatArray
+    voltage_v: FloatArray
+
+    def __post_init__(self) -> None:
+        n = len(self.time_s)
+        for name in _FLIGHT_STATE_FIELDS:
+            value = _arr(getattr(self, name))
+            if value.shape != (n,):
+                raise ValueError(f"FlightState.{name} has shape {value.shape}, expected ({n},)")
+            object.__setattr__(self, name, value)
+
+    def __len__(self) -> int:
+        return len(self.time_s)
+
+    @classmethod
+    def from_velocity(
+        cls,
+        time_s: ArrayLike,
+        vn_mps: ArrayLike,
+        ve_mps: ArrayLike,
+        vd_mps: ArrayLike,
+        alt_m: ArrayLike | None = None,
+        voltage_v: ArrayLike | None = None,
+    ) -> FlightState:
+        """State from sampled velocity; acceleration by central differences (np.gradient).
+
+        Needs at least two samples with strictly increasing times. Smooth noisy velocity
+        first if the accelerations matter.
+        """
+        t = _arr(time_s)
+        vn, ve = _arr(vn_mps), _arr(ve_mps)
+        nan = np.full(t.shape, np.nan)
+        return cls(
+            time_s=t,
+            vn_mps=vn,
+            ve_mps=ve,
+            vd_mps=_arr(vd_mps),
+            an_mps2=np.gradient(vn, t),
+            ae_mps2=np.gradient(ve, t),
+            alt_m=nan if alt_m is None else _arr(alt_m),
+            voltage_v=nan if voltage_v is None else _arr(voltage_v),
+        )
+
+
+_FLIGHT_STATE_FIELDS = tuple(f.name for f in fields(FlightState))
+
+
+@dataclass
+class PowerContext:
+    """Intermediate quantities of one prediction, shared by the effects (arrays per sample).
+
+    air_vn/air_ve_mps: horizontal velocity relative to the air, NED, m/s.
+    mass_kg: actual mass. mass_ratio: mass over the vehicle file's. density_ratio: ρ / ρ₀.
+    speed_mps, accel_centripetal_mps2: airspeed V and a⊥ used by eq. (2).
+    propulsion_w: power the rotors draw so far (eq. (2) + kinetic + propulsion effects), W.
+    """
+
+    state: FlightState
+    model: PowerModel
+    air_vn_mps: FloatArray
+    air_ve_mps: FloatArray
+    mass_kg: FloatArray
+    mass_ratio: FloatArray
+    density_ratio: float = 1.0
+    speed_mps: FloatArray | None = None
+    accel_centripetal_mps2: FloatArray | None = None
+    hover_induced_velocity_mps: FloatArray | None = None
+    propulsion_w: FloatArray | None = None
+
+
+def _step(time_s: FloatArray, at_s: float | None) -> FloatArray:
+    """1 from ``at_s`` on (everywhere when None), else 0."""
+    if at_s is None:
+        return np.ones_like(time_s)
+    return (time_s >= at_s).astype(float)
+
+
+@dataclass(frozen=True)
+class Effect:
+    """Base class: a named term with a few physical parameters (the dataclass fields)."""
+
+    name: ClassVar[str] = ""
+    #: Plausible range of each continuous parameter, for fitters (inclusive).
+    bounds: ClassVar[dict[str, tuple[float, float]]] = {}
+
+    @property
+    def params(self) -> dict[str, Any]:
+        return asdict(self)
+
+    def with_params(self, **params: Any) -> Effect:
+        return replace(self, **params)
+
+    def adjust(self, ctx: PowerContext) -> None:
+        """Frame stage: change what the model sees (airspeed, mass, density)."""
+
+    def propulsion_w(self, ctx: PowerContext) -> FloatArray | None:
+        """Propulsion stage: extra rotor power, W (None = nothing)."""
+        return None
+
+    def electrical_w(self, ctx: PowerContext) -> FloatArray | None:
+        """Electrical stage: extra battery power, W (None = nothing)."""
+        return None
+
+
+@dataclass(frozen=True)
+class Wind(Effect):
+    """Steady horizontal wind. The model's airspeed is ground velocity minus the wind vector.
+
+    speed_mps: wind speed, m/s. from_deg: direction the wind blows FROM, degrees clockwise from
+    north (0 = a north wind, blowing towards the south).
+    """
+
+    name: ClassVar[str] = "wind"
+    bounds: ClassVar[dict[str, tuple[float, float]]] = {
+        "speed_mps": (0.0, 20.0),
+        "from_deg": (0.0, 360.0),
+    }
+    speed_mps: float = 0.0
+    from_deg: float = 0.0
+
+    def vector_ne_mps(self) -> tuple[float, float]:
+        """Air-mass velocity over ground (north, east), m/s."""
+        rad = math.radians(self.from_deg)
+        return -self.speed_mps * math.cos(rad), -self.speed_mps * math.sin(rad)
+
+    def adjust(self, ctx: PowerContext) -> None:
+        wn, we = self.vector_ne_mps()
+        ctx.air_vn_mps = ctx.air_vn_mps - wn
+        ctx.air_ve_mps = ctx.air_ve_mps - we
+
+
+@dataclass(frozen=True)
+class Mass(Effect):
+    """Mass differs from the vehicle file's by ``delta_kg`` (kg), from ``at_s`` on (None: always).
+
+    The model is rescaled by Zeng's laws (induced c3 ∝ W^{3/2}, c4 ∝ W); the kinetic and climb
+    terms use the actual mass.
+    """
+
+    name: ClassVar[str] = "mass"
+    bounds: ClassVar[dict[str, tuple[float, float]]] = {"delta_kg": (-2.0, 5.0)}
+    delta_kg: float = 0.0
+    at_s: float | None = None
+
+    def adjust(self, ctx: PowerContext) -> None:
+        _add_mass(ctx, self.delta_kg * _step(ctx.state.time_s, self.at_s))
+
+
+@dataclass(frozen=True, eq=False)
+class SampleMass(Effect):
+    """A mass difference per sample, ``delta_kg`` (kg, one per row of the flight state): one
+    prediction for many mass hypotheses (the online tracker's sigma points). Not a vehicle
+    file effect."""
+
+    delta_kg: FloatArray
+
+    def adjust(self, ctx: PowerContext) -> None:
+        _add_mass(ctx, self.delta_kg)
+
+
+def _add_mass(ctx: PowerContext, delta_kg: FloatArray) -> None:
+    """Add ``delta_kg`` (per sample) to the mass and rescale the model's mass ratio."""
+    base_kg = ctx.mass_kg / ctx.mass_ratio
+    ctx.mass_kg = ctx.mass_kg + delta_kg
+    if np.any(ctx.mass_kg <= 0):
+        raise ValueError("mass effect makes the vehicle's mass ≤ 0")
+    ctx.mass_ratio = ctx.mass_kg / base_kg
+
+
+@dataclass(frozen=True)
+class AirDensity(Effect):
+    """Air density ``rho_kgpm3`` (kg/m³) instead of the model's reference, sea-level ISA 1.225.
+
+    c1, c5 ∝ ρ; c3 ∝ ρ^{-1/2}; c4 ∝ 1/ρ.
+    """
+
+    name: ClassVar[str] = "air_density"
+    bounds: ClassVar[dict[str, tuple[float, float]]] = {"rho_kgpm3": (0.6, 1.5)}
+    rho_kgpm3: float = SEA_LEVEL_DENSITY_KGPM3
+
+    def adjust(self, ctx: PowerContext) -> None:
+        if self.rho_kgpm3 <= 0:
+            raise ValueError("air density must be > 0")
+        ctx.density_ratio *= self.rho_kgpm3 / SEA_LEVEL_DENSITY_KGPM3
+
+
+@dataclass(frozen=True)
+class Climb(Effect):
+    """Vertical motion, by momentum theory at the hover induced velocity v0 = sqrt(c4/2).
+
+    Rotor power changes by m g (v_c + v_i(v_c) − v0) / efficiency, with climb rate
+    v_c = −v_d and induced velocity v_i = −v_c/2 + sqrt(v_c²/4 + v0²): ≈ m g v_c/2 for slow
+    climbs, → m g (v_c − v0) for fast ones; negative (less power) in descent, never below −hover's
+    induced share. efficiency (0..1]: electrical to rotor-work conversion (motor × ESC ×
+    rotor figure of merit); about m g v0 / c3 for a consistent model.
+    """
+
+    name: ClassVar[str] = "climb"
+    bounds: ClassVar[dict[str, tuple[float, float]]] = {"efficiency": (0.2, 1.0)}
+    efficiency: float = 0.6
+
+    def propulsion_w(self, ctx: PowerContext) -> FloatArray:
+        assert ctx.hover_induced_velocity_mps is not None
+        v0 = ctx.hover_induced_velocity_mps
+        vc = -ctx.state.vd_mps
+        induced_mps = -0.5 * vc + np.sqrt(0.25 * vc * vc + v0 * v0)
+        return ctx.mass_kg * G_MPS2 * (vc + induced_mps - v0) / self.efficiency
+
+
+@dataclass(frozen=True)
+class Avionics(Effect):
+    """A constant electrical load ``power_w`` (W; may be negative) from ``at_s`` on.
+
+    at_s None: the load is there from the start.
+    """
+
+    name: ClassVar[str] = "avionics"
+    bounds: ClassVar[dict[str, tuple[float, float]]] = {"power_w": (-100.0, 200.0)}
+    power_w: float = 0.0
+    at_s: float | None = None
+
+    def electrical_w(self, ctx: PowerContext) -> FloatArray:
+        return self.power_w * _step(ctx.state.time_s, self.at_s)
+
+
+@dataclass(frozen=True)
+class Voltage(Effect):
+    """Resistive losses between the battery sensor and the motors that grow as the pack sags.
+
+    At propulsion power P the current is P/V, so a series resistance ``resistance_ohm`` (Ω:
+    wiring, connectors, ESC) loses R P²/V². The model already contains the loss at the
+    reference voltage ``reference_v`` (V) it was fitted at, so the term is
+    R P² (1/V² − 1/V_ref²): positive below V_ref, growing as the battery sags. Samples without
+    a known voltage get no term.
+    """
+
+    name: ClassVar[str] = "voltage"
+    bounds: ClassVar[dict[str, tuple[float, float]]] = {"resistance_ohm": (0.0, 1.0)}
+    resistance_ohm: float = 0.0
+    reference_v: float = 25.2
+
+    def electrical_w(self, ctx: PowerContext) -> FloatArray:
+        assert ctx.propulsion_w is not None
+        v = ctx.state.voltage_v
+        inv2 = np.where(np.isfinite(v) & (v > 0), 1.0 / np.square(v), 1.0 / self.reference_v**2)
+        return self.resistance_ohm * np.square(ctx.propulsion_w) * (inv2 - self.reference_v**-2)
+
+
+@dataclass(frozen=True)
+class Acceleration(Effect):
+    """Non-ideal speed changes: eq. (2) counts m vᵀa as exchanged with kinetic energy both ways.
+
+    efficiency (0..1]: share of electrical power that becomes kinetic energy when speeding up
+    (adds (1/efficiency − 1)·m vᵀa when vᵀa > 0). recovery (0..1): share of kinetic energy
+    returned when slowing down (a multirotor brakes by tilting back, so little comes back;
+    adds (1 − recovery)·m |vᵀa| when vᵀa < 0). Air-mass frame, like the kinetic term.
+    """
+
+    name: ClassVar[str] = "acceleration"
+    bounds: ClassVar[dict[str, tuple[float, float]]] = {
+        "efficiency": (0.2, 1.0),
+        "recovery": (0.0, 1.0),
+    }
+    efficiency: float = 1.0
+    recovery: float = 1.0
+
+    def propulsion_w(self, ctx: PowerContext) -> FloatArray:
+        s = ctx.state
+        kinetic_w = ctx.mass_kg * (ctx.air_vn_mps * s.an_mps2 + ctx.air_ve_mps * s.ae_mps2)
+        gain = np.where(kinetic_w > 0, 1.0 / self.efficiency - 1.0, self.recovery - 1.0)
+        return np.asarray(gain * kinetic_w, dtype=float)
+
+
+@dataclass(frozen=True)
+class Turn(Effect):
+    """Extra power in turns beyond eq. (2)'s load factor (attitude and yaw control, rotor
+    inflow asymmetry): ``power_w_per_g2`` (W) × (a⊥/g)².
+    """
+
+    name: ClassVar[str] = "turn"
+    bounds: ClassVar[dict[str, tuple[float, float]]] = {"power_w_per_g2": (-500.0, 2000.0)}
+    power_w_per_g2: float = 0.0
+
+    def propulsion_w(self, ctx: PowerContext) -> FloatArray:
+        assert ctx.accel_centripetal_mps2 is not None
+        return self.power_w_per_g2 * np.square(ctx.accel_centripetal_mps2 / G_MPS2)
+
+
+#: Every effect type by its name (the vehicle file's ``[effects.NAME]`` tables).
+EFFECT_TYPES: dict[str, type[Effect]] = {
+    cls.name: cls for cls in (Wind, Mass, AirDensity, Climb, Avionics, Voltage, Acceleration, Turn)
+}
+
+
+def predict_power_w(
+    model: PowerModel, mass_kg: float, state: FlightState, effects: Sequence[Effect] = ()
+) -> FloatArray:
+    """Electrical power at the battery (W) for each sample of ``state``.
+
+    ``model`` and ``mass_kg`` come from the vehicle file (the model is valid at that mass and
+    sea-level density); ``effects`` are applied in the stage order of the module docstring.
+    """
+    return predict_context(model, mass_kg, state, effects)[1]
+
+
+def predict_context(
+    model: PowerModel, mass_kg: float, state: FlightState, effects: Sequence[Effect] = ()
+) -> tuple[PowerContext, FloatArray]:
+    """Like :func:`predict_power_w`, also returning the intermediate quantities."""
+    n = len(state)
+    ctx = PowerContext(
+        state=state,
+        model=model,
+        air_vn_mps=state.vn_mps,
+        air_ve_mps=state.ve_mps,
+        mass_kg=np.full(n, float(mass_kg)),
+        mass_ratio=np.ones(n),
+    )
+    for effect in effects:
+        effect.adjust(ctx)
+    ctx.speed_mps = np.hypot(ctx.air_vn_mps, ctx.air_ve_mps)
+    ctx.accel_centripetal_mps2 = centripetal_accel_mps2(
+        ctx.air_vn_mps, ctx.air_ve_mps, state.an_mps2, state.ae_mps2
+    )
+    power_w = model.power_w(
+        ctx.speed_mps, ctx.accel_centripetal_mps2, ctx.mass_ratio, ctx.density_ratio
+    )
+    ctx.hover_induced_velocity_mps = model.hover_induced_velocity_mps(
+        ctx.mass_ratio, ctx.density_ratio
+    )
+    power_w += ctx.mass_kg * (ctx.air_vn_mps * state.an_mps2 + ctx.air_ve_mps * state.ae_mps2)
+    for effect in effects:
+        extra = effect.propulsion_w(ctx)
+        if extra is not None:
+            power_w = power_w + extra
+    ctx.propulsion_w = power_w
+    total_w = power_w.copy()
+    for effect in effects:
+        extra = effect.electrical_w(ctx)
+        if extra is not None:
+            total_w += extra
+    return ctx, total_w
+
+
+# -- (de)serialisation ------------------------------------------------------------------------
+
+
+def effect_from_params(name: str, params: Mapping[str, Any], where: str = "effects") -> Effect:
+    """Build an effect from its name and parameter table; UserError on unknown names/values."""
+    cls = EFFECT_TYPES.get(name)
+    if cls is None:
+        known = ", ".join(EFFECT_TYPES)
+        raise UserError(f"{where}: unknown effect '{name}' (known: {known})")
+    allowed = {f.name for f in fields(cls)}
+    unknown = set(params) - allowed
+    if unknown:
+        raise UserError(
+            f"{where}.{name}: unknown parameter(s) {', '.join(sorted(unknown))} "
+            f"(allowed: {', '.join(sorted(allowed))})"
+        )
+    values: dict[str, Any] = {}
+    for key, value in params.items():
+        if value is None and key == "at_s":
+            values[key] = None
+            continue
+        number = isinstance(value, int | float) and not isinstance(value, bool)
+        if not number or not math.isfinite(value):
+            raise UserError(f"{where}.{name}.{key} must be a finite number, got {value!r}")
+        values[key] = float(value)
+    effect = cls(**values)
+    _validate(effect, f"{where}.{name}")
+    return effect
+
+
+def _validate(effect: Effect, where: str) -> None:
+    checks = {
+        "speed_mps": lambda v: v >= 0,
+        "rho_kgpm3": lambda v: v > 0,
+        "efficiency": lambda v: 0 < v <= 1,
+        "recovery": lambda v: 0 <= v <= 1,
+        "resistance_ohm": lambda v: v >= 0,
+        "reference_v": lambda v: v > 0,
+    }
+    for key, value in effect.params.items():
+        check = checks.get(key)
+        if check is not None and not check(value):
+            raise UserError(f"{where}.{key} is out of range: {value!r}")
+
+
+def effects_from_tables(tables: Mapping[str, Mapping[str, Any]]) -> list[Effect]:
+    """Effects from a vehicle file's ``[effects.NAME]`` tables (``Vehicle.effects``), in order."""
+    return [effect_from_params(name, params) for name, params in tables.items()]
+
+
+def effects_to_tables(effects: Sequence[Effect]) -> dict[str, dict[str, Any]]:
+    """The ``Vehicle.effects`` dict for ``effects`` (one table per name; None values kept)."""
+    tables: dict[str, dict[str, Any]] = {}
+    for effect in effects:
+        if effect.name in tables:
+            raise ValueError(f"effect '{effect.name}' given twice")
+        tables[effect.name] = effect.params
+    return tables

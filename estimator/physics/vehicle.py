@@ -1,0 +1,132 @@
+"""Vehicle files: the fitted power model, its uncertainty and the battery, as TOML.
+
+Layout (all sections but ``[effects]`` required)::
+
+    [vehicle]        name, mass_kg
+    [model]          c1, c2, c3, c4, c5        (electrical power at the battery, W)
+    [model.stderr]   c1, c2, c3, c4, c5        (1σ, same units; optional)
+    [battery]        capacity_ah, cells, reserve_fraction
+    [effects.NAME]   parameters of effects added by ``uav-energy residuals`` (optional)
+"""
+
+from __future__ import annotations
+
+import math
+import tomllib
+from dataclasses import dataclass, field
+from importlib import resources
+from pathlib import Path
+from typing import Any
+
+import tomli_w
+
+from estimator.errors import UserError
+from estimator.physics.model import COEFFICIENT_NAMES, PowerModel
+from estimator.toml_files import read_toml
+
+
+@dataclass(frozen=True)
+class BatterySpec:
+    """Pack as configured: rated capacity (Ah), series cells, and the reserve not to be used."""
+
+    capacity_ah: float
+    cells: int
+    reserve_fraction: float = 0.2
+
+
+@dataclass(frozen=True)
+class Vehicle:
+    name: str
+    mass_kg: float
+    model: PowerModel
+    battery: BatterySpec
+    model_stderr: dict[str, float] = field(default_factory=dict)
+    effects: dict[str, dict[str, Any]] = field(default_factory=dict)
+
+    def to_toml(self) -> dict[str, Any]:
+        model: dict[str, Any] = self.model.as_dict()
+        if self.model_stderr:
+            model["stderr"] = dict(self.model_stderr)
+        doc: dict[str, Any] = {
+            "vehicle": {"name": self.name, "mass_kg": self.mass_kg},
+            "model": model,
+            "battery": {
+                "capacity_ah": self.battery.capacity_ah,
+                "cells": self.battery.cells,
+                "reserve_fraction": self.battery.reserve_fraction,
+            },
+        }
+        if self.effects:
+            doc["effects"] = {k: _toml_safe(v) for k, v in self.effects.items()}
+        return doc
+
+    def save(self, path: Path) -> None:
+        path.parent.mkdir(parents=True, exist_ok=True)
+        path.write_text(tomli_w.dumps(self.to_toml()))
+
+
+def _toml_safe(params: dict[str, Any]) -> dict[str, Any]:
+    """TOML has no null: drop None-valued parameters (readers treat missing as None)."""
+    return {k: v for k, v in params.items() if v is not None}
+
+
+def load_vehicle(path: str | Path) -> Vehicle:
+    """Read and validate a vehicle file; every problem is one clear sentence (UserError)."""
+    doc = read_toml(path, "vehicle")
+    return vehicle_from_toml(doc, str(path))
+
+
+def vehicle_from_toml(doc: dict[str, Any], where: str = "vehicle file") -> Vehicle:
+    vehicle = _section(doc, "vehicle", where)
+    model = _section(doc, "model", where)
+    battery = _section(doc, "battery", where)
+    coeffs = {n: _number(model, n, f"{where} [model]") for n in COEFFICIENT_NAMES}
+    try:
+        power_model = PowerModel(**coeffs)
+    except ValueError as exc:
+        raise UserError(f"{where} [model]: {exc}") from None
+    stderr_doc = model.get("stderr", {})
+    stderr = {n: _number(stderr_doc, n, f"{where} [model.stderr]") for n in stderr_doc}
+    mass_kg = _number(vehicle, "mass_kg", f"{where} [vehicle]", positive=True)
+    spec = BatterySpec(
+        capacity_ah=_number(battery, "capacity_ah", f"{where} [battery]", positive=True),
+        cells=int(_number(battery, "cells", f"{where} [battery]", positive=True)),
+        reserve_fraction=_number(battery, "reserve_fraction", f"{where} [battery]"),
+    )
+    if not 0.0 <= spec.reserve_fraction < 1.0:
+        raise UserError(f"{where} [battery] reserve_fraction must be in [0, 1)")
+    effects = doc.get("effects", {})
+    if not isinstance(effects, dict) or not all(isinstance(v, dict) for v in effects.values()):
+        raise UserError(f"{where} [effects] must hold one table per effect")
+    return Vehicle(
+        name=str(vehicle.get("name", "unnamed")),
+        mass_kg=mass_kg,
+        model=power_model,
+        battery=spec,
+        model_stderr=stderr,
+        effects=effects,
+    )
+
+
+def _section(doc: dict[str, Any], name: str, where: str) -> dict[str, Any]:
+    value = doc.get(name)
+    if not isinstance(value, dict):
+        raise UserError(f"{where} has no [{name}] section")
+    return value
+
+
+def _number(table: dict[str, Any], key: str, where: str, positive: bool = False) -> float:
+    if key not in table:
+        raise UserError(f"{where} is missing '{key}'")
+    value = table[key]
+    if isinstance(value, bool) or not isinstance(value, int | float) or not math.isfinite(value):
+        raise UserError(f"{where} '{key}' must be a finite number, got {value!r}")
+    if positive and value <= 0:
+        raise UserError(f"{where} '{key}' must be > 0, got {value!r}")
+    return float(value)
+
+
+def default_vehicle() -> Vehicle:
+    """The built-in 3 kg paper-like quadrotor (``estimator/data/default_vehicle.toml``)."""
+    path = resources.files("estimator") / "data" / "default_vehicle.toml"
+    return vehicle_from_toml(tomllib.loads(path.read_text()), "built-in default vehicle")

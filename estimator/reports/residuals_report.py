@@ -1,0 +1,204 @@
+"""``uav-energy residuals --report DIR``: residual plots before/after and the selection table.
+
+Writes ``residual_time.png`` (residual over each flight, before and after the selected
+effects, held-out), ``residual_channels.png`` (the same against every channel, with binned
+means), ``attribution.png`` (held-out R² of each channel, before and after) and
+``summary.md`` (figures, selected effects, the full selection table, the verdict).
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import matplotlib
+
+matplotlib.use("Agg")
+import matplotlib.pyplot as plt
+import numpy as np
+
+from estimator.analysis.residuals import FloatArray, ResidualResult
+
+_BEFORE = dict(color="tab:red", alpha=0.35, s=3, linewidths=0)
+_AFTER = dict(color="tab:blue", alpha=0.35, s=3, linewidths=0)
+
+
+def write_report(result: ResidualResult, out_dir: Path, title: str) -> list[Path]:
+    """Write the plots and ``summary.md`` into ``out_dir``; returns the files written."""
+    out_dir.mkdir(parents=True, exist_ok=True)
+    files = [
+        _time_plot(result, out_dir / "residual_time.png"),
+        _channel_plot(result, out_dir / "residual_channels.png"),
+        _attribution_plot(result, out_dir / "attribution.png"),
+    ]
+    summary = out_dir / "summary.md"
+    summary.write_text(_markdown(result, title, files))
+    return [*files, summary]
+
+
+def _time_plot(result: ResidualResult, path: Path) -> Path:
+    s = result.samples
+    fig, ax = plt.subplots(figsize=(11, 4))
+    offset = 0.0
+    for k, name in enumerate(s.flight_ids):
+        rows = s.flight == k
+        t = s.state.time_s[rows]
+        x = t - t[0] + offset
+        ax.plot(x, result.residual_before_w()[rows], color="tab:red", lw=0.6, alpha=0.7)
+        ax.plot(x, result.residual_after_w()[rows], color="tab:blue", lw=0.6, alpha=0.8)
+        if len(s.flight_ids) > 1:
+            ax.axvline(offset, color="0.7", lw=0.5)
+            ax.text(
+                offset,
+                1.0,
+                f" {name}",
+                transform=ax.get_xaxis_transform(),
+                fontsize=6,
+                va="top",
+                rotation=90,
+            )
+        offset = float(x[-1]) + 10.0
+    ax.axhline(0.0, color="k", lw=0.5)
+    ax.set_xlabel("flight time, flights end to end (s)")
+    ax.set_ylabel("measured − model (W)")
+    ax.set_title(
+        f"held-out residual: before (red, RMSE {result.rmse_w(False):.1f} W), "
+        f"after (blue, RMSE {result.rmse_w(True):.1f} W)"
+    )
+    fig.tight_layout()
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
+    return path
+
+
+def _binned(x: FloatArray, y: FloatArray, bins: int = 20) -> tuple[FloatArray, FloatArray]:
+    ok = np.isfinite(x) & np.isfinite(y)
+    x, y = x[ok], y[ok]
+    if len(x) < bins:
+        return np.empty(0), np.empty(0)
+    edges = np.unique(np.quantile(x, np.linspace(0, 1, bins + 1)))
+    idx = np.clip(np.searchsorted(edges, x, side="right") - 1, 0, len(edges) - 2)
+    counts = np.bincount(idx, minlength=len(edges) - 1)
+    keep = counts > 0
+    centers = np.bincount(idx, weights=x, minlength=len(edges) - 1)[keep] / counts[keep]
+    means = np.bincount(idx, weights=y, minlength=len(edges) - 1)[keep] / counts[keep]
+    return centers, means
+
+
+def _channel_plot(result: ResidualResult, path: Path) -> Path:
+    channels = result.samples.channels
+    n = len(channels)
+    cols = 4
+    rows = max(1, -(-n // cols))
+    fig, axes = plt.subplots(rows, cols, figsize=(3.2 * cols, 2.6 * rows), squeeze=False)
+    before, after = result.residual_before_w(), result.residual_after_w()
+    lim = float(np.nanpercentile(np.abs(before), 99)) * 1.1 or 1.0
+    for ax, (name, x) in zip(axes.flat, channels.items(), strict=False):
+        ax.scatter(x, before, **_BEFORE)
+        ax.scatter(x, after, **_AFTER)
+        for y, color in ((before, "darkred"), (after, "navy")):
+            cx, cy = _binned(x, y)
+            ax.plot(cx, cy, color=color, lw=1.5)
+        ax.axhline(0.0, color="k", lw=0.5)
+        ax.set_ylim(-lim, lim)
+        ax.set_xlabel(name, fontsize=8)
+        ax.tick_params(labelsize=7)
+    for ax in list(axes.flat)[n:]:
+        ax.axis("off")
+    axes[0, 0].set_ylabel("residual (W)")
+    fig.suptitle("held-out residual vs channel: before (red), after (blue), binned means")
+    fig.tight_layout()
+    fig.savefig(path, dpi=100)
+    plt.close(fig)
+    return path
+
+
+def _attribution_plot(result: ResidualResult, path: Path) -> Path:
+    before = {c.channel: c.r2 for c in result.attribution_before}
+    after = {c.channel: c.r2 for c in result.attribution}
+    names = [c.channel for c in result.attribution_before]
+    y = np.arange(len(names))
+    fig, ax = plt.subplots(figsize=(7, 0.35 * len(names) + 1.2))
+    ax.barh(y + 0.2, [before[k] for k in names], height=0.4, color="tab:red", label="before")
+    ax.barh(
+        y - 0.2, [after.get(k, np.nan) for k in names], height=0.4, color="tab:blue", label="after"
+    )
+    ax.set_yticks(y, names, fontsize=8)
+    ax.invert_yaxis()
+    ax.axvline(result.options.min_r2, color="0.5", ls="--", lw=0.8)
+    ax.set_xlabel("held-out R² of the residual from this channel alone (k-NN)")
+    ax.legend(fontsize=8)
+    fig.tight_layout()
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
+    return path
+
+
+def _markdown(result: ResidualResult, title: str, files: list[Path]) -> str:
+    s = result.summary()
+    lines = [
+        f"# {title}",
+        "",
+        f"{s['n_samples']} airborne samples from {s['n_flights']} flight(s). Held-out split: "
+        f"{s['split']}. Test: {s['test']}.",
+        "",
+        "| | RMSE (W) | MAPE (%) |",
+        "|---|---|---|",
+        f"| before | {s['rmse_before_w']:.2f} | {s['mape_before_pct']:.2f} |",
+        f"| after | {s['rmse_after_w']:.2f} | {s['mape_after_pct']:.2f} |",
+        "",
+        f"Noise floor (successive differences): {s['noise_floor_w']:.2f} W.",
+        "",
+        f"**{s['attribution']['verdict']}**",
+        "",
+        "## Selected effects",
+        "",
+    ]
+    if s["effects"]:
+        lines += [
+            "| order | effect | parameters | ±1σ over folds | RMSE after (W) | z "
+            "| as good held out (RMSE W, z) |",
+            "|---|---|---|---|---|---|---|",
+        ]
+        for i, e in enumerate(s["effects"], 1):
+            params = ", ".join(f"{k} = {v}" for k, v in e["params"].items())
+            spread = ", ".join(f"{k} {v}" for k, v in e["params_fold_sd"].items())
+            lines.append(
+                f"| {i} | {e['name']} | {params} | {spread} | {e['rmse_after_w']:.2f} | "
+                f"{e['z']:.1f} | "
+                + ", ".join(
+                    f"{t['candidate']} ({t['rmse_w']:.2f}, {t['z']:.1f})"
+                    for t in e["indistinguishable_from"]
+                )
+                + " |"
+            )
+    else:
+        lines.append("None.")
+    lines += [
+        "",
+        "## Selection table (every candidate at every step, held-out)",
+        "",
+        "| step | candidate | RMSE (W) | gain (%) | z | qualifies | parameters (middle fold) |",
+        "|---|---|---|---|---|---|---|",
+    ]
+    for row in s["selection"]:
+        params = ", ".join(f"{k} = {v}" for k, v in row["params"].items())
+        lines.append(
+            f"| {row['step']} | {row['candidate']} | {row['rmse_w']:.2f} | {row['gain_pct']:.2f} "
+            f"| {row['z']:.2f} | {'yes' if row['qualifies'] else 'no'} | {params} |"
+        )
+    lines += [
+        "",
+        "## Attribution (held-out R² of the residual from one channel)",
+        "",
+        "| channel | before | after |",
+        "|---|---|---|",
+    ]
+    after = {c["channel"]: c["r2"] for c in s["attribution"]["channels"]}
+    for c in s["attribution"]["channels_before"]:
+        lines.append(
+            f"| {c['channel']} | {c['r2']:.3f} | {after.get(c['channel'], float('nan')):.3f} |"
+        )
+    lines.append("")
+    lines += [f"![{f.stem}]({f.name})" for f in files]
+    lines.append("")
+    return "\n".join(lines)

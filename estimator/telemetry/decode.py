@@ -1,0 +1,276 @@
+"""MAVLink frames → typed telemetry samples, shared by the daemon and every log reader.
+
+Bytes are parsed with pymavlink's generated ``dialects.v20.common`` codec (robust parsing on;
+MAVLink 1 frames parse too). Messages become :mod:`estimator.telemetry.samples` samples:
+
+- time is the autopilot's ``time_boot_ms``; messages without a stamp (SYS_STATUS,
+  BATTERY_STATUS, HEARTBEAT) take the latest autopilot time seen, so a replay and a live run
+  of the same byte stream give the same samples;
+- unknown-value sentinels (current −1, voltage UINT16_MAX, cell voltage UINT16_MAX or 0,
+  consumed −1, remaining −1) become ``None`` or drop the sample;
+- only the selected autopilot is decoded (default: the first autopilot HEARTBEAT);
+  our own component's messages and everyone else's are counted and skipped.
+"""
+
+from __future__ import annotations
+
+from collections import Counter
+from collections.abc import Iterable
+
+from pymavlink.dialects.v20 import common as mavlink
+
+from estimator.telemetry.samples import (
+    ArmedSample,
+    BatterySample,
+    RebootSample,
+    Sample,
+    VelocitySample,
+)
+
+UINT16_MAX = 65535
+#: A backward step of the autopilot clock larger than this is a reboot, smaller is reordering.
+REBOOT_BACKSTEP_S = 2.0
+#: Message types the decoder uses; every other type is skipped (and may be skipped unparsed).
+USED_MESSAGE_IDS = frozenset(
+    {
+        mavlink.MAVLINK_MSG_ID_HEARTBEAT,
+        mavlink.MAVLINK_MSG_ID_SYS_STATUS,
+        mavlink.MAVLINK_MSG_ID_BATTERY_STATUS,
+        mavlink.MAVLINK_MSG_ID_GLOBAL_POSITION_INT,
+        mavlink.MAVLINK_MSG_ID_LOCAL_POSITION_NED,
+        mavlink.MAVLINK_MSG_ID_ATTITUDE,
+    }
+)
+#: The velocity message types by id (the decoder uses the first one it sees).
+_VELOCITY_TYPES = {
+    mavlink.MAVLINK_MSG_ID_GLOBAL_POSITION_INT: "GLOBAL_POSITION_INT",
+    mavlink.MAVLINK_MSG_ID_LOCAL_POSITION_NED: "LOCAL_POSITION_NED",
+}
+_NOT_AUTOPILOTS = frozenset(
+    {
+        mavlink.MAV_TYPE_GCS,
+        mavlink.MAV_TYPE_ONBOARD_CONTROLLER,
+        mavlink.MAV_TYPE_GIMBAL,
+        mavlink.MAV_TYPE_ADSB,
+        mavlink.MAV_TYPE_CAMERA,
+    }
+)
+
+
+class FrameParser:
+    """Bytes in, MAVLink messages out; bad frames are counted, never raised."""
+
+    def __init__(self) -> None:
+        self._codec = mavlink.MAVLink(None)
+        self._codec.robust_parsing = True
+        self.bad_frames = 0
+
+    def feed(self, data: bytes) -> list[mavlink.MAVLink_message]:
+        """Parse a chunk (a datagram, a stream read, a tlog record) into good messages."""
+        try:
+            parsed = self._codec.parse_buffer(data) or []
+        except Exception:  # pymavlink raises plain Exception subclasses on corrupt input
+            self.bad_frames += 1
+            return []
+        good = []
+        for msg in parsed:
+            if isinstance(msg, mavlink.MAVLink_bad_data):
+                self.bad_frames += 1
+            else:
+                good.append(msg)
+        return good
+
+    def decode_frame(self, frame: bytes) -> mavlink.MAVLink_message | None:
+        """One whole frame (a log record's) into a message, without the byte-by-byte stream
+        parser; None for a bad frame (counted)."""
+        try:
+            return self._codec.decode(bytearray(frame))
+        except Exception:  # pymavlink's MAVError, struct.error on a damaged frame
+            self.bad_frames += 1
+            return None
+
+
+class TelemetryDecoder:
+    """Turns the selected autopilot's messages into samples, with counters for what it skips.
+
+    ``target`` is ``(system_id, component_id)`` of the autopilot, or ``None`` to lock onto the
+    first autopilot HEARTBEAT. ``own`` is our own ``(system_id, component_id)``.
+    """
+
+    def __init__(
+        self,
+        target: tuple[int, int] | None = None,
+        own: tuple[int, int] = (1, mavlink.MAV_COMP_ID_ONBOARD_COMPUTER),
+        battery_id: int = 0,
+    ) -> None:
+        self.target = target
+        self.own = own
+        self.battery_id = battery_id
+        self.counts: Counter[str] = Counter()
+        self._clock_s: float | None = None
+        self._velocity_type: str | None = None
+        self._last_velocity_s: float | None = None
+        self._battery_status_seen = False
+        self._armed: bool | None = None
+
+    @property
+    def clock_s(self) -> float | None:
+        """Latest autopilot time seen (s since its boot), None before the first stamp."""
+        return self._clock_s
+
+    def discards(self, msgid: int, system: int, component: int) -> bool:
+        """Whether :meth:`decode` would drop a message with this id from this source without
+        reading it, so a log reader may skip its frame by the header: any message from another
+        source once the autopilot is known, and a second velocity message type."""
+        if self.target is not None and (system, component) != self.target:
+            return True
+        kind = _VELOCITY_TYPES.get(msgid)
+        return kind is not None and self._velocity_type not in (None, kind)
+
+    def decode_all(self, messages: Iterable[mavlink.MAVLink_message]) -> list[Sample]:
+        """Decode several messages in order."""
+        out: list[Sample] = []
+        for msg in messages:
+            out.extend(self.decode(msg))
+        return out
+
+    def decode(self, msg: mavlink.MAVLink_message) -> list[Sample]:
+        """Decode one message into zero or more samples."""
+        source = (msg.get_srcSystem(), msg.get_srcComponent())
+        if source == self.own:
+            self.counts["own"] += 1
+            return []
+        kind = msg.get_type()
+        if self.target is None:
+            if kind == "HEARTBEAT" and _is_autopilot(msg):
+                self.target = source
+            else:
+                self.counts["before_autopilot"] += 1
+                return []
+        if source != self.target:
+            self.counts["other_source"] += 1
+            return []
+        handler = _HANDLERS.get(kind)
+        if handler is None:
+            self.counts["unused"] += 1
+            return []
+        self.counts[kind] += 1
+        return handler(self, msg)
+
+    # -- clock -------------------------------------------------------------------------------
+
+    def _stamp(self, time_boot_ms: int) -> list[Sample]:
+        """Advance the autopilot clock; return a RebootSample when it jumps backwards."""
+        t = time_boot_ms / 1000.0
+        if self._clock_s is not None and t < self._clock_s - REBOOT_BACKSTEP_S:
+            self.counts["reboots"] += 1
+            self._clock_s = t
+            self._last_velocity_s = None
+            self._armed = None
+            return [RebootSample(t)]
+        if self._clock_s is None or t > self._clock_s:
+            self._clock_s = t
+        return []
+
+    # -- handlers ----------------------------------------------------------------------------
+
+    def _heartbeat(self, msg: mavlink.MAVLink_message) -> list[Sample]:
+        armed = bool(msg.base_mode & mavlink.MAV_MODE_FLAG_SAFETY_ARMED)
+        if self._clock_s is None or armed == self._armed:
+            return []
+        self._armed = armed
+        return [ArmedSample(self._clock_s, armed)]
+
+    def _attitude(self, msg: mavlink.MAVLink_message) -> list[Sample]:
+        return self._stamp(msg.time_boot_ms)
+
+    def _velocity(
+        self, msg: mavlink.MAVLink_message, v_ned: tuple[float, float, float], alt_m: float
+    ) -> list[Sample]:
+        kind = msg.get_type()
+        if self._velocity_type is None:
+            self._velocity_type = kind
+        elif kind != self._velocity_type:
+            self.counts["duplicate_velocity_source"] += 1
+            return []
+        out = self._stamp(msg.time_boot_ms)
+        t = msg.time_boot_ms / 1000.0
+        if self._last_velocity_s is not None and t <= self._last_velocity_s:
+            self.counts["out_of_order"] += 1
+            return out
+        self._last_velocity_s = t
+        out.append(VelocitySample(t, v_ned[0], v_ned[1], v_ned[2], alt_m))
+        return out
+
+    def _global_position(self, msg: mavlink.MAVLink_message) -> list[Sample]:
+        v = (msg.vx / 100.0, msg.vy / 100.0, msg.vz / 100.0)
+        return self._velocity(msg, v, msg.relative_alt / 1000.0)
+
+    def _local_position(self, msg: mavlink.MAVLink_message) -> list[Sample]:
+        return self._velocity(msg, (msg.vx, msg.vy, msg.vz), -msg.z)
+
+    def _sys_status(self, msg: mavlink.MAVLink_message) -> list[Sample]:
+        if self._battery_status_seen:
+            return []
+        voltage_mv = msg.voltage_battery
+        if voltage_mv in (0, UINT16_MAX):
+            self.counts["battery_voltage_unknown"] += 1
+            return []
+        return self._battery(
+            voltage_mv / 1000.0,
+            _current_a(msg.current_battery),
+            None,
+            _remaining_pct(msg.battery_remaining),
+        )
+
+    def _battery_status(self, msg: mavlink.MAVLink_message) -> list[Sample]:
+        if msg.id != self.battery_id:
+            self.counts["other_battery"] += 1
+            return []
+        cells_mv = list(msg.voltages) + list(getattr(msg, "voltages_ext", []) or [])
+        known = [mv for mv in cells_mv if mv not in (0, UINT16_MAX)]
+        if not known:
+            self.counts["battery_voltage_unknown"] += 1
+            return []
+        self._battery_status_seen = True
+        consumed = None if msg.current_consumed < 0 else float(msg.current_consumed)
+        return self._battery(
+            sum(known) / 1000.0,
+            _current_a(msg.current_battery),
+            consumed,
+            _remaining_pct(msg.battery_remaining),
+        )
+
+    def _battery(
+        self,
+        voltage_v: float,
+        current_a: float | None,
+        consumed_mah: float | None,
+        remaining_pct: float | None,
+    ) -> list[Sample]:
+        if self._clock_s is None:
+            self.counts["battery_before_clock"] += 1
+            return []
+        return [BatterySample(self._clock_s, voltage_v, current_a, consumed_mah, remaining_pct)]
+
+
+def _is_autopilot(msg: mavlink.MAVLink_message) -> bool:
+    return bool(msg.autopilot != mavlink.MAV_AUTOPILOT_INVALID and msg.type not in _NOT_AUTOPILOTS)
+
+
+def _current_a(centiamps: int) -> float | None:
+    return None if centiamps == -1 else centiamps / 100.0
+
+
+def _remaining_pct(pct: int) -> float | None:
+    return None if pct < 0 else float(pct)
+
+
+_HANDLERS = {
+    "HEARTBEAT": TelemetryDecoder._heartbeat,
+    "ATTITUDE": TelemetryDecoder._attitude,
+    "GLOBAL_POSITION_INT": TelemetryDecoder._global_position,
+    "LOCAL_POSITION_NED": TelemetryDecoder._local_position,
+    "SYS_STATUS": TelemetryDecoder._sys_status,
+    "BATTERY_STATUS": TelemetryDecoder._battery_status,
+}
