@@ -2,7 +2,8 @@
 
 Each command module defines ``register(subparsers)`` and a ``run(args) -> int``. Only the
 module of the command being run is imported (the daemon does not pay for matplotlib and
-scikit-learn); ``--help`` without a command imports them all to list them. A
+scikit-learn); ``--help`` without a command lists the one-line summaries below and imports
+no command module (numpy, pymavlink and scipy stay unloaded). A
 :class:`~estimator.errors.UserError` anywhere ends the process with its one-line message and
 exit code 2.
 """
@@ -17,20 +18,32 @@ from collections.abc import Sequence
 from estimator import __version__
 from estimator.errors import UserError
 
-#: Subcommand modules under estimator/commands, in the order ``--help`` lists them.
-COMMANDS = ("demo", "run", "replay", "sim", "fit", "residuals", "experiments")
+#: Subcommand modules under estimator/commands with their one-line summaries, in the order
+#: ``--help`` lists them.
+COMMANDS = {
+    "demo": "simulated flight with a hidden wind, live into the daemon",
+    "run": "run the onboard daemon on a MAVLink link",
+    "replay": "replay recorded flights through the estimator pipeline",
+    "sim": "fly a simulated multirotor over MAVLink (hidden effects optional)",
+    "fit": "fit the power model to flight logs",
+    "residuals": "find the effects the power model lacks from flight logs",
+    "experiments": "reproduce the paper's experiments on the built-in vehicle",
+}
 
 
 def build_parser(only: str | None = None) -> argparse.ArgumentParser:
-    """The argument parser with every command, or with just ``only``."""
+    """The argument parser of ``only`` with its arguments, or the list of every command."""
     parser = argparse.ArgumentParser(
         prog="uav-energy",
         description="Onboard energy and endurance estimation for multirotor UAVs.",
     )
     parser.add_argument("--version", action="version", version=f"uav-energy {__version__}")
     subparsers = parser.add_subparsers(dest="command", required=True, metavar="COMMAND")
-    for name in (only,) if only else COMMANDS:
-        importlib.import_module(f"estimator.commands.{name}").register(subparsers)
+    if only is None:
+        for name, summary in COMMANDS.items():
+            subparsers.add_parser(name, help=summary)
+    else:
+        importlib.import_module(f"estimator.commands.{only}").register(subparsers)
     return parser
 
 

@@ -436,7 +436,7 @@ def test_flags_override_the_config_file(tmp_path: Path) -> None:
 
     conf = tmp_path / "c.toml"
     conf.write_text('[publish]\nrate_hz = 5.0\nurls = ["udpout:127.0.0.1:14551"]\n')
-    args = build_parser().parse_args(
+    args = build_parser("run").parse_args(
         ["run", "--config", str(conf), "--rate", "2", "--target", "3:1", "--connect", "tcp:h:5760"]
     )
     config = config_from_args(args)

@@ -13,7 +13,6 @@ from estimator.sim.demo import run_demo, summary_table
 def register(subparsers: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
     p = subparsers.add_parser(
         "demo",
-        help="simulated flight with a hidden wind, live into the daemon",
         description="The simulator flies a mission with a wind the estimator is not told "
         "about, over loopback MAVLink into the daemon; a live table shows predicted vs "
         "measured power and endurance, then an accuracy summary.",

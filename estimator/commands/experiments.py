@@ -19,7 +19,6 @@ from estimator.sim.experiments import reproduce
 def register(subparsers: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
     p = subparsers.add_parser(
         "experiments",
-        help="reproduce the paper's experiments on the built-in vehicle",
         description="Generate the paper's experiments 1 and 2 for the built-in 3 kg quadrotor, "
         "fit on experiment 1, predict experiment 2 with eq. (2), write a report.",
     )

@@ -32,7 +32,6 @@ def register(subparsers: argparse._SubParsersAction[argparse.ArgumentParser]) ->
     d = PreprocessOptions()
     p = subparsers.add_parser(
         "fit",
-        help="fit the power model to flight logs",
         description="Fit c1..c5 of the power model to logs, with standard errors and held-out "
         "errors of the theory, a polynomial and a neural network.",
     )

@@ -69,7 +69,6 @@ _LOGS_TASK = TaskID(0)  # the first task of :func:`_progress`
 def register(subparsers: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
     parser = subparsers.add_parser(
         "replay",
-        help="replay recorded flights through the estimator pipeline",
         description="Replay logs (tlog, DataFlash .bin, PX4 .ulg, CMU CSV; format by content) "
         "through the same pipeline the daemon runs, timed by the logs' own stamps.",
     )

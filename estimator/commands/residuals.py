@@ -31,7 +31,6 @@ def register(subparsers: argparse._SubParsersAction[argparse.ArgumentParser]) ->
     d = ResidualOptions()
     p = subparsers.add_parser(
         "residuals",
-        help="find the effects the power model lacks from flight logs",
         description="Residual analysis: measured minus model power over whole flights, "
         "candidate effects fitted on some time blocks and scored on others, greedy forward "
         "selection while the held-out error drops by more than chance.",

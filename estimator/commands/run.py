@@ -16,7 +16,6 @@ from estimator.physics.vehicle import default_vehicle, load_vehicle
 def register(subparsers: Any) -> None:
     parser = subparsers.add_parser(
         "run",
-        help="run the onboard daemon on a MAVLink link",
         description="Listen to the autopilot's telemetry, estimate remaining energy and "
         "endurance, and republish them as MAVLink component 191 (and JSON lines).",
     )

@@ -39,7 +39,6 @@ CLIMB_EFFICIENCY = 0.6
 def register(subparsers: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
     p = subparsers.add_parser(
         "sim",
-        help="fly a simulated multirotor over MAVLink (hidden effects optional)",
         description="Simulate an ArduCopter-like multirotor: play it over MAVLink in real time "
         "and/or write a tlog and the truth.",
     )
