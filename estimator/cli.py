@@ -18,7 +18,7 @@ from estimator import __version__
 from estimator.errors import UserError
 
 #: Subcommand modules under estimator/commands, in the order ``--help`` lists them.
-COMMANDS = ("demo", "run", "replay", "sim", "fit", "residuals", "experiments")
+COMMANDS = ("demo", "run", "replay", "sim", "fit", "residuals", "experiments", "sitl-record")
 
 
 def build_parser(only: str | None = None) -> argparse.ArgumentParser:
@@ -30,7 +30,7 @@ def build_parser(only: str | None = None) -> argparse.ArgumentParser:
     parser.add_argument("--version", action="version", version=f"uav-energy {__version__}")
     subparsers = parser.add_subparsers(dest="command", required=True, metavar="COMMAND")
     for name in (only,) if only else COMMANDS:
-        importlib.import_module(f"estimator.commands.{name}").register(subparsers)
+        importlib.import_module(f"estimator.commands.{name.replace('-', '_')}").register(subparsers)
     return parser
 
 
