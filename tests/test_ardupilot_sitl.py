@@ -1,6 +1,9 @@
 """ArduPilot SITL: a recorded ArduCopter SITL flight through the pipeline (always, when the
-shared data is there), and a live SITL flight into the daemon (only when
-``ARDUPILOT_SITL_BINARY`` names an ``arducopter`` SITL binary; see docs/sitl.md).
+shared data is there), and live ArduCopter SITL flights (whenever the binary is there: by
+default ``../shared/tools/ardupilot-sitl/arducopter``, or ``ARDUPILOT_SITL_BINARY``; see
+docs/sitl.md): into the daemon and a ground station, through the recorder, and to the
+battery reserve against the daemon's endurance. Live flights run on a free SITL instance and
+are driven by the autopilot's clock, so a loaded machine only makes them slower.
 
 The recording (``../shared/data/ardupilot_sitl/run1_default_quad.tlog``, ArduPilot master of
 July 2025, stock ``quad`` model) is a modern MAVLink 2 stream with ~25 message types the

@@ -63,6 +63,9 @@ class Truth:
     model_json: dict[str, Any] | None
     params: dict[str, float]
     speedup: float
+    #: SITL's multicopter frame model mass without payload (SIM_Frame.h default 3.0 unless
+    #: the model JSON says "mass"), kg.
+    mass_kg: float = 3.0
     home: tuple[float, float, float, float] = HOME
     effects: list[dict[str, Any]] = field(default_factory=list)
     events: dict[str, float] = field(default_factory=dict)
@@ -264,6 +267,7 @@ def record(
         model_json=scenario.model_json,
         params=params,
         speedup=speedup,
+        mass_kg=float((scenario.model_json or {}).get("mass", 3.0)),
         battery=_battery_truth(scenario),
     )
     with tempfile.TemporaryDirectory(prefix=f"sitl-{scenario.name}-") as scratch:

@@ -45,6 +45,10 @@ BASE_PARAMS = {
 }  # fmt: skip
 #: The draining 3S pack of ../shared/tools/ardupilot-sitl/quad_batt.json (model JSON keys).
 DRAINING_PACK = {"maxVoltage": 12.6, "battCapacityAh": 2.2, "refBatRes": 0.01}
+#: SITL sets every frame's hover power to refCurrent × refVoltage (29.3 A × 12.09 V) whatever
+#: its mass or motor count (SIM_Frame.cpp); a heavier quad with the same rotors needs
+#: (4/3)^1.5 of it: 45.1 A for 4 kg.
+HEAVY_QUAD = {"mass": 4.0, "refCurrent": 45.1}
 
 
 @dataclass(frozen=True)
@@ -216,6 +220,12 @@ SCENARIOS: dict[str, Scenario] = {
             (Takeoff(), *LEGS[:6], Circle(20, 5, 1), Hover(20)),
             frame="hexa",
             params={"FRAME_CLASS": 2},
+        ),
+        Scenario(
+            "heavy_quad",
+            "another airframe: a 4 kg quad drawing the hover power of its weight (P ∝ m^1.5)",
+            (Takeoff(), *LEGS),
+            model_json=HEAVY_QUAD,
         ),
         Scenario(
             "battery_reserve",
