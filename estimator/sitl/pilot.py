@@ -157,7 +157,7 @@ class Pilot:
         end = self.state.boot_s + sim_s
         self.wait_for(lambda: self.state.boot_s >= end, sim_s + 30.0, "hold", tick)
 
-    def _every(self, period_s: float, send: Callable[[], None]) -> Callable[[], None]:
+    def every(self, period_s: float, send: Callable[[], None]) -> Callable[[], None]:
         """A tick that calls ``send`` at most once per ``period_s`` of the autopilot's clock."""
         last = [-math.inf]
 
@@ -179,15 +179,19 @@ class Pilot:
     def set_param(self, name: str, value: float) -> None:
         """PARAM_SET, re-sent until the autopilot echoes the value."""
         self.params.pop(name, None)
-        send = self._every(
+        send = self.every(
             1.0,
             lambda: self.conn.mav.param_set_send(
                 *AUTOPILOT, name.encode(), value, mavlink.MAV_PARAM_TYPE_REAL32
             ),
         )
         send()
-        done = lambda: name in self.params and math.isclose(self.params[name], value, abs_tol=1e-4)  # noqa: E731
-        self.wait_for(done, 10.0, f"set {name}", send)
+        self.wait_for(
+            lambda: math.isclose(self.params.get(name, math.nan), value, abs_tol=1e-4),
+            10.0,
+            f"set {name}",
+            send,
+        )
 
     def command(self, cmd: int, *params: float, timeout_s: float = 10.0) -> None:
         """COMMAND_LONG, re-sent until ACCEPTED."""
@@ -200,10 +204,14 @@ class Pilot:
             if cmd not in self.acks:
                 self.conn.mav.command_long_send(*AUTOPILOT, cmd, 0, *values)
 
-        tick = self._every(1.0, send)
+        tick = self.every(1.0, send)
         tick()
-        done = lambda: self.acks.get(cmd) == mavlink.MAV_RESULT_ACCEPTED  # noqa: E731
-        self.wait_for(done, timeout_s, f"command {cmd}", tick)
+        self.wait_for(
+            lambda: self.acks.get(cmd) == mavlink.MAV_RESULT_ACCEPTED,
+            timeout_s,
+            f"command {cmd}",
+            tick,
+        )
 
     def send_mode(self, name: str) -> None:
         self.conn.mav.set_mode_send(
@@ -211,10 +219,9 @@ class Pilot:
         )
 
     def set_mode(self, name: str) -> None:
-        tick = self._every(1.0, lambda: self.send_mode(name))
+        tick = self.every(1.0, lambda: self.send_mode(name))
         tick()
-        done = lambda: self.state.mode == COPTER_MODES[name]  # noqa: E731
-        self.wait_for(done, 10.0, f"mode {name}", tick)
+        self.wait_for(lambda: self.state.mode == COPTER_MODES[name], 10.0, f"mode {name}", tick)
 
     def arm_guided(self, timeout_s: float = 150.0) -> None:
         """GUIDED and arm, retried until the EKF and GPS let it (PreArm texts in the error)."""
@@ -227,7 +234,7 @@ class Pilot:
                     *AUTOPILOT, mavlink.MAV_CMD_COMPONENT_ARM_DISARM, 0, 1, 0, 0, 0, 0, 0, 0
                 )
 
-        tick = self._every(2.0, attempt)
+        tick = self.every(2.0, attempt)
         tick()
         self.wait_for(lambda: self.state.armed, timeout_s, "arming", tick)
 
@@ -289,4 +296,4 @@ class Pilot:
                     *AUTOPILOT, mavlink.MAV_CMD_COMPONENT_ARM_DISARM, 0, 0, FORCE, 0, 0, 0, 0, 0
                 )
 
-        self.wait_for(lambda: not self.state.armed, 30.0, "disarming", self._every(1.0, force))
+        self.wait_for(lambda: not self.state.armed, 30.0, "disarming", self.every(1.0, force))

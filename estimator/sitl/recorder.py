@@ -49,6 +49,8 @@ from estimator.sitl.scenarios import (
 
 #: Above this height (m) the vehicle counts as airborne for take-off and landing times.
 AIRBORNE_M = 1.0
+#: Longest flight to the reserve (s of the autopilot's clock).
+MAX_FLIGHT_S = 3600.0
 #: Metres per degree of latitude (spherical Earth, for mission waypoints near home).
 M_PER_DEG = 111_319.5
 
@@ -137,11 +139,9 @@ class Flight:
             p.takeoff(step.alt_m)
         elif isinstance(step, Hover):
             here = (p.state.north_m, p.state.east_m, -p.state.alt_m)
-            p.hold(step.duration_s, p._every(1.0, lambda: p.send_target(here)))
+            p.hold(step.duration_s, p.every(1.0, lambda: p.send_target(here)))
         elif isinstance(step, Leg):
-            p.hold(
-                step.duration_s, p._every(0.5, lambda: p.send_velocity(step.vn_mps, step.ve_mps))
-            )
+            p.hold(step.duration_s, p.every(0.5, lambda: p.send_velocity(step.vn_mps, step.ve_mps)))
         elif isinstance(step, Goto):
             self._goto(step)
         elif isinstance(step, Circle):
@@ -161,10 +161,15 @@ class Flight:
         p = self.pilot
         p.command(mavlink.MAV_CMD_DO_CHANGE_SPEED, 1, step.speed_mps, -1)
         target = (step.north_m, step.east_m, -p.state.alt_m)
-        tick = p._every(1.0, lambda: p.send_target(target))
+        tick = p.every(1.0, lambda: p.send_target(target))
         tick()
-        dist = lambda: math.hypot(p.state.north_m - target[0], p.state.east_m - target[1])  # noqa: E731
-        arrived = lambda: dist() < 1.5 and math.hypot(p.state.vn_mps, p.state.ve_mps) < 0.5  # noqa: E731
+
+        def dist() -> float:
+            return math.hypot(p.state.north_m - target[0], p.state.east_m - target[1])
+
+        def arrived() -> bool:
+            return dist() < 1.5 and math.hypot(p.state.vn_mps, p.state.ve_mps) < 0.5
+
         timeout = dist() / step.speed_mps + 40.0
         p.wait_for(arrived, timeout, f"goto {step.north_m:.0f},{step.east_m:.0f}", tick)
 
@@ -174,7 +179,7 @@ class Flight:
         p = self.pilot
         omega = step.speed_mps / step.radius_m  # rad/s, signed: + counter-clockwise
         start_n, start_e, down = p.state.north_m, p.state.east_m, -p.state.alt_m
-        # centre to the east of the start, the start at angle π (west of the centre)
+        # the centre is east of the start
         cn, ce, t0 = start_n, start_e + step.radius_m, p.state.boot_s
 
         def send() -> None:
@@ -189,7 +194,7 @@ class Flight:
             p.send_target((north, east, down), vel, acc)
 
         duration = abs(step.turns * 2 * math.pi / omega)
-        p.hold(duration, p._every(0.1, send))
+        p.hold(duration, p.every(0.1, send))
 
     def _mission(self, step: Mission) -> None:
         p = self.pilot
@@ -227,7 +232,10 @@ class Flight:
 
     def _to_reserve(self, step: LegsToReserve) -> None:
         p = self.pilot
-        capacity_mah = 1000 * float((self.scenario.model_json or {})["battCapacityAh"])
+        pack = self.scenario.model_json or {}
+        if "battCapacityAh" not in pack:
+            raise UserError(f"{self.scenario.name}: LegsToReserve needs a draining pack")
+        capacity_mah = 1000 * float(pack["battCapacityAh"])
         reserve_mah = (1 - step.reserve_fraction) * capacity_mah
         start = p.state.boot_s
 
@@ -235,9 +243,10 @@ class Flight:
             leg = int((p.state.boot_s - start) // step.leg_s)
             p.send_velocity((-1) ** leg * step.speed_mps, 0.0)
 
-        timeout = 3600.0
-        done = lambda: p.state.consumed_mah >= reserve_mah  # noqa: E731
-        p.wait_for(done, timeout, "flight to the reserve", p._every(0.5, fly))
+        def reached() -> bool:
+            return p.state.consumed_mah >= reserve_mah
+
+        p.wait_for(reached, MAX_FLIGHT_S, "flight to the reserve", p.every(0.5, fly))
         self.truth.event("reserve_s", self.now_s)
         self.truth.battery["reserve_consumed_mah"] = round(p.state.consumed_mah, 1)
 
