@@ -46,6 +46,7 @@ from estimator.sitl.launch import (
     running_sitl,
     serial_port,
     sitl_binary,
+    wait_listening,
 )
 from estimator.sitl.pilot import Pilot
 from estimator.sitl.recorder import Flight, Truth, record
@@ -219,12 +220,15 @@ class LiveDaemon:
     ground station for what the daemon publishes, and a pilot on SERIAL1."""
 
     instance: int
+    sitl: subprocess.Popen[bytes]
+    sitl_log: Path
     daemon: subprocess.Popen[bytes]
     gcs: GroundStation
     estimates_path: Path
     log_path: Path
 
     def pilot(self, tlog: Path | None = None) -> Pilot:
+        wait_listening(self.sitl, self.sitl_log, serial=1)
         return Pilot(f"tcp:127.0.0.1:{serial_port(self.instance, 1)}", tlog, source_system=250)
 
     def estimates(self) -> list[dict]:
@@ -249,11 +253,11 @@ def live_daemon(
     args = [str(EXE), "run", "--connect", f"tcp:127.0.0.1:{serial_port(opts.instance)}"]
     args += ["--json", "-", "--vehicle", str(vehicle), "--rate", "5"]
     args += ["--publish", f"udpout:127.0.0.1:{gcs.port}"]
-    with running_sitl(opts), out.open("wb") as out_fh, log.open("wb") as log_fh:
+    with running_sitl(opts) as sitl, out.open("wb") as out_fh, log.open("wb") as log_fh:
         daemon = subprocess.Popen(args, stdout=out_fh, stderr=log_fh)
         gcs.start()
         try:
-            yield LiveDaemon(opts.instance, daemon, gcs, out, log)
+            yield LiveDaemon(opts.instance, sitl, opts.workdir / "sitl.log", daemon, gcs, out, log)
         finally:
             daemon.terminate()
             try:

@@ -107,10 +107,11 @@ def command(opts: SitlOptions) -> list[str]:
     ]  # fmt: skip
 
 
-def _wait_listening(proc: subprocess.Popen[bytes], log_path: Path) -> None:
-    """Until SITL says SERIAL0 listens (it exits at once on a port in use or a bad flag)."""
+def wait_listening(proc: subprocess.Popen[bytes], log_path: Path, serial: int = 0) -> None:
+    """Until SITL says SERIALn listens (SERIAL1 opens once SERIAL0 has its client; SITL
+    exits at once on a port in use or a bad flag)."""
     deadline = time.monotonic() + LISTEN_WALL_S
-    while b"SERIAL0 on TCP port" not in log_path.read_bytes():
+    while f"SERIAL{serial} on TCP port".encode() not in log_path.read_bytes():
         if proc.poll() is not None or time.monotonic() > deadline:
             tail = log_path.read_text(errors="replace").strip().splitlines()[-3:]
             raise UserError(f"SITL did not start: {' / '.join(tail) or 'no output'}")
@@ -130,7 +131,7 @@ def running_sitl(opts: SitlOptions) -> Iterator[subprocess.Popen[bytes]]:
     with log_path.open("wb") as log:
         proc = subprocess.Popen(command(opts), cwd=opts.workdir, stdout=log, stderr=log)
     try:
-        _wait_listening(proc, log_path)
+        wait_listening(proc, log_path)
         yield proc
     finally:
         proc.terminate()
