@@ -18,8 +18,8 @@ from collections.abc import Sequence
 from estimator import __version__
 from estimator.errors import UserError
 
-#: Subcommand modules under estimator/commands with their one-line summaries, in the order
-#: ``--help`` lists them.
+#: Subcommands with their one-line summaries, in the order ``--help`` lists them; the module
+#: of ``a-b`` is ``estimator/commands/a_b.py``.
 COMMANDS = {
     "demo": "simulated flight with a hidden wind, live into the daemon",
     "run": "run the onboard daemon on a MAVLink link",
@@ -28,6 +28,7 @@ COMMANDS = {
     "fit": "fit the power model to flight logs",
     "residuals": "find the effects the power model lacks from flight logs",
     "experiments": "reproduce the paper's experiments on the built-in vehicle",
+    "sitl-record": "fly scenarios in ArduCopter SITL and record tlog, DataFlash and truth",
 }
 
 
@@ -43,7 +44,8 @@ def build_parser(only: str | None = None) -> argparse.ArgumentParser:
         for name, summary in COMMANDS.items():
             subparsers.add_parser(name, help=summary)
     else:
-        importlib.import_module(f"estimator.commands.{only}").register(subparsers)
+        module = only.replace("-", "_")
+        importlib.import_module(f"estimator.commands.{module}").register(subparsers)
     return parser
 
 

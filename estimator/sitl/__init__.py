@@ -1,0 +1,12 @@
+"""ArduPilot SITL: start ArduCopter's software-in-the-loop binary, fly it, record the flight.
+
+- :mod:`estimator.sitl.launch`: find the binary and its parameter file, pick a free
+  instance, run it in a scratch directory;
+- :mod:`estimator.sitl.pilot`: a pymavlink ground station that flies it by the autopilot's
+  own clock (``time_boot_ms``) and switches the simulator's effects (wind, gripper payload);
+- :mod:`estimator.sitl.scenarios`: flights as data;
+- :mod:`estimator.sitl.recorder`: one scenario → ``flight.tlog``, DataFlash ``flight.BIN``
+  and ``truth.json`` (``uav-energy sitl-record``).
+
+See docs/sitl.md.
+"""

@@ -1,0 +1,85 @@
+"""The committed ArduCopter SITL recordings (``replay/sitl/<scenario>/``, made by
+``uav-energy sitl-record all``): one per scenario, each with a truth that matches its flight,
+and every tlog and DataFlash log replays. Also the command's answers to user mistakes."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import pytest
+
+from estimator.analysis.replay import replay_log, summarize
+from estimator.cli import main
+from estimator.physics.vehicle import load_vehicle
+from estimator.sitl.scenarios import SCENARIOS, Grip, SetWind
+
+REPO = Path(__file__).resolve().parent.parent
+RECORDINGS = REPO / "replay/sitl"
+VEHICLE = REPO / "config/vehicles/ardupilot_sitl_quad.toml"
+#: What the recordings may weigh together (they are committed), bytes.
+MAX_TOTAL_BYTES = 25 * 2**20
+
+
+def _truth(name: str) -> dict:
+    return json.loads((RECORDINGS / name / "truth.json").read_text())
+
+
+def test_every_scenario_is_recorded_and_the_recordings_stay_small() -> None:
+    assert sorted(p.name for p in RECORDINGS.iterdir() if p.is_dir()) == sorted(SCENARIOS)
+    total = sum(f.stat().st_size for f in RECORDINGS.rglob("*") if f.is_file())
+    assert total <= MAX_TOTAL_BYTES
+    with_dataflash = [s for s in SCENARIOS if (RECORDINGS / s / "flight.BIN").is_file()]
+    assert len(with_dataflash) >= 2
+    assert with_dataflash == [s.name for s in SCENARIOS.values() if s.dataflash]
+
+
+@pytest.mark.parametrize("name", sorted(SCENARIOS))
+def test_truth_names_the_effects_of_the_scenario_within_the_flight(name: str) -> None:
+    truth, scenario = _truth(name), SCENARIOS[name]
+    ev = truth["events"]
+    assert ev["armed_s"] <= ev["takeoff_s"] < ev["landed_s"] <= ev["disarmed_s"]
+    assert 180.0 <= ev["landed_s"] - ev["takeoff_s"] <= 360.0  # 3–6 min flights
+    winds = [e for e in truth["effects"] if e["effect"] == "wind"]
+    set_winds = [s for s in scenario.steps if isinstance(s, SetWind) and s.speed_mps > 0]
+    assert [(w["speed_mps"], w["from_deg"]) for w in winds] == [
+        (s.speed_mps, s.from_deg) for s in set_winds
+    ]
+    payloads = [e for e in truth["effects"] if e["effect"] == "payload"]
+    assert len(payloads) == int(any(isinstance(s, Grip) and s.grab for s in scenario.steps))
+    for effect in truth["effects"]:
+        assert effect["start_s"] < effect["end_s"] <= ev["disarmed_s"] + 5.0
+    for p in payloads:  # weighs from 2 m up: just after take-off
+        assert p["start_s"] - ev["takeoff_s"] < 5.0
+    assert truth["mass_kg"] == (scenario.model_json or {}).get("mass", 3.0)
+    if "battCapacityAh" in (scenario.model_json or {}):
+        assert truth["battery"]["drains"] and ev["reserve_s"] < ev["landed_s"]
+
+
+@pytest.mark.parametrize("name", sorted(SCENARIOS))
+def test_recording_replays_with_its_airborne_time(name: str) -> None:
+    ev = _truth(name)["events"]
+    vehicle = load_vehicle(VEHICLE)
+    logs = [RECORDINGS / name / "flight.tlog"]
+    if (RECORDINGS / name / "flight.BIN").is_file():
+        logs.append(RECORDINGS / name / "flight.BIN")
+    for log in logs:
+        flight = replay_log(log, vehicle)
+        summary = summarize([flight])
+        assert flight.bad_frames == 0
+        assert summary.airborne_s == pytest.approx(ev["landed_s"] - ev["takeoff_s"], abs=5.0)
+        assert summary.energy_measured_wh > 10.0
+
+
+def test_sitl_record_answers_user_mistakes_in_one_line(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    for argv, says in (
+        (["nope"], "unknown scenario 'nope'"),
+        (["clean_legs", "--speedup", "fast"], "--speedup needs a number"),
+        (["clean_legs", "--speedup", "0"], "--speedup must be in (0, 100]"),
+        (["clean_legs", "--binary", str(tmp_path / "none")], "is not a file"),
+    ):
+        assert main(["sitl-record", *argv, "--out", str(tmp_path)]) == 2
+        err = capsys.readouterr().err
+        assert says in err and err.count("\n") == 1
