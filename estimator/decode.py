@@ -3,27 +3,60 @@
 Bytes are parsed with pymavlink's generated ``dialects.v20.common`` codec (robust parsing on;
 MAVLink 1 frames parse too). Messages become :mod:`estimator.telemetry` samples:
 
-- time is the autopilot's ``time_boot_ms``; messages without a stamp (SYS_STATUS,
-  BATTERY_STATUS, HEARTBEAT) take the latest autopilot time seen, so a replay and a live run
-  of the same byte stream give the same samples;
+- time is the autopilot's ``time_boot_ms``, judged by an
+  :class:`~estimator.plausibility.AutopilotClock` (a stamp far from the clock is skipped
+  until several frames confirm a reboot or a gap); messages without a stamp (SYS_STATUS,
+  BATTERY_STATUS, HEARTBEAT) take the latest believed autopilot time, so a replay and a live
+  run of the same byte stream give the same samples;
 - unknown-value sentinels (current −1, voltage UINT16_MAX, cell voltage UINT16_MAX or 0,
-  consumed −1, remaining −1) become ``None`` or drop the sample;
+  consumed −1, remaining −1) become ``None`` or drop the sample; values beyond
+  :class:`~estimator.plausibility.InputLimits` (NaN, ±inf, 1e30, a current no pack gives)
+  drop the frame, counted under the reason;
+- the battery comes from BATTERY_STATUS (our ``battery_id``) once :data:`BATTERY_STATUS_CONFIRM`
+  of them arrived, each within :data:`BATTERY_STATUS_TIMEOUT_S` of the last, else from
+  SYS_STATUS — also again when BATTERY_STATUS stops for that long;
 - only the selected autopilot is decoded (default: the first autopilot HEARTBEAT);
   our own component's messages and everyone else's are counted and skipped.
+
+Every skip is counted in :attr:`TelemetryDecoder.counts` (see :data:`SKIP_COUNTERS`).
 """
 
 from __future__ import annotations
 
+import math
 from collections import Counter
 from collections.abc import Iterable
+from dataclasses import dataclass, replace
 
 from pymavlink.dialects.v20 import common as mavlink
 
+from estimator.plausibility import (
+    AutopilotClock,
+    ClockSettings,
+    ClockVerdict,
+    InputLimits,
+    battery_problem,
+    velocity_problem,
+)
 from estimator.telemetry import ArmedSample, BatterySample, RebootSample, Sample, VelocitySample
 
 UINT16_MAX = 65535
-#: A backward step of the autopilot clock larger than this is a reboot, smaller is reordering.
-REBOOT_BACKSTEP_S = 2.0
+#: BATTERY_STATUS frames in a row (each within the timeout) before they replace SYS_STATUS.
+BATTERY_STATUS_CONFIRM = 3
+#: Seconds of autopilot clock without BATTERY_STATUS after which SYS_STATUS is used again.
+BATTERY_STATUS_TIMEOUT_S = 3.0
+#: At most this many samples are held while a candidate new clock is pending.
+MAX_HELD_SAMPLES = 64
+#: Counters of input skipped because it was not believed (values, time), for the daemon's log.
+SKIP_COUNTERS = (
+    "velocity_not_finite",
+    "velocity_beyond_limits",
+    "altitude_implausible",
+    "voltage_implausible",
+    "current_implausible",
+    "consumed_implausible",
+    "time_jump",
+)
 #: Message types the decoder uses; every other type is skipped (and may be skipped unparsed).
 USED_MESSAGE_IDS = frozenset(
     {
@@ -84,11 +117,22 @@ class FrameParser:
             return None
 
 
+@dataclass(frozen=True, slots=True)
+class _Held:
+    """A sample held while a candidate new clock is pending: one stamped by the candidate
+    itself (``candidate_s`` None: a velocity frame's), or one stamped with the clock
+    (battery, armed) and the candidate's newest stamp when it arrived (s)."""
+
+    sample: Sample
+    candidate_s: float | None
+
+
 class TelemetryDecoder:
     """Turns the selected autopilot's messages into samples, with counters for what it skips.
 
     ``target`` is ``(system_id, component_id)`` of the autopilot, or ``None`` to lock onto the
-    first autopilot HEARTBEAT. ``own`` is our own ``(system_id, component_id)``.
+    first autopilot HEARTBEAT. ``own`` is our own ``(system_id, component_id)``. ``limits``:
+    the values believed (default: any multirotor's); ``clock``: the time checks.
     """
 
     def __init__(
@@ -96,21 +140,31 @@ class TelemetryDecoder:
         target: tuple[int, int] | None = None,
         own: tuple[int, int] = (1, mavlink.MAV_COMP_ID_ONBOARD_COMPUTER),
         battery_id: int = 0,
+        limits: InputLimits | None = None,
+        clock: ClockSettings | None = None,
     ) -> None:
         self.target = target
         self.own = own
         self.battery_id = battery_id
+        self.limits = limits or InputLimits()
         self.counts: Counter[str] = Counter()
-        self._clock_s: float | None = None
+        self._clock = AutopilotClock(clock)
         self._velocity_type: str | None = None
         self._last_velocity_s: float | None = None
-        self._battery_status_seen = False
+        # samples held while a candidate new clock is pending (see _stamp), and samples of a
+        # refuted candidate to deliver with the next decoded message
+        self._held: list[_Held] = []
+        self._pending_out: list[Sample] = []
+        self._candidate_first_s = math.inf
+        # BATTERY_STATUS in a row and the clock of the last one (SYS_STATUS fallback)
+        self._battery_status_frames = 0
+        self._battery_status_s = -math.inf
         self._armed: bool | None = None
 
     @property
     def clock_s(self) -> float | None:
-        """Latest autopilot time seen (s since its boot), None before the first stamp."""
-        return self._clock_s
+        """Latest believed autopilot time (s since its boot), None before the first stamp."""
+        return self._clock.time_s
 
     def discards(self, msgid: int, system: int, component: int) -> bool:
         """Whether :meth:`decode` would drop a message with this id from this source without
@@ -149,51 +203,109 @@ class TelemetryDecoder:
             self.counts["unused"] += 1
             return []
         self.counts[kind] += 1
-        return handler(self, msg)
+        samples = handler(self, msg)
+        if self._pending_out:
+            samples, self._pending_out = self._pending_out + samples, []
+        return samples
 
     # -- clock -------------------------------------------------------------------------------
 
-    def _stamp(self, time_boot_ms: int) -> list[Sample]:
-        """Advance the autopilot clock; return a RebootSample when it jumps backwards."""
-        t = time_boot_ms / 1000.0
-        if self._clock_s is not None and t < self._clock_s - REBOOT_BACKSTEP_S:
-            self.counts["reboots"] += 1
-            self._clock_s = t
+    def _stamp(self, time_s: float, sample: VelocitySample | None = None) -> list[Sample] | None:
+        """Judge a frame's stamp (s); see :class:`_Held`. None: the stamp is not believed (yet):
+        the frame is skipped (counted ``time_jump``) and its velocity ``sample`` held. Else
+        the samples to deliver before the frame's own: the held ones of a refuted candidate
+        clock, or those of a confirmed one after a RebootSample when it was re-referenced."""
+        clock = self._clock
+        verdict = clock.check(time_s)
+        if verdict is ClockVerdict.ACCEPT:
+            return self._release(confirmed=False)
+        if verdict is ClockVerdict.SKIP:
+            self.counts["time_jump"] += 1
+            if clock.candidate_frames == 1:  # a new candidate: an older one was refuted
+                self._pending_out.extend(self._release(confirmed=False))
+                self._candidate_first_s = time_s
+            if sample is not None:
+                self._held.append(_Held(sample, None))
+            if len(self._held) > MAX_HELD_SAMPLES:
+                clock.forget_candidate()
+                self._pending_out.extend(self._release(confirmed=False))
+            return None
+        out: list[Sample] = []
+        if verdict is ClockVerdict.GAP:
+            self.counts["clock_gaps"] += 1
+        else:
+            self.counts["reboots" if verdict is ClockVerdict.REBOOT else "clock_jumps"] += 1
             self._last_velocity_s = None
-            self._armed = None
-            return [RebootSample(t)]
-        if self._clock_s is None or t > self._clock_s:
-            self._clock_s = t
+            self._battery_status_frames, self._battery_status_s = 0, -math.inf
+            if verdict is ClockVerdict.REBOOT:
+                self._armed = None
+            out.append(RebootSample(min(self._candidate_first_s, time_s)))
+        out.extend(self._release(confirmed=True))
+        return out
+
+    def _release(self, confirmed: bool) -> list[Sample]:
+        """The held samples: on a confirmed clock all of them, each clock-stamped one moved to
+        the candidate's time when it arrived; on a refuted one only the clock-stamped ones,
+        on the clock they arrived on (the frames that carried the candidate's stamps are
+        dropped)."""
+        held, self._held = self._held, []
+        out, self._pending_out = self._pending_out, []
+        for h in held:
+            if h.candidate_s is None:
+                if confirmed and (
+                    self._last_velocity_s is None or h.sample.time_s > self._last_velocity_s
+                ):
+                    self._last_velocity_s = h.sample.time_s
+                    out.append(h.sample)
+            else:
+                out.append(replace(h.sample, time_s=h.candidate_s) if confirmed else h.sample)
+        return out
+
+    def _clocked(self, sample: BatterySample | ArmedSample) -> list[Sample]:
+        """A sample stamped with the clock: held while a candidate new clock is pending."""
+        candidate_s = self._clock.candidate_s
+        if candidate_s is None:
+            return [sample]
+        self._held.append(_Held(sample, candidate_s))
+        return []
+
+    def _skip(self, reason: str) -> list[Sample]:
+        self.counts[reason] += 1
         return []
 
     # -- handlers ----------------------------------------------------------------------------
 
     def _heartbeat(self, msg: mavlink.MAVLink_message) -> list[Sample]:
         armed = bool(msg.base_mode & mavlink.MAV_MODE_FLAG_SAFETY_ARMED)
-        if self._clock_s is None or armed == self._armed:
+        clock_s = self._clock.time_s
+        if clock_s is None or armed == self._armed:
             return []
         self._armed = armed
-        return [ArmedSample(self._clock_s, armed)]
+        return self._clocked(ArmedSample(clock_s, armed))
 
     def _attitude(self, msg: mavlink.MAVLink_message) -> list[Sample]:
-        return self._stamp(msg.time_boot_ms)
+        return self._stamp(msg.time_boot_ms / 1000.0) or []
 
     def _velocity(
         self, msg: mavlink.MAVLink_message, v_ned: tuple[float, float, float], alt_m: float
     ) -> list[Sample]:
         kind = msg.get_type()
-        if self._velocity_type is None:
-            self._velocity_type = kind
-        elif kind != self._velocity_type:
-            self.counts["duplicate_velocity_source"] += 1
-            return []
-        out = self._stamp(msg.time_boot_ms)
+        if self._velocity_type not in (None, kind):
+            return self._skip("duplicate_velocity_source")
         t = msg.time_boot_ms / 1000.0
+        sample = VelocitySample(t, v_ned[0], v_ned[1], v_ned[2], alt_m)
+        problem = velocity_problem(sample, self.limits)
+        if problem is not None:
+            return self._skip(problem)
+        out = self._stamp(t, sample)
+        if out is None:
+            return []
+        self._velocity_type = kind
         if self._last_velocity_s is not None and t <= self._last_velocity_s:
             self.counts["out_of_order"] += 1
             return out
         self._last_velocity_s = t
-        out.append(VelocitySample(t, v_ned[0], v_ned[1], v_ned[2], alt_m))
+        out.append(sample)
         return out
 
     def _global_position(self, msg: mavlink.MAVLink_message) -> list[Sample]:
@@ -204,18 +316,23 @@ class TelemetryDecoder:
         return self._velocity(msg, (msg.vx, msg.vy, msg.vz), -msg.z)
 
     def _sys_status(self, msg: mavlink.MAVLink_message) -> list[Sample]:
-        if self._battery_status_seen:
-            return []
+        clock_s = self._clock.time_s
+        if self._battery_status_frames >= BATTERY_STATUS_CONFIRM:
+            if clock_s is not None and clock_s - self._battery_status_s <= BATTERY_STATUS_TIMEOUT_S:
+                return []  # BATTERY_STATUS is flowing: it is the battery source
+            self._battery_status_frames = 0
+            self.counts["battery_status_stopped"] += 1
         voltage_mv = msg.voltage_battery
         if voltage_mv in (0, UINT16_MAX):
             self.counts["battery_voltage_unknown"] += 1
             return []
-        return self._battery(
+        sample = self._battery(
             voltage_mv / 1000.0,
             _current_a(msg.current_battery),
             None,
             _remaining_pct(msg.battery_remaining),
         )
+        return [] if sample is None else self._clocked(sample)
 
     def _battery_status(self, msg: mavlink.MAVLink_message) -> list[Sample]:
         if msg.id != self.battery_id:
@@ -226,14 +343,23 @@ class TelemetryDecoder:
         if not known:
             self.counts["battery_voltage_unknown"] += 1
             return []
-        self._battery_status_seen = True
-        consumed = None if msg.current_consumed < 0 else float(msg.current_consumed)
-        return self._battery(
+        consumed = None if msg.current_consumed == -1 else float(msg.current_consumed)
+        sample = self._battery(
             sum(known) / 1000.0,
             _current_a(msg.current_battery),
             consumed,
             _remaining_pct(msg.battery_remaining),
         )
+        if sample is None:
+            return []
+        if sample.time_s - self._battery_status_s > BATTERY_STATUS_TIMEOUT_S:
+            self._battery_status_frames = 0
+        self._battery_status_frames += 1
+        self._battery_status_s = sample.time_s
+        if self._battery_status_frames < BATTERY_STATUS_CONFIRM:
+            self.counts["battery_status_unconfirmed"] += 1
+            return []
+        return self._clocked(sample)
 
     def _battery(
         self,
@@ -241,11 +367,19 @@ class TelemetryDecoder:
         current_a: float | None,
         consumed_mah: float | None,
         remaining_pct: float | None,
-    ) -> list[Sample]:
-        if self._clock_s is None:
+    ) -> BatterySample | None:
+        """A pack reading on the clock, or None when there is no clock yet or it is not
+        plausible (counted)."""
+        clock_s = self._clock.time_s
+        if clock_s is None:
             self.counts["battery_before_clock"] += 1
-            return []
-        return [BatterySample(self._clock_s, voltage_v, current_a, consumed_mah, remaining_pct)]
+            return None
+        sample = BatterySample(clock_s, voltage_v, current_a, consumed_mah, remaining_pct)
+        problem = battery_problem(sample, self.limits)
+        if problem is not None:
+            self.counts[problem] += 1
+            return None
+        return sample
 
 
 def _is_autopilot(msg: mavlink.MAVLink_message) -> bool:

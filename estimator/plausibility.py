@@ -1,0 +1,204 @@
+"""Plausibility of telemetry: physical limits on values, and a clock that believes a jump only
+when several frames agree.
+
+A value outside :class:`InputLimits` (NaN, ±inf, a velocity no multirotor flies, a voltage or
+current no pack of the vehicle gives) is a *reason* string; the caller counts it under that
+name and skips the sample: it never reaches the filters.
+
+:class:`AutopilotClock` keeps the autopilot's clock (s since boot). A frame stamped within
+``max_step_s`` ahead of it or ``backstep_s`` behind it is accepted (behind: reordering; the
+clock does not go back). Any other stamp — a reboot, a link gap, or one forged or corrupt
+frame — is a candidate new clock, believed only after ``confirm_frames`` frames agree with it
+with no frame of the current clock in between; until then those frames are skipped. Believed:
+
+- behind the clock: a reboot (:attr:`ClockVerdict.REBOOT`);
+- ahead by at most ``max_gap_s``: a link gap, the clock moves on (:attr:`ClockVerdict.GAP`);
+- further ahead, or back at (or beyond) the clock held before a believed reboot — the old clock
+  was alive: the reboot was not real — a new reference (:attr:`ClockVerdict.JUMP`).
+"""
+
+from __future__ import annotations
+
+import enum
+import math
+from dataclasses import dataclass, replace
+
+from estimator.telemetry import BatterySample, VelocitySample
+
+#: Highest resting voltage of a charged lithium cell (LiHV 4.35 V) with margin, V per cell.
+MAX_CELL_VOLTAGE_V = 4.5
+#: Below this a lithium cell is beyond any cut-off, even sagging under load, V per cell.
+MIN_CELL_VOLTAGE_V = 2.0
+#: Range of a LiPo/Li-ion cell's voltage at rest or under moderate load (pack sanity), V.
+CELL_VOLTAGE_RANGE_V = (3.0, 4.35)
+#: Nominal cell voltage used to suggest a cell count, V.
+NOMINAL_CELL_VOLTAGE_V = 3.8
+#: Highest plausible electrical power as a multiple of the vehicle's hover power.
+MAX_POWER_PER_HOVER = 10.0
+
+
+@dataclass(frozen=True, slots=True)
+class InputLimits:
+    """Physical limits of a telemetry sample; beyond them a value is not believed.
+
+    Defaults hold for any multirotor: horizontal ground speed ≤ 200 m/s (the fastest
+    quadrotors fly about 160 m/s), |vertical speed| ≤ 100 m/s, |height over home| ≤ 20 km,
+    pack voltage in (0, 150] V, current in [−20, 1000] A (a small negative current is a sensor
+    offset), consumed charge in [0, 10⁶] mAh. :meth:`for_pack` narrows voltage and current to
+    one vehicle's pack and power.
+    """
+
+    max_speed_mps: float = 200.0
+    max_vertical_speed_mps: float = 100.0
+    max_abs_alt_m: float = 20_000.0
+    min_voltage_v: float = 0.0
+    max_voltage_v: float = 150.0
+    min_current_a: float = -20.0
+    max_current_a: float = 1000.0
+    max_consumed_mah: float = 1e6
+
+    @classmethod
+    def for_pack(cls, cells: int, hover_power_w: float) -> InputLimits:
+        """Limits for a pack of ``cells`` lithium cells in series feeding a vehicle that hovers
+        at ``hover_power_w`` (W): voltage within [2.0, 4.5] V per cell, current at most
+        :data:`MAX_POWER_PER_HOVER` × hover power at 3.0 V per cell (a sagging pack)."""
+        limits = cls()
+        if cells <= 0:
+            return limits
+        max_current_a = limits.max_current_a
+        if math.isfinite(hover_power_w) and hover_power_w > 0:
+            max_current_a = MAX_POWER_PER_HOVER * hover_power_w / (cells * 3.0)
+        return replace(
+            limits,
+            min_voltage_v=cells * MIN_CELL_VOLTAGE_V,
+            max_voltage_v=cells * MAX_CELL_VOLTAGE_V,
+            max_current_a=max_current_a,
+        )
+
+
+def velocity_problem(sample: VelocitySample, limits: InputLimits) -> str | None:
+    """Why ``sample`` is not believed (a counter name), or None when it is plausible."""
+    v = (sample.vn_mps, sample.ve_mps, sample.vd_mps)
+    if not all(math.isfinite(x) for x in v):
+        return "velocity_not_finite"
+    if math.hypot(v[0], v[1]) > limits.max_speed_mps or abs(v[2]) > limits.max_vertical_speed_mps:
+        return "velocity_beyond_limits"
+    alt = sample.alt_m
+    if alt is not None and not (math.isfinite(alt) and abs(alt) <= limits.max_abs_alt_m):
+        return "altitude_implausible"
+    return None
+
+
+def battery_problem(sample: BatterySample, limits: InputLimits) -> str | None:
+    """Why ``sample`` is not believed (a counter name), or None when it is plausible."""
+    v = sample.voltage_v
+    if not (math.isfinite(v) and limits.min_voltage_v < v <= limits.max_voltage_v):
+        return "voltage_implausible"
+    i = sample.current_a
+    if i is not None and not (
+        math.isfinite(i) and limits.min_current_a <= i <= limits.max_current_a
+    ):
+        return "current_implausible"
+    q = sample.consumed_mah
+    if q is not None and not (math.isfinite(q) and 0.0 <= q <= limits.max_consumed_mah):
+        return "consumed_implausible"
+    return None
+
+
+def pack_voltage_problem(voltage_v: float, cells: int) -> str | None:
+    """A sentence when a pack voltage (V, at rest or light load) does not fit ``cells`` lithium
+    cells in series — the vehicle file is for another pack — else None."""
+    if cells <= 0 or not math.isfinite(voltage_v) or voltage_v <= 0:
+        return None
+    per_cell = voltage_v / cells
+    low, high = CELL_VOLTAGE_RANGE_V
+    if low <= per_cell <= high:
+        return None
+    fits = max(1, round(voltage_v / NOMINAL_CELL_VOLTAGE_V))
+    return (
+        f"pack voltage {voltage_v:.2f} V is {per_cell:.2f} V per cell for the vehicle file's "
+        f"{cells} cells (a lithium cell holds {low:.2f}-{high:.2f} V): the energy estimates are "
+        f"wrong; is [battery] cells right? ({fits} cells would fit)"
+    )
+
+
+class ClockVerdict(enum.Enum):
+    """What :meth:`AutopilotClock.check` made of a stamp."""
+
+    ACCEPT = "accept"  # consistent with the clock (which moved forward if it is newer)
+    SKIP = "skip"  # far from the clock, not (yet) confirmed by other frames: skip the frame
+    REBOOT = "reboot"  # confirmed clock behind the old one: the autopilot rebooted
+    GAP = "gap"  # confirmed clock ahead by at most max_gap_s: telemetry was lost meanwhile
+    JUMP = "jump"  # confirmed clock far ahead, or the pre-reboot clock back: a new reference
+
+
+@dataclass(frozen=True, slots=True)
+class ClockSettings:
+    """Seconds of autopilot clock; see the module docstring."""
+
+    max_step_s: float = 2.5
+    backstep_s: float = 2.0
+    confirm_frames: int = 5
+    max_gap_s: float = 120.0
+
+
+class AutopilotClock:
+    """The autopilot's clock (s since its boot), moved only by stamps it believes."""
+
+    def __init__(self, settings: ClockSettings | None = None) -> None:
+        self.settings = settings or ClockSettings()
+        self.time_s: float | None = None
+        self._candidate_last_s = math.nan  # newest stamp of the candidate new clock
+        self._candidate_frames = 0
+        self._before_reboot_s: float | None = None  # the clock a believed reboot replaced
+
+    @property
+    def candidate_frames(self) -> int:
+        """Frames of the candidate new clock so far (0: none pending; 1: one just started)."""
+        return self._candidate_frames
+
+    @property
+    def candidate_s(self) -> float | None:
+        """Newest stamp of the pending candidate new clock (s), None when none is pending."""
+        return self._candidate_last_s if self._candidate_frames else None
+
+    def forget_candidate(self) -> None:
+        """Drop the pending candidate (its frames stay skipped)."""
+        self._candidate_frames = 0
+
+    def _near(self, time_s: float, reference_s: float) -> bool:
+        s = self.settings
+        return reference_s - s.backstep_s <= time_s <= reference_s + s.max_step_s
+
+    def check(self, time_s: float) -> ClockVerdict:
+        """Judge one frame's stamp (s); the clock moves on ACCEPT (forward only) and on every
+        confirmed change."""
+        now = self.time_s
+        if now is None:
+            self.time_s = time_s
+            return ClockVerdict.ACCEPT
+        if self._near(time_s, now):
+            self._candidate_frames = 0
+            if time_s > now:
+                self.time_s = time_s
+                if self._before_reboot_s is not None and time_s > self._before_reboot_s:
+                    self._before_reboot_s = None  # the old clock can no longer be told apart
+            return ClockVerdict.ACCEPT
+        if self._candidate_frames and self._near(time_s, self._candidate_last_s):
+            self._candidate_frames += 1
+            self._candidate_last_s = max(self._candidate_last_s, time_s)
+        else:
+            self._candidate_frames, self._candidate_last_s = 1, time_s
+        if self._candidate_frames < self.settings.confirm_frames:
+            return ClockVerdict.SKIP
+        new_s = self._candidate_last_s
+        self._candidate_frames = 0
+        self.time_s = new_s
+        before = self._before_reboot_s
+        if new_s < now:
+            self._before_reboot_s = now if before is None else max(before, now)
+            return ClockVerdict.REBOOT
+        if before is not None and new_s >= before - self.settings.backstep_s:
+            self._before_reboot_s = None
+            return ClockVerdict.JUMP
+        return ClockVerdict.JUMP if new_s - now > self.settings.max_gap_s else ClockVerdict.GAP
