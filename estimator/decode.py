@@ -26,27 +26,24 @@ from __future__ import annotations
 import math
 from collections import Counter
 from collections.abc import Iterable
-from dataclasses import dataclass, replace
 
 from pymavlink.dialects.v20 import common as mavlink
 
 from estimator.plausibility import (
-    AutopilotClock,
+    ClockFilter,
     ClockSettings,
     ClockVerdict,
     InputLimits,
     battery_problem,
     velocity_problem,
 )
-from estimator.telemetry import ArmedSample, BatterySample, RebootSample, Sample, VelocitySample
+from estimator.telemetry import ArmedSample, BatterySample, Sample, VelocitySample
 
 UINT16_MAX = 65535
 #: BATTERY_STATUS frames in a row (each within the timeout) before they replace SYS_STATUS.
 BATTERY_STATUS_CONFIRM = 3
 #: Seconds of autopilot clock without BATTERY_STATUS after which SYS_STATUS is used again.
 BATTERY_STATUS_TIMEOUT_S = 3.0
-#: At most this many samples are held while a candidate new clock is pending.
-MAX_HELD_SAMPLES = 64
 #: Counters of input skipped because it was not believed (values, time), for the daemon's log.
 SKIP_COUNTERS = (
     "velocity_not_finite",
@@ -117,16 +114,6 @@ class FrameParser:
             return None
 
 
-@dataclass(frozen=True, slots=True)
-class _Held:
-    """A sample held while a candidate new clock is pending: one stamped by the candidate
-    itself (``candidate_s`` None: a velocity frame's), or one stamped with the clock
-    (battery, armed) and the candidate's newest stamp when it arrived (s)."""
-
-    sample: Sample
-    candidate_s: float | None
-
-
 class TelemetryDecoder:
     """Turns the selected autopilot's messages into samples, with counters for what it skips.
 
@@ -148,14 +135,9 @@ class TelemetryDecoder:
         self.battery_id = battery_id
         self.limits = limits or InputLimits()
         self.counts: Counter[str] = Counter()
-        self._clock = AutopilotClock(clock)
+        self._time = ClockFilter(self.counts, clock)
         self._velocity_type: str | None = None
         self._last_velocity_s: float | None = None
-        # samples held while a candidate new clock is pending (see _stamp), and samples of a
-        # refuted candidate to deliver with the next decoded message
-        self._held: list[_Held] = []
-        self._pending_out: list[Sample] = []
-        self._candidate_first_s = math.inf
         # BATTERY_STATUS in a row and the clock of the last one (SYS_STATUS fallback)
         self._battery_status_frames = 0
         self._battery_status_s = -math.inf
@@ -164,7 +146,16 @@ class TelemetryDecoder:
     @property
     def clock_s(self) -> float | None:
         """Latest believed autopilot time (s since its boot), None before the first stamp."""
-        return self._clock.time_s
+        return self._time.clock.time_s
+
+    @property
+    def velocity_type(self) -> str | None:
+        """The message type velocity is taken from, None before the first one."""
+        return self._velocity_type
+
+    def flush(self) -> list[Sample]:
+        """End of input (a log): samples still held for a stamp never confirmed."""
+        return self._time.flush()
 
     def discards(self, msgid: int, system: int, component: int) -> bool:
         """Whether :meth:`decode` would drop a message with this id from this source without
@@ -204,70 +195,25 @@ class TelemetryDecoder:
             return []
         self.counts[kind] += 1
         samples = handler(self, msg)
-        if self._pending_out:
-            samples, self._pending_out = self._pending_out + samples, []
-        return samples
+        return [*self._time.take_pending(), *samples]
 
     # -- clock -------------------------------------------------------------------------------
 
     def _stamp(self, time_s: float, sample: VelocitySample | None = None) -> list[Sample] | None:
-        """Judge a frame's stamp (s); see :class:`_Held`. None: the stamp is not believed (yet):
-        the frame is skipped (counted ``time_jump``) and its velocity ``sample`` held. Else
-        the samples to deliver before the frame's own: the held ones of a refuted candidate
-        clock, or those of a confirmed one after a RebootSample when it was re-referenced."""
-        clock = self._clock
-        verdict = clock.check(time_s)
-        if verdict is ClockVerdict.ACCEPT:
-            return self._release(confirmed=False)
-        if verdict is ClockVerdict.SKIP:
-            self.counts["time_jump"] += 1
-            if clock.candidate_frames == 1:  # a new candidate: an older one was refuted
-                self._pending_out.extend(self._release(confirmed=False))
-                self._candidate_first_s = time_s
-            if sample is not None:
-                self._held.append(_Held(sample, None))
-            if len(self._held) > MAX_HELD_SAMPLES:
-                clock.forget_candidate()
-                self._pending_out.extend(self._release(confirmed=False))
-            return None
-        out: list[Sample] = []
-        if verdict is ClockVerdict.GAP:
-            self.counts["clock_gaps"] += 1
-        else:
-            self.counts["reboots" if verdict is ClockVerdict.REBOOT else "clock_jumps"] += 1
+        """Judge a frame's stamp (s) with the clock filter: None skips the frame (``sample``
+        is held until the stamp is confirmed or refuted); else the samples to deliver before
+        the frame's own. A re-referenced clock restarts what belongs to the old one."""
+        out = self._time.stamped(time_s, sample)
+        verdict = self._time.verdict
+        if out is not None and verdict in (ClockVerdict.REBOOT, ClockVerdict.JUMP):
             self._last_velocity_s = None
             self._battery_status_frames, self._battery_status_s = 0, -math.inf
             if verdict is ClockVerdict.REBOOT:
                 self._armed = None
-            out.append(RebootSample(min(self._candidate_first_s, time_s)))
-        out.extend(self._release(confirmed=True))
+        for released in out or ():
+            if isinstance(released, VelocitySample):
+                self._last_velocity_s = released.time_s
         return out
-
-    def _release(self, confirmed: bool) -> list[Sample]:
-        """The held samples: on a confirmed clock all of them, each clock-stamped one moved to
-        the candidate's time when it arrived; on a refuted one only the clock-stamped ones,
-        on the clock they arrived on (the frames that carried the candidate's stamps are
-        dropped)."""
-        held, self._held = self._held, []
-        out, self._pending_out = self._pending_out, []
-        for h in held:
-            if h.candidate_s is None:
-                if confirmed and (
-                    self._last_velocity_s is None or h.sample.time_s > self._last_velocity_s
-                ):
-                    self._last_velocity_s = h.sample.time_s
-                    out.append(h.sample)
-            else:
-                out.append(replace(h.sample, time_s=h.candidate_s) if confirmed else h.sample)
-        return out
-
-    def _clocked(self, sample: BatterySample | ArmedSample) -> list[Sample]:
-        """A sample stamped with the clock: held while a candidate new clock is pending."""
-        candidate_s = self._clock.candidate_s
-        if candidate_s is None:
-            return [sample]
-        self._held.append(_Held(sample, candidate_s))
-        return []
 
     def _skip(self, reason: str) -> list[Sample]:
         self.counts[reason] += 1
@@ -277,11 +223,11 @@ class TelemetryDecoder:
 
     def _heartbeat(self, msg: mavlink.MAVLink_message) -> list[Sample]:
         armed = bool(msg.base_mode & mavlink.MAV_MODE_FLAG_SAFETY_ARMED)
-        clock_s = self._clock.time_s
+        clock_s = self._time.clock.time_s
         if clock_s is None or armed == self._armed:
             return []
         self._armed = armed
-        return self._clocked(ArmedSample(clock_s, armed))
+        return self._time.clocked(ArmedSample(clock_s, armed))
 
     def _attitude(self, msg: mavlink.MAVLink_message) -> list[Sample]:
         return self._stamp(msg.time_boot_ms / 1000.0) or []
@@ -316,7 +262,7 @@ class TelemetryDecoder:
         return self._velocity(msg, (msg.vx, msg.vy, msg.vz), -msg.z)
 
     def _sys_status(self, msg: mavlink.MAVLink_message) -> list[Sample]:
-        clock_s = self._clock.time_s
+        clock_s = self._time.clock.time_s
         if self._battery_status_frames >= BATTERY_STATUS_CONFIRM:
             if clock_s is not None and clock_s - self._battery_status_s <= BATTERY_STATUS_TIMEOUT_S:
                 return []  # BATTERY_STATUS is flowing: it is the battery source
@@ -332,7 +278,7 @@ class TelemetryDecoder:
             None,
             _remaining_pct(msg.battery_remaining),
         )
-        return [] if sample is None else self._clocked(sample)
+        return [] if sample is None else self._time.clocked(sample)
 
     def _battery_status(self, msg: mavlink.MAVLink_message) -> list[Sample]:
         if msg.id != self.battery_id:
@@ -359,7 +305,7 @@ class TelemetryDecoder:
         if self._battery_status_frames < BATTERY_STATUS_CONFIRM:
             self.counts["battery_status_unconfirmed"] += 1
             return []
-        return self._clocked(sample)
+        return self._time.clocked(sample)
 
     def _battery(
         self,
@@ -370,7 +316,7 @@ class TelemetryDecoder:
     ) -> BatterySample | None:
         """A pack reading on the clock, or None when there is no clock yet or it is not
         plausible (counted)."""
-        clock_s = self._clock.time_s
+        clock_s = self._time.clock.time_s
         if clock_s is None:
             self.counts["battery_before_clock"] += 1
             return None

@@ -15,20 +15,31 @@ with no frame of the current clock in between; until then those frames are skipp
 - ahead by at most ``max_gap_s``: a link gap, the clock moves on (:attr:`ClockVerdict.GAP`);
 - further ahead, or back at (or beyond) the clock held before a believed reboot — the old clock
   was alive: the reboot was not real — a new reference (:attr:`ClockVerdict.JUMP`).
+
+:class:`ClockFilter` puts a stream of samples through that clock without losing any: samples
+of frames whose stamp is not believed yet are held, and delivered once the new clock is
+confirmed (a real reboot or gap loses nothing) or dropped when it is refuted (a forged or
+corrupt stamp leaves the samples exactly as if the frame had never come). Samples stamped
+with the clock itself (a battery reading without its own stamp) are held meanwhile too, and
+delivered on the clock they belong to. :class:`SampleGuard` applies the value and time checks
+to a log reader's samples.
 """
 
 from __future__ import annotations
 
 import enum
 import math
+from collections import Counter
 from dataclasses import dataclass, replace
+from typing import TYPE_CHECKING
 
-from estimator.telemetry import BatterySample, VelocitySample
+from estimator.telemetry import BatterySample, RebootSample, Sample, VelocitySample
+
+if TYPE_CHECKING:  # a type only: this module depends on the telemetry layer alone
+    from estimator.vehicle import Vehicle
 
 #: Highest resting voltage of a charged lithium cell (LiHV 4.35 V) with margin, V per cell.
 MAX_CELL_VOLTAGE_V = 4.5
-#: Below this a lithium cell is beyond any cut-off, even sagging under load, V per cell.
-MIN_CELL_VOLTAGE_V = 2.0
 #: Range of a LiPo/Li-ion cell's voltage at rest or under moderate load (pack sanity), V.
 CELL_VOLTAGE_RANGE_V = (3.0, 4.35)
 #: Nominal cell voltage used to suggest a cell count, V.
@@ -58,10 +69,17 @@ class InputLimits:
     max_consumed_mah: float = 1e6
 
     @classmethod
+    def for_vehicle(cls, vehicle: Vehicle) -> InputLimits:
+        """:meth:`for_pack` with the vehicle file's cell count and modelled hover power."""
+        return cls.for_pack(vehicle.battery.cells, vehicle.model.hover_power_w)
+
+    @classmethod
     def for_pack(cls, cells: int, hover_power_w: float) -> InputLimits:
         """Limits for a pack of ``cells`` lithium cells in series feeding a vehicle that hovers
-        at ``hover_power_w`` (W): voltage within [2.0, 4.5] V per cell, current at most
-        :data:`MAX_POWER_PER_HOVER` × hover power at 3.0 V per cell (a sagging pack)."""
+        at ``hover_power_w`` (W): voltage at most 4.5 V per cell, current at most
+        :data:`MAX_POWER_PER_HOVER` × hover power at 3.0 V per cell (a sagging pack). A low
+        voltage stays believed: a vehicle file with too many cells is a warning
+        (:func:`pack_voltage_problem`), not a silent daemon."""
         limits = cls()
         if cells <= 0:
             return limits
@@ -70,7 +88,6 @@ class InputLimits:
             max_current_a = MAX_POWER_PER_HOVER * hover_power_w / (cells * 3.0)
         return replace(
             limits,
-            min_voltage_v=cells * MIN_CELL_VOLTAGE_V,
             max_voltage_v=cells * MAX_CELL_VOLTAGE_V,
             max_current_a=max_current_a,
         )
@@ -202,3 +219,129 @@ class AutopilotClock:
             self._before_reboot_s = None
             return ClockVerdict.JUMP
         return ClockVerdict.JUMP if new_s - now > self.settings.max_gap_s else ClockVerdict.GAP
+
+
+#: At most this many samples are held while a candidate new clock is pending.
+MAX_HELD_SAMPLES = 64
+
+
+@dataclass(frozen=True, slots=True)
+class _Held:
+    """A sample held while a candidate new clock is pending: one stamped by a candidate frame
+    (``candidate_s`` None), or one stamped with the clock and the candidate's newest stamp
+    when it arrived (s)."""
+
+    sample: Sample
+    candidate_s: float | None
+
+
+class ClockFilter:
+    """Samples through an :class:`AutopilotClock` (see the module docstring). Counts into
+    ``counts``: ``time_jump`` (frames whose stamp was not believed when they came),
+    ``clock_gaps``, ``reboots``, ``clock_jumps``. ``verdict`` is the last stamp's."""
+
+    def __init__(self, counts: Counter[str], settings: ClockSettings | None = None) -> None:
+        self.clock = AutopilotClock(settings)
+        self.counts = counts
+        self.verdict = ClockVerdict.ACCEPT
+        self._held: list[_Held] = []
+        self._pending_out: list[Sample] = []  # released by a refuted candidate, not yet given
+        self._candidate_first_s = math.inf
+
+    def stamped(self, time_s: float, sample: Sample | None = None) -> list[Sample] | None:
+        """A frame stamped ``time_s`` (s), carrying ``sample`` (or nothing but its stamp).
+
+        None: the stamp is not believed (yet); the frame is skipped and its sample held.
+        Else the samples to deliver before the frame's own: those a refuted candidate held
+        back, or a confirmed candidate's (after a RebootSample when the clock was
+        re-referenced)."""
+        clock = self.clock
+        verdict = self.verdict = clock.check(time_s)
+        if verdict is ClockVerdict.ACCEPT:
+            return self._release(confirmed=False, before_s=time_s)
+        if verdict is ClockVerdict.SKIP:
+            self.counts["time_jump"] += 1
+            if clock.candidate_frames == 1:  # a new candidate: an older one was refuted
+                self._pending_out += self._release(confirmed=False, before_s=time_s)
+                self._candidate_first_s = time_s
+            if sample is not None:
+                self._held.append(_Held(sample, None))
+            if len(self._held) > MAX_HELD_SAMPLES:
+                clock.forget_candidate()
+                self._pending_out += self._release(confirmed=False, before_s=time_s)
+            return None
+        out: list[Sample] = []
+        if verdict is ClockVerdict.GAP:
+            self.counts["clock_gaps"] += 1
+        else:
+            self.counts["reboots" if verdict is ClockVerdict.REBOOT else "clock_jumps"] += 1
+            out.append(RebootSample(min(self._candidate_first_s, time_s)))
+        out += self._release(confirmed=True, before_s=time_s)
+        return out
+
+    def clocked(self, sample: Sample) -> list[Sample]:
+        """A sample stamped with the clock (no stamp of its own): held while a candidate new
+        clock is pending, else delivered."""
+        candidate_s = self.clock.candidate_s
+        if candidate_s is not None:
+            self._held.append(_Held(sample, candidate_s))
+            return []
+        return [sample]
+
+    def flush(self) -> list[Sample]:
+        """End of input: the held samples as if the pending candidate were refuted."""
+        self.clock.forget_candidate()
+        return self._release(confirmed=False, before_s=math.inf)
+
+    def take_pending(self) -> list[Sample]:
+        """Samples a refuted candidate released that no call has delivered yet."""
+        out, self._pending_out = self._pending_out, []
+        return out
+
+    def _release(self, confirmed: bool, before_s: float) -> list[Sample]:
+        """The held samples. Confirmed: all of them in order, the clock-stamped ones moved to
+        the candidate's time when they came, the candidate-stamped ones kept while their
+        times rise and stay before ``before_s``. Refuted: the clock-stamped ones on the clock
+        they came on; the candidate-stamped ones are dropped."""
+        held, self._held = self._held, []
+        out = self.take_pending()
+        last_s = -math.inf
+        for h in held:
+            if h.candidate_s is not None:
+                out.append(replace(h.sample, time_s=h.candidate_s) if confirmed else h.sample)
+            elif confirmed and last_s < h.sample.time_s < before_s:
+                last_s = h.sample.time_s
+                out.append(h.sample)
+        return out
+
+
+class SampleGuard:
+    """Value and time checks on a log reader's samples, each stamped with its own time: a
+    sample beyond ``limits`` is dropped and counted under the reason; times go through a
+    :class:`ClockFilter`. A RebootSample from the reader (a new flight) restarts the clock."""
+
+    def __init__(self, limits: InputLimits | None = None) -> None:
+        self.limits = limits or InputLimits()
+        self.counts: Counter[str] = Counter()
+        self._time = ClockFilter(self.counts)
+
+    def check(self, sample: Sample) -> list[Sample]:
+        """The samples to deliver for ``sample`` (none, it, or held ones before it)."""
+        if isinstance(sample, RebootSample):
+            pending = self._time.take_pending()
+            self._time = ClockFilter(self.counts)
+            return [*pending, sample]
+        problem = None
+        if isinstance(sample, VelocitySample):
+            problem = velocity_problem(sample, self.limits)
+        elif isinstance(sample, BatterySample):
+            problem = battery_problem(sample, self.limits)
+        if problem is not None:
+            self.counts[problem] += 1
+            return self._time.take_pending()
+        out = self._time.stamped(sample.time_s, sample)
+        return [] if out is None else [*out, sample]
+
+    def flush(self) -> list[Sample]:
+        """End of the log: what is still held (see :meth:`ClockFilter.flush`)."""
+        return self._time.flush()

@@ -30,6 +30,7 @@ from numpy.typing import NDArray
 from estimator.logs import SampleStream, iter_samples
 from estimator.online_effects import OnlineSettings
 from estimator.pipeline import Estimate, Pipeline, PipelineSettings, PowerReading
+from estimator.plausibility import InputLimits
 from estimator.telemetry import Sample
 from estimator.vehicle import Vehicle
 
@@ -185,7 +186,8 @@ def replay_log(
 ) -> FlightReplay:
     """Replay one log file (format by content unless ``fmt`` says)."""
     path = Path(path)
-    return replay_stream(iter_samples(path, fmt), vehicle, path.stem, settings)
+    stream = iter_samples(path, fmt, InputLimits.for_vehicle(vehicle))
+    return replay_stream(stream, vehicle, path.stem, settings)
 
 
 def summarize(flights: Iterable[FlightReplay]) -> Summary:

@@ -40,6 +40,7 @@ from estimator.config import build_config, load_config_file
 from estimator.errors import UserError
 from estimator.logs import FORMATS, iter_samples
 from estimator.pipeline import Estimate, PipelineSettings
+from estimator.plausibility import InputLimits
 from estimator.replay import FlightReplay, Summary, replay_stream, summarize
 from estimator.telemetry import Sample
 from estimator.vehicle import Vehicle, default_vehicle, load_vehicle
@@ -193,7 +194,7 @@ def _replay_one(
     args: argparse.Namespace,
     progress: Progress,
 ) -> FlightReplay:
-    stream = iter_samples(path, args.format)
+    stream = iter_samples(path, args.format, InputLimits.for_vehicle(vehicle))
     task = progress.add_task(name, total=None)
 
     def on_sample(n: int) -> None:
@@ -202,7 +203,15 @@ def _replay_one(
 
     samples: Iterable[Sample] = stream if args.speed is None else paced(stream, args.speed)
     try:
-        return replay_stream(stream, vehicle, name, settings, samples, on_sample)
+        flight = replay_stream(stream, vehicle, name, settings, samples, on_sample)
+        for warning in stream.warnings(vehicle.battery.cells):
+            progress.console.print(
+                f"uav-energy replay: warning: {name}: {warning}",
+                highlight=False,
+                soft_wrap=True,
+                markup=False,
+            )
+        return flight
     finally:
         progress.remove_task(task)
         progress.advance(_LOGS_TASK)

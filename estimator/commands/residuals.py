@@ -22,6 +22,7 @@ from rich.console import Console
 from estimator.effects import EFFECT_TYPES, Climb, effects_to_tables
 from estimator.errors import UserError
 from estimator.logs import FORMATS, FlightSeries, load_flights
+from estimator.logs.sanity import flight_warnings
 from estimator.online_effects import OnlineEffects, track_series
 from estimator.residuals import ResidualOptions, ResidualResult, analyze
 from estimator.vehicle import Vehicle, load_vehicle
@@ -122,6 +123,13 @@ def run(args: argparse.Namespace) -> int:
         raise UserError(f"--write {args.write} is a directory")
     with console.status("reading logs") as status:
         flights = _select(load_flights(args.logs, args.format), args.flight)
+        for warning in flight_warnings(flights, vehicle.battery.cells):
+            console.print(
+                f"uav-energy residuals: warning: {warning}",
+                highlight=False,
+                soft_wrap=True,
+                markup=False,
+            )
         status.update(f"analysing {len(flights)} flight(s)")
         result = analyze(
             flights, vehicle, options, progress=lambda m: status.update(f"residuals: {m}")

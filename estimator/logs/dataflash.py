@@ -66,7 +66,12 @@ def iter_samples(path: str | Path) -> SampleStream:
     """Samples of a DataFlash log in time order (see :class:`estimator.logs.SampleStream`)."""
     path = Path(path)
     stream = SampleStream(path, "dataflash", ())
-    stream._it = _Decoder(_open(path), stream).samples()
+    decoder = _Decoder(_open(path), stream)
+    if decoder.velocity_type is not None:
+        stream.velocity_source = (
+            f"{decoder.velocity_type}.{'VZ' if decoder.velocity_type == 'GPS' else 'VD'}"
+        )
+    stream._it = decoder.samples()
     return stream
 
 
@@ -76,7 +81,7 @@ class _Decoder:
     def __init__(self, log: _DataFlashIndex, stream: SampleStream) -> None:
         self._log = log
         self._stream = stream
-        self._velocity_type = next((t for t in VELOCITY_TYPES if self._count(t) > 0), None)
+        self.velocity_type = next((t for t in VELOCITY_TYPES if self._count(t) > 0), None)
         self._ekf_core: int | None = None
         self._gps_alt0_m: float | None = None
         self._armed: bool | None = None
@@ -114,8 +119,8 @@ class _Decoder:
     def samples(self) -> Iterator[Sample]:
         self._check_framing()
         wanted = {t for t in (self._battery_type, self._arming_type) if self._count(t) > 0}
-        if self._velocity_type is not None:
-            wanted.add(self._velocity_type)
+        if self.velocity_type is not None:
+            wanted.add(self.velocity_type)
         heap: list[tuple[float, int, Sample]] = []
         last_out_s = -math.inf
         seq = 0
