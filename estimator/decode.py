@@ -221,9 +221,17 @@ class TelemetryDecoder:
 
     # -- handlers ----------------------------------------------------------------------------
 
+    def _clock_s(self) -> float | None:
+        """Time for a message without a stamp: the clock, or before it starts the stamp of the
+        first frames (the sample is then held until they are confirmed)."""
+        clock = self._time.clock
+        if clock.time_s is None and clock.candidates:
+            return max(clock.candidates, key=lambda c: c.frames).last_s
+        return clock.time_s
+
     def _heartbeat(self, msg: mavlink.MAVLink_message) -> list[Sample]:
         armed = bool(msg.base_mode & mavlink.MAV_MODE_FLAG_SAFETY_ARMED)
-        clock_s = self._time.clock.time_s
+        clock_s = self._clock_s()
         if clock_s is None or armed == self._armed:
             return []
         self._armed = armed
@@ -316,7 +324,7 @@ class TelemetryDecoder:
     ) -> BatterySample | None:
         """A pack reading on the clock, or None when there is no clock yet or it is not
         plausible (counted)."""
-        clock_s = self._time.clock.time_s
+        clock_s = self._clock_s()
         if clock_s is None:
             self.counts["battery_before_clock"] += 1
             return None

@@ -7,9 +7,10 @@ name and skips the sample: it never reaches the filters.
 
 :class:`AutopilotClock` keeps the autopilot's clock (s since boot). A frame stamped within
 ``max_step_s`` ahead of it or ``backstep_s`` behind it is accepted (behind: reordering; the
-clock does not go back). Any other stamp — a reboot, a link gap, or one forged or corrupt
-frame — is a candidate new clock, believed only after ``confirm_frames`` frames agree with it
-with no frame of the current clock in between; until then those frames are skipped. Believed:
+clock does not go back). Any other stamp — the first ones, a reboot, a link gap, or one forged
+or corrupt frame — is a candidate new clock, believed only after ``confirm_frames`` frames
+agree with it with no frame of the current clock in between; until then those frames are
+skipped. Believed, it starts the clock (:attr:`ClockVerdict.START`) or, when there was one:
 
 - behind the clock: a reboot (:attr:`ClockVerdict.REBOOT`);
 - ahead by at most ``max_gap_s``: a link gap, the clock moves on (:attr:`ClockVerdict.GAP`);
@@ -55,8 +56,8 @@ class InputLimits:
     Defaults hold for any multirotor: horizontal ground speed ≤ 200 m/s (the fastest
     quadrotors fly about 160 m/s), |vertical speed| ≤ 100 m/s, |height over home| ≤ 20 km,
     pack voltage in (0, 150] V, current in [−20, 1000] A (a small negative current is a sensor
-    offset), consumed charge in [0, 10⁶] mAh. :meth:`for_pack` narrows voltage and current to
-    one vehicle's pack and power.
+    offset), electrical power V·I ≤ 200 kW, consumed charge in [0, 10⁶] mAh. :meth:`for_pack`
+    narrows voltage and power to one vehicle's pack and power.
     """
 
     max_speed_mps: float = 200.0
@@ -66,6 +67,7 @@ class InputLimits:
     max_voltage_v: float = 150.0
     min_current_a: float = -20.0
     max_current_a: float = 1000.0
+    max_power_w: float = 200_000.0
     max_consumed_mah: float = 1e6
 
     @classmethod
@@ -76,21 +78,15 @@ class InputLimits:
     @classmethod
     def for_pack(cls, cells: int, hover_power_w: float) -> InputLimits:
         """Limits for a pack of ``cells`` lithium cells in series feeding a vehicle that hovers
-        at ``hover_power_w`` (W): voltage at most 4.5 V per cell, current at most
-        :data:`MAX_POWER_PER_HOVER` × hover power at 3.0 V per cell (a sagging pack). A low
-        voltage stays believed: a vehicle file with too many cells is a warning
-        (:func:`pack_voltage_problem`), not a silent daemon."""
+        at ``hover_power_w`` (W): voltage at most 4.5 V per cell, power V·I at most
+        :data:`MAX_POWER_PER_HOVER` × hover power. A low voltage stays believed: a vehicle file
+        with too many cells is a warning (:func:`pack_voltage_problem`), not a silent daemon."""
         limits = cls()
-        if cells <= 0:
-            return limits
-        max_current_a = limits.max_current_a
+        if cells > 0:
+            limits = replace(limits, max_voltage_v=cells * MAX_CELL_VOLTAGE_V)
         if math.isfinite(hover_power_w) and hover_power_w > 0:
-            max_current_a = MAX_POWER_PER_HOVER * hover_power_w / (cells * 3.0)
-        return replace(
-            limits,
-            max_voltage_v=cells * MAX_CELL_VOLTAGE_V,
-            max_current_a=max_current_a,
-        )
+            limits = replace(limits, max_power_w=MAX_POWER_PER_HOVER * hover_power_w)
+        return limits
 
 
 def velocity_problem(sample: VelocitySample, limits: InputLimits) -> str | None:
@@ -113,7 +109,9 @@ def battery_problem(sample: BatterySample, limits: InputLimits) -> str | None:
         return "voltage_implausible"
     i = sample.current_a
     if i is not None and not (
-        math.isfinite(i) and limits.min_current_a <= i <= limits.max_current_a
+        math.isfinite(i)
+        and limits.min_current_a <= i <= limits.max_current_a
+        and v * i <= limits.max_power_w
     ):
         return "current_implausible"
     q = sample.consumed_mah
@@ -144,6 +142,7 @@ class ClockVerdict(enum.Enum):
 
     ACCEPT = "accept"  # consistent with the clock (which moved forward if it is newer)
     SKIP = "skip"  # far from the clock, not (yet) confirmed by other frames: skip the frame
+    START = "start"  # the first clock, confirmed
     REBOOT = "reboot"  # confirmed clock behind the old one: the autopilot rebooted
     GAP = "gap"  # confirmed clock ahead by at most max_gap_s: telemetry was lost meanwhile
     JUMP = "jump"  # confirmed clock far ahead, or the pre-reboot clock back: a new reference
@@ -151,12 +150,25 @@ class ClockVerdict(enum.Enum):
 
 @dataclass(frozen=True, slots=True)
 class ClockSettings:
-    """Seconds of autopilot clock; see the module docstring."""
+    """Seconds of autopilot clock and frame counts; see the module docstring.
+    ``max_candidates``: candidate new clocks followed at once (a stray stamp among the frames
+    of a real reboot does not make it start over)."""
 
     max_step_s: float = 2.5
     backstep_s: float = 2.0
     confirm_frames: int = 5
     max_gap_s: float = 120.0
+    max_candidates: int = 4
+
+
+@dataclass(slots=True)
+class _Candidate:
+    """A candidate new clock: its first and newest stamps (s), frames so far, and an id."""
+
+    first_s: float
+    last_s: float
+    frames: int
+    ident: int
 
 
 class AutopilotClock:
@@ -165,52 +177,48 @@ class AutopilotClock:
     def __init__(self, settings: ClockSettings | None = None) -> None:
         self.settings = settings or ClockSettings()
         self.time_s: float | None = None
-        self._candidate_last_s = math.nan  # newest stamp of the candidate new clock
-        self._candidate_frames = 0
+        self.candidates: list[_Candidate] = []
+        #: The candidate the last checked stamp joined or started (None when accepted).
+        self.joined: _Candidate | None = None
+        self._next_ident = 0
         self._before_reboot_s: float | None = None  # the clock a believed reboot replaced
-
-    @property
-    def candidate_frames(self) -> int:
-        """Frames of the candidate new clock so far (0: none pending; 1: one just started)."""
-        return self._candidate_frames
-
-    @property
-    def candidate_s(self) -> float | None:
-        """Newest stamp of the pending candidate new clock (s), None when none is pending."""
-        return self._candidate_last_s if self._candidate_frames else None
-
-    def forget_candidate(self) -> None:
-        """Drop the pending candidate (its frames stay skipped)."""
-        self._candidate_frames = 0
 
     def _near(self, time_s: float, reference_s: float) -> bool:
         s = self.settings
         return reference_s - s.backstep_s <= time_s <= reference_s + s.max_step_s
 
+    def forget_candidates(self) -> None:
+        """Drop every pending candidate (their frames stay skipped)."""
+        self.candidates = []
+
     def check(self, time_s: float) -> ClockVerdict:
         """Judge one frame's stamp (s); the clock moves on ACCEPT (forward only) and on every
-        confirmed change."""
+        confirmed change (:attr:`joined` is then the confirmed candidate)."""
         now = self.time_s
-        if now is None:
-            self.time_s = time_s
-            return ClockVerdict.ACCEPT
-        if self._near(time_s, now):
-            self._candidate_frames = 0
+        self.joined = None
+        if now is not None and self._near(time_s, now):
+            self.candidates = []
             if time_s > now:
                 self.time_s = time_s
                 if self._before_reboot_s is not None and time_s > self._before_reboot_s:
                     self._before_reboot_s = None  # the old clock can no longer be told apart
             return ClockVerdict.ACCEPT
-        if self._candidate_frames and self._near(time_s, self._candidate_last_s):
-            self._candidate_frames += 1
-            self._candidate_last_s = max(self._candidate_last_s, time_s)
-        else:
-            self._candidate_frames, self._candidate_last_s = 1, time_s
-        if self._candidate_frames < self.settings.confirm_frames:
+        joined = next((c for c in self.candidates if self._near(time_s, c.last_s)), None)
+        if joined is None:
+            if len(self.candidates) >= self.settings.max_candidates:
+                self.candidates.remove(min(self.candidates, key=lambda c: c.frames))
+            joined = _Candidate(time_s, time_s, 0, self._next_ident)
+            self._next_ident += 1
+            self.candidates.append(joined)
+        joined.frames += 1
+        joined.last_s = max(joined.last_s, time_s)
+        self.joined = joined
+        if joined.frames < self.settings.confirm_frames:
             return ClockVerdict.SKIP
-        new_s = self._candidate_last_s
-        self._candidate_frames = 0
-        self.time_s = new_s
+        self.candidates = []
+        new_s = self.time_s = joined.last_s
+        if now is None:
+            return ClockVerdict.START
         before = self._before_reboot_s
         if new_s < now:
             self._before_reboot_s = now if before is None else max(before, now)
@@ -221,23 +229,24 @@ class AutopilotClock:
         return ClockVerdict.JUMP if new_s - now > self.settings.max_gap_s else ClockVerdict.GAP
 
 
-#: At most this many samples are held while a candidate new clock is pending.
-MAX_HELD_SAMPLES = 64
+#: At most this many samples are held while candidate new clocks are pending.
+MAX_HELD_SAMPLES = 256
 
 
 @dataclass(frozen=True, slots=True)
 class _Held:
-    """A sample held while a candidate new clock is pending: one stamped by a candidate frame
-    (``candidate_s`` None), or one stamped with the clock and the candidate's newest stamp
-    when it arrived (s)."""
+    """A sample held while candidate new clocks are pending: one stamped by a candidate frame
+    (``candidate`` its id), or one stamped with the clock (``candidate`` None) with the newest
+    stamp of each candidate when it arrived (s, by id)."""
 
     sample: Sample
-    candidate_s: float | None
+    candidate: int | None
+    stamps: dict[int, float]
 
 
 class ClockFilter:
     """Samples through an :class:`AutopilotClock` (see the module docstring). Counts into
-    ``counts``: ``time_jump`` (frames whose stamp was not believed when they came),
+    ``counts``: ``time_jump`` (frames whose stamp was off the running clock when they came),
     ``clock_gaps``, ``reboots``, ``clock_jumps``. ``verdict`` is the last stamp's."""
 
     def __init__(self, counts: Counter[str], settings: ClockSettings | None = None) -> None:
@@ -245,74 +254,84 @@ class ClockFilter:
         self.counts = counts
         self.verdict = ClockVerdict.ACCEPT
         self._held: list[_Held] = []
-        self._pending_out: list[Sample] = []  # released by a refuted candidate, not yet given
-        self._candidate_first_s = math.inf
+        self._pending_out: list[Sample] = []  # released by refuted candidates, not yet given
 
     def stamped(self, time_s: float, sample: Sample | None = None) -> list[Sample] | None:
         """A frame stamped ``time_s`` (s), carrying ``sample`` (or nothing but its stamp).
 
         None: the stamp is not believed (yet); the frame is skipped and its sample held.
-        Else the samples to deliver before the frame's own: those a refuted candidate held
+        Else the samples to deliver before the frame's own: those refuted candidates held
         back, or a confirmed candidate's (after a RebootSample when the clock was
         re-referenced)."""
         clock = self.clock
         verdict = self.verdict = clock.check(time_s)
         if verdict is ClockVerdict.ACCEPT:
-            return self._release(confirmed=False, before_s=time_s)
+            return self._refuted()
+        joined = clock.joined
+        assert joined is not None
         if verdict is ClockVerdict.SKIP:
-            self.counts["time_jump"] += 1
-            if clock.candidate_frames == 1:  # a new candidate: an older one was refuted
-                self._pending_out += self._release(confirmed=False, before_s=time_s)
-                self._candidate_first_s = time_s
+            if clock.time_s is not None:  # the first frames wait for the clock: no skip
+                self.counts["time_jump"] += 1
             if sample is not None:
-                self._held.append(_Held(sample, None))
+                self._held.append(_Held(sample, joined.ident, {}))
             if len(self._held) > MAX_HELD_SAMPLES:
-                clock.forget_candidate()
-                self._pending_out += self._release(confirmed=False, before_s=time_s)
+                clock.forget_candidates()
+                self._pending_out += self._refuted()
             return None
         out: list[Sample] = []
         if verdict is ClockVerdict.GAP:
             self.counts["clock_gaps"] += 1
-        else:
+        elif verdict is not ClockVerdict.START:
             self.counts["reboots" if verdict is ClockVerdict.REBOOT else "clock_jumps"] += 1
-            out.append(RebootSample(min(self._candidate_first_s, time_s)))
-        out += self._release(confirmed=True, before_s=time_s)
-        return out
+            out.append(RebootSample(min(joined.first_s, time_s)))
+        return self._confirmed(joined, out, before_s=time_s)
 
     def clocked(self, sample: Sample) -> list[Sample]:
-        """A sample stamped with the clock (no stamp of its own): held while a candidate new
-        clock is pending, else delivered."""
-        candidate_s = self.clock.candidate_s
-        if candidate_s is not None:
-            self._held.append(_Held(sample, candidate_s))
+        """A sample stamped with the clock (no stamp of its own): held while candidate new
+        clocks are pending, else delivered."""
+        if self.clock.candidates:
+            stamps = {c.ident: c.last_s for c in self.clock.candidates}
+            self._held.append(_Held(sample, None, stamps))
             return []
         return [sample]
 
     def flush(self) -> list[Sample]:
-        """End of input: the held samples as if the pending candidate were refuted."""
-        self.clock.forget_candidate()
-        return self._release(confirmed=False, before_s=math.inf)
+        """End of input: the held samples as if every pending candidate were refuted."""
+        self.clock.forget_candidates()
+        return self._refuted()
 
     def take_pending(self) -> list[Sample]:
-        """Samples a refuted candidate released that no call has delivered yet."""
+        """Samples refuted candidates released that no call has delivered yet."""
         out, self._pending_out = self._pending_out, []
         return out
 
-    def _release(self, confirmed: bool, before_s: float) -> list[Sample]:
-        """The held samples. Confirmed: all of them in order, the clock-stamped ones moved to
-        the candidate's time when they came, the candidate-stamped ones kept while their
-        times rise and stay before ``before_s``. Refuted: the clock-stamped ones on the clock
-        they came on; the candidate-stamped ones are dropped."""
+    def _refuted(self) -> list[Sample]:
+        """The held clock-stamped samples on the clock they came on; the frames that carried
+        the candidates' stamps are dropped."""
         held, self._held = self._held, []
-        out = self.take_pending()
+        return [*self.take_pending(), *(h.sample for h in held if h.candidate is None)]
+
+    def _confirmed(self, chosen: _Candidate, out: list[Sample], before_s: float) -> list[Sample]:
+        """The held samples once ``chosen`` is believed, in order after ``out``: the
+        clock-stamped ones moved to its newest stamp when they came (those older than it stay
+        on the old clock, before ``out``), its own frames' samples while their times rise and
+        stay before ``before_s``; other candidates' are dropped."""
+        held, self._held = self._held, []
+        old: list[Sample] = self.take_pending()
         last_s = -math.inf
         for h in held:
-            if h.candidate_s is not None:
-                out.append(replace(h.sample, time_s=h.candidate_s) if confirmed else h.sample)
-            elif confirmed and last_s < h.sample.time_s < before_s:
+            if h.candidate is None:
+                stamp_s = h.stamps.get(chosen.ident)
+                if stamp_s is not None:
+                    out.append(replace(h.sample, time_s=stamp_s))
+                elif self.verdict is ClockVerdict.START:
+                    out.append(replace(h.sample, time_s=chosen.first_s))
+                else:
+                    old.append(h.sample)
+            elif h.candidate == chosen.ident and last_s < h.sample.time_s < before_s:
                 last_s = h.sample.time_s
                 out.append(h.sample)
-        return out
+        return old + out
 
 
 class SampleGuard:
