@@ -155,7 +155,9 @@ class TelemetryDecoder:
 
     def flush(self) -> list[Sample]:
         """End of input (a log): samples still held for a stamp never confirmed."""
-        return self._time.flush()
+        out = self._time.flush()
+        self._note_velocity(out)
+        return out
 
     def discards(self, msgid: int, system: int, component: int) -> bool:
         """Whether :meth:`decode` would drop a message with this id from this source without
@@ -210,10 +212,13 @@ class TelemetryDecoder:
             self._battery_status_frames, self._battery_status_s = 0, -math.inf
             if verdict is ClockVerdict.REBOOT:
                 self._armed = None
-        for released in out or ():
-            if isinstance(released, VelocitySample):
-                self._last_velocity_s = released.time_s
+        self._note_velocity(out or [])
         return out
+
+    def _note_velocity(self, released: list[Sample]) -> None:
+        for sample in released:
+            if isinstance(sample, VelocitySample):
+                self._last_velocity_s = sample.time_s
 
     def _skip(self, reason: str) -> list[Sample]:
         self.counts[reason] += 1

@@ -296,8 +296,15 @@ class ClockFilter:
         return [sample]
 
     def flush(self) -> list[Sample]:
-        """End of input: the held samples as if every pending candidate were refuted."""
-        self.clock.forget_candidates()
+        """End of input: the held samples as if every pending candidate were refuted; but a
+        clock that never started starts with the candidate of most frames (a short log)."""
+        clock = self.clock
+        candidates, clock.candidates = clock.candidates, []
+        if clock.time_s is None and candidates:
+            best = max(candidates, key=lambda c: c.frames)
+            clock.time_s = best.last_s
+            self.verdict = ClockVerdict.START
+            return self._confirmed(best, [], before_s=math.inf)
         return self._refuted()
 
     def take_pending(self) -> list[Sample]:
@@ -314,8 +321,8 @@ class ClockFilter:
     def _confirmed(self, chosen: _Candidate, out: list[Sample], before_s: float) -> list[Sample]:
         """The held samples once ``chosen`` is believed, in order after ``out``: the
         clock-stamped ones moved to its newest stamp when they came (those older than it stay
-        on the old clock, before ``out``), its own frames' samples while their times rise and
-        stay before ``before_s``; other candidates' are dropped."""
+        on the old clock, before ``out``), its own frames' samples while their times do not
+        fall nor pass ``before_s``; other candidates' are dropped."""
         held, self._held = self._held, []
         old: list[Sample] = self.take_pending()
         last_s = -math.inf
@@ -328,7 +335,7 @@ class ClockFilter:
                     out.append(replace(h.sample, time_s=chosen.first_s))
                 else:
                     old.append(h.sample)
-            elif h.candidate == chosen.ident and last_s < h.sample.time_s < before_s:
+            elif h.candidate == chosen.ident and last_s <= h.sample.time_s <= before_s:
                 last_s = h.sample.time_s
                 out.append(h.sample)
         return old + out

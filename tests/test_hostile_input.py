@@ -37,6 +37,7 @@ from estimator.pipeline import Estimate, Pipeline
 from estimator.plausibility import InputLimits
 from estimator.publish import json_line
 from estimator.replay import replay_log
+from estimator.telemetry import BatterySample, Sample, VelocitySample
 from estimator.vehicle import BatterySpec, Vehicle, default_vehicle
 
 FLIGHT_TLOG = Path(__file__).parent / "data" / "arducopter_guided.tlog"
@@ -398,3 +399,61 @@ async def test_the_daemon_over_udp_survives_garbage_and_stays_honest(tmp_path: P
     stopped = log[log.index("stopped:") :]
     for counter in ("decode_voltage_implausible=", "decode_time_jump=", "link_bad_frames="):
         assert counter in stopped
+
+
+# -- the clock on its own -------------------------------------------------------------------------
+
+
+def _decoder_run(stamps_ms: list[int]) -> tuple[TelemetryDecoder, list[Sample]]:
+    """GLOBAL_POSITION_INT frames (1 m/s north) with these stamps, each followed by a
+    SYS_STATUS, through a decoder: (decoder, samples)."""
+    codec = mavlink.MAVLink(None, srcSystem=1, srcComponent=1)
+    parser = FrameParser()
+    decoder = TelemetryDecoder()
+    samples: list[Sample] = []
+    heartbeat = codec.heartbeat_encode(2, 3, 0, 0, 4).pack(codec)
+    for msg in parser.feed(heartbeat):
+        decoder.decode(msg)
+    for t_ms in stamps_ms:
+        for frame in (
+            codec.global_position_int_encode(t_ms, 0, 0, 0, 5_000, 100, 0, 0, 0).pack(codec),
+            codec.sys_status_encode(0, 0, 0, 500, 12_000, 1_000, 80, 0, 0, 0, 0, 0, 0).pack(codec),
+        ):
+            for msg in parser.feed(frame):
+                samples += decoder.decode(msg)
+    return decoder, samples
+
+
+def _kinds(samples: list[Sample]) -> list[tuple[str, float]]:
+    return [(type(s).__name__[:3], round(s.time_s, 3)) for s in samples]
+
+
+def test_one_stamp_hours_away_is_skipped_and_its_battery_reading_keeps_its_place() -> None:
+    base = list(range(1_000, 3_000, 100))
+    decoder, samples = _decoder_run([*base[:10], 3 * 3_600_000, *base[10:]])
+    _, clean = _decoder_run(base)
+    assert decoder.counts["time_jump"] == 1
+    velocity = [s for s in samples if isinstance(s, VelocitySample)]
+    assert velocity == [s for s in clean if isinstance(s, VelocitySample)]
+    battery = _kinds([s for s in samples if isinstance(s, BatterySample)])
+    assert battery[:10] == _kinds([s for s in clean if isinstance(s, BatterySample)])[:10]
+    assert battery[10] == ("Bat", 1.9)  # the reading after the odd frame, on the real clock
+
+
+def test_a_real_reboot_is_believed_after_five_frames_and_loses_nothing() -> None:
+    decoder, samples = _decoder_run([*range(100_000, 102_000, 100), *range(500, 1_500, 100)])
+    assert decoder.counts["reboots"] == 1 and decoder.counts["time_jump"] == 4
+    after = _kinds(samples)[_kinds(samples).index(("Reb", 0.5)) :]
+    # every frame of the new clock is there, the battery readings on its time
+    assert [k for k in after if k[0] == "Vel"] == [
+        ("Vel", t / 1000) for t in range(500, 1_500, 100)
+    ]
+    assert ("Bat", 0.5) in after and ("Bat", 0.9) in after
+
+
+def test_a_short_gap_is_integrated_and_a_long_jump_is_a_new_reference() -> None:
+    gap, _ = _decoder_run([*range(1_000, 3_000, 100), *range(30_000, 31_000, 100)])
+    assert gap.counts["clock_gaps"] == 1 and gap.counts["clock_jumps"] == 0
+    jump, samples = _decoder_run([*range(1_000, 3_000, 100), *range(1_000_000, 1_001_000, 100)])
+    assert jump.counts["clock_jumps"] == 1 and jump.counts["clock_gaps"] == 0
+    assert ("Reb", 1000.0) in _kinds(samples)
