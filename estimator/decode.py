@@ -201,11 +201,13 @@ class TelemetryDecoder:
 
     # -- clock -------------------------------------------------------------------------------
 
-    def _stamp(self, time_s: float, sample: VelocitySample | None = None) -> list[Sample] | None:
+    def _stamp(
+        self, time_s: float, sample: VelocitySample | None = None, kind: str | None = None
+    ) -> list[Sample] | None:
         """Judge a frame's stamp (s) with the clock filter: None skips the frame (``sample``
         is held until the stamp is confirmed or refuted); else the samples to deliver before
         the frame's own. A re-referenced clock restarts what belongs to the old one."""
-        out = self._time.stamped(time_s, sample)
+        out = self._time.stamped(time_s, sample, kind)
         verdict = self._time.verdict
         if out is not None and verdict in (ClockVerdict.REBOOT, ClockVerdict.JUMP):
             self._last_velocity_s = None
@@ -256,10 +258,15 @@ class TelemetryDecoder:
         problem = velocity_problem(sample, self.limits)
         if problem is not None:
             return self._skip(problem)
-        out = self._stamp(t, sample)
+        out = self._stamp(t, sample, kind)
         if out is None:
             return []
-        self._velocity_type = kind
+        if self._velocity_type is None:  # the source of the first believed velocity
+            joined = self._time.clock.joined
+            self._velocity_type = kind if joined is None or joined.tag is None else joined.tag
+        if kind != self._velocity_type:
+            self.counts["duplicate_velocity_source"] += 1
+            return out
         if self._last_velocity_s is not None and t <= self._last_velocity_s:
             self.counts["out_of_order"] += 1
             return out

@@ -163,12 +163,14 @@ class ClockSettings:
 
 @dataclass(slots=True)
 class _Candidate:
-    """A candidate new clock: its first and newest stamps (s), frames so far, and an id."""
+    """A candidate new clock: its first and newest stamps (s), frames so far, an id, and the
+    tag of the samples it holds (one source of a kind per clock, e.g. a velocity message)."""
 
     first_s: float
     last_s: float
     frames: int
     ident: int
+    tag: str | None = None
 
 
 class AutopilotClock:
@@ -256,10 +258,15 @@ class ClockFilter:
         self._held: list[_Held] = []
         self._pending_out: list[Sample] = []  # released by refuted candidates, not yet given
 
-    def stamped(self, time_s: float, sample: Sample | None = None) -> list[Sample] | None:
-        """A frame stamped ``time_s`` (s), carrying ``sample`` (or nothing but its stamp).
+    def stamped(
+        self, time_s: float, sample: Sample | None = None, tag: str | None = None
+    ) -> list[Sample] | None:
+        """A frame stamped ``time_s`` (s), carrying ``sample`` (or nothing but its stamp) from
+        the source ``tag``.
 
-        None: the stamp is not believed (yet); the frame is skipped and its sample held.
+        None: the stamp is not believed (yet); the frame is skipped and its sample held
+        (unless its candidate clock already holds samples of another tag: the candidate's
+        ``tag`` names the source it confirms, see :attr:`AutopilotClock.joined`).
         Else the samples to deliver before the frame's own: those refuted candidates held
         back, or a confirmed candidate's (after a RebootSample when the clock was
         re-referenced)."""
@@ -272,7 +279,8 @@ class ClockFilter:
         if verdict is ClockVerdict.SKIP:
             if clock.time_s is not None:  # the first frames wait for the clock: no skip
                 self.counts["time_jump"] += 1
-            if sample is not None:
+            if sample is not None and joined.tag in (None, tag):
+                joined.tag = tag
                 self._held.append(_Held(sample, joined.ident, {}))
             if len(self._held) > MAX_HELD_SAMPLES:
                 clock.forget_candidates()
@@ -284,7 +292,7 @@ class ClockFilter:
         elif verdict is not ClockVerdict.START:
             self.counts["reboots" if verdict is ClockVerdict.REBOOT else "clock_jumps"] += 1
             out.append(RebootSample(min(joined.first_s, time_s)))
-        return self._confirmed(joined, out, before_s=time_s)
+        return self._confirmed(joined, out)
 
     def clocked(self, sample: Sample) -> list[Sample]:
         """A sample stamped with the clock (no stamp of its own): held while candidate new
@@ -304,7 +312,7 @@ class ClockFilter:
             best = max(candidates, key=lambda c: c.frames)
             clock.time_s = best.last_s
             self.verdict = ClockVerdict.START
-            return self._confirmed(best, [], before_s=math.inf)
+            return self._confirmed(best, [])
         return self._refuted()
 
     def take_pending(self) -> list[Sample]:
@@ -318,11 +326,11 @@ class ClockFilter:
         held, self._held = self._held, []
         return [*self.take_pending(), *(h.sample for h in held if h.candidate is None)]
 
-    def _confirmed(self, chosen: _Candidate, out: list[Sample], before_s: float) -> list[Sample]:
+    def _confirmed(self, chosen: _Candidate, out: list[Sample]) -> list[Sample]:
         """The held samples once ``chosen`` is believed, in order after ``out``: the
         clock-stamped ones moved to its newest stamp when they came (those older than it stay
         on the old clock, before ``out``), its own frames' samples while their times do not
-        fall nor pass ``before_s``; other candidates' are dropped."""
+        fall; other candidates' are dropped."""
         held, self._held = self._held, []
         old: list[Sample] = self.take_pending()
         last_s = -math.inf
@@ -335,7 +343,7 @@ class ClockFilter:
                     out.append(replace(h.sample, time_s=chosen.first_s))
                 else:
                     old.append(h.sample)
-            elif h.candidate == chosen.ident and last_s <= h.sample.time_s <= before_s:
+            elif h.candidate == chosen.ident and last_s <= h.sample.time_s:
                 last_s = h.sample.time_s
                 out.append(h.sample)
         return old + out
