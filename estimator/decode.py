@@ -65,7 +65,7 @@ USED_MESSAGE_IDS = frozenset(
         mavlink.MAVLINK_MSG_ID_ATTITUDE,
     }
 )
-#: The velocity message types by id (the decoder uses the first one it sees).
+#: The velocity message types by id (the decoder uses the one of the first believed frame).
 _VELOCITY_TYPES = {
     mavlink.MAVLINK_MSG_ID_GLOBAL_POSITION_INT: "GLOBAL_POSITION_INT",
     mavlink.MAVLINK_MSG_ID_LOCAL_POSITION_NED: "LOCAL_POSITION_NED",
