@@ -60,7 +60,7 @@ from estimator.sitl.scenarios import (
     SetWind,
     Takeoff,
 )
-from estimator.telemetry.decode import FrameParser, TelemetryDecoder
+from estimator.telemetry.decode import BATTERY_STATUS_CONFIRM, FrameParser, TelemetryDecoder
 from estimator.telemetry.samples import ArmedSample, BatterySample, RebootSample, VelocitySample
 
 REPO = Path(__file__).resolve().parent.parent
@@ -163,8 +163,9 @@ def test_battery_status_and_sys_status_give_the_pack_readings() -> None:
 
 @needs_tlog
 def test_sys_status_alone_gives_the_same_pack_readings_without_consumed_charge() -> None:
-    """With BATTERY_STATUS present the decoder takes the pack from it (one sample each);
-    a stream without it falls back to SYS_STATUS with the same volts and amps."""
+    """With BATTERY_STATUS present the decoder takes the pack from it (one sample each, once
+    BATTERY_STATUS_CONFIRM arrived); a stream without it falls back to SYS_STATUS with the
+    same volts and amps."""
     parser = FrameParser()
     messages = [m for _, frame in tlog_records(SITL_TLOG) for m in parser.feed(frame)]
 
@@ -175,9 +176,10 @@ def test_sys_status_alone_gives_the_same_pack_readings_without_consumed_charge()
     both = battery(messages)
     sys_only = battery([m for m in messages if m.get_type() != "BATTERY_STATUS"])
     n_status = sum(m.get_type() == "BATTERY_STATUS" for m in messages)
-    assert len(both) <= n_status + 1  # SYS_STATUS only until the first BATTERY_STATUS
+    # SYS_STATUS only until BATTERY_STATUS is confirmed
+    assert len(both) <= n_status + BATTERY_STATUS_CONFIRM
     assert all(s.consumed_mah is None for s in sys_only)
-    assert sum(s.consumed_mah is not None for s in both) >= n_status - 1
+    assert sum(s.consumed_mah is not None for s in both) >= n_status - BATTERY_STATUS_CONFIRM
     from_status = {s.time_s: (s.voltage_v, s.current_a) for s in both if s.consumed_mah is not None}
     matched = [(from_status[s.time_s], (s.voltage_v, s.current_a)) for s in sys_only
                if s.time_s in from_status]  # fmt: skip

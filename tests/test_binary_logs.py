@@ -264,3 +264,39 @@ def test_damaged_logs_read_in_time_order_or_fail_with_a_user_error(
         except UserError:
             continue
         assert _in_time_order(samples), case
+
+
+# -- a DataFlash log of current ArduCopter ------------------------------------------------------
+
+ARDUCOPTER_BIN = Path(__file__).parent / "data" / "arducopter_guided.bin"
+ARDUCOPTER_TLOG = ARDUCOPTER_BIN.with_suffix(".tlog")
+
+
+def test_current_arducopter_log_opened_at_arming_is_armed_from_its_start() -> None:
+    """ArduCopter (LOG_DISARMED 0) opens the log at arming and writes no ARM record of it:
+    the first arming record is the disarm. The reader says armed at the first record, and a
+    replay scores the airborne part like the tlog of the same flight does."""
+    from dataclasses import replace
+
+    from estimator.analysis.replay import replay_log, summarize
+    from estimator.physics.vehicle import BatterySpec, default_vehicle
+
+    log = DFReader_binary(str(ARDUCOPTER_BIN))
+    arm_states = []
+    while (msg := log.recv_match(type=["ARM"])) is not None:
+        arm_states.append(msg.ArmState)
+    assert arm_states == [0]  # the disarm only
+
+    samples, stream = _read(ARDUCOPTER_BIN)
+    armed = _of(samples, ArmedSample)
+    assert [a.armed for a in armed] == [True, False]
+    assert armed[0].time_s == pytest.approx(samples[0].time_s)
+    assert armed[1].time_s == pytest.approx(93.787, abs=0.01)
+    assert stream.velocity_source == "XKF1.VD"
+
+    vehicle = replace(default_vehicle(), battery=BatterySpec(3.3, 3, 0.2))
+    from_bin = summarize([replay_log(ARDUCOPTER_BIN, vehicle)])
+    from_tlog = summarize([replay_log(ARDUCOPTER_TLOG, vehicle)])
+    assert from_bin.airborne_s == pytest.approx(from_tlog.airborne_s, abs=2.0)
+    assert from_bin.airborne_s > 40
+    assert from_bin.power_rmse_w == pytest.approx(from_tlog.power_rmse_w, rel=0.05)

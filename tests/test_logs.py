@@ -1,4 +1,5 @@
-"""Log readers: format by content, tlog speed path and damage handling, CMU CSV layout."""
+"""Log readers: format by content, tlog speed path and damage handling, CMU CSV layout,
+plausibility skips and sanity warnings."""
 
 from __future__ import annotations
 
@@ -8,12 +9,16 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from pymavlink.dialects.v20 import common as mavlink
 from tlog_builder import flight_frames, write_tlog
 
+from estimator.cli import main as cli_main
 from estimator.errors import UserError
 from estimator.logs import detect_format, iter_samples, load_flights
 from estimator.logs.cmu import REQUIRED_COLUMNS
+from estimator.logs.sanity import flight_warnings
 from estimator.telemetry.decode import FrameParser, TelemetryDecoder
+from estimator.telemetry.plausibility import InputLimits
 from estimator.telemetry.samples import BatterySample, VelocitySample
 
 REPO = Path(__file__).resolve().parent.parent
@@ -263,3 +268,60 @@ def test_stamp_layout_is_big_endian_microseconds() -> None:
     data = IRIS_MARCH.read_bytes()
     (stamp,) = struct.unpack_from(">Q", data, 0)
     assert 1_457_000_000_000_000 < stamp < 1_460_000_000_000_000  # March 2016
+
+
+# -- plausibility and sanity --------------------------------------------------------------------
+
+ARDUCOPTER_TLOG = Path(__file__).parent / "data" / "arducopter_guided.tlog"
+
+
+def test_iris_vertical_velocity_is_the_wrong_way_up_and_said_once() -> None:
+    """APM:Copter 3.3 sends GLOBAL_POSITION_INT.vz positive up: against the altitude rate the
+    sign disagrees on every climbing or descending pair; current ArduCopter agrees."""
+    stream = iter_samples(IRIS_MARCH)
+    list(stream)
+    (warning,) = stream.warnings()
+    assert warning.startswith("GLOBAL_POSITION_INT.vz disagrees in sign with the altitude rate")
+    assert "positive up" in warning
+    modern = iter_samples(ARDUCOPTER_TLOG)
+    list(modern)
+    assert modern.warnings(cells=3) == []
+
+
+def test_vehicle_file_for_another_cell_count_is_a_warning_not_a_silent_zero() -> None:
+    stream = iter_samples(ARDUCOPTER_TLOG)
+    list(stream)
+    (warning,) = stream.warnings(cells=6)
+    assert "2.10 V per cell for the vehicle file's 6 cells" in warning
+    assert "(3 cells would fit)" in warning
+    flights = load_flights([ARDUCOPTER_TLOG])
+    assert flight_warnings(flights, cells=6) == [warning]
+    assert flight_warnings(flights, cells=3) == []
+
+
+def test_replay_prints_one_warning_line_per_problem(capsys: pytest.CaptureFixture[str]) -> None:
+    assert cli_main(["replay", str(IRIS_MARCH)]) == 0  # built-in vehicle: 6 cells on a 3S log
+    lines = [line for line in capsys.readouterr().err.splitlines() if "warning" in line]
+    assert len(lines) == 2
+    assert all(line.startswith("uav-energy replay: warning: ") for line in lines)
+    assert any("vz disagrees in sign" in line for line in lines)
+    assert any("[battery] cells right? (3 cells would fit)" in line for line in lines)
+
+
+def test_log_values_beyond_the_limits_are_skipped_and_counted(tmp_path: Path) -> None:
+    """A tlog with an impossible voltage and a stamp hours away: the samples of those frames
+    are dropped and counted; the rest of the log reads as without them."""
+    frames = flight_frames(seconds=10.0, mavlink1=False)
+    codec = mavlink.MAVLink(None, srcSystem=1, srcComponent=1)
+    bad = [
+        codec.sys_status_encode(0, 0, 0, 500, 60_000, 1500, 80, 0, 0, 0, 0, 0, 0),
+        codec.global_position_int_encode(5_000 + 3 * 3_600_000, 0, 0, 0, 0, 300, 0, 0, 0),
+    ]
+    stamp = frames[20][0]
+    hostile = frames[:21] + [(stamp, m.pack(codec)) for m in bad] + frames[21:]
+    clean = list(iter_samples(write_tlog(tmp_path / "clean.tlog", frames)))
+    stream = iter_samples(
+        write_tlog(tmp_path / "hostile.tlog", hostile), limits=InputLimits.for_pack(3, 200.0)
+    )
+    assert list(stream) == clean
+    assert stream.checks == {"voltage_implausible": 1, "time_jump": 1}

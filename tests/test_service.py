@@ -27,7 +27,8 @@ from estimator.mavlink.service import Service
 from estimator.physics.vehicle import default_vehicle
 from estimator.sim.run import SimConfig
 from estimator.sim.simulator import simulate
-from estimator.telemetry.decode import TelemetryDecoder
+from estimator.telemetry.decode import FrameParser, TelemetryDecoder
+from estimator.telemetry.samples import BatterySample
 
 Messages = list[tuple[float, mavlink.MAVLink_message]]
 
@@ -493,3 +494,79 @@ def test_fusion_table_sets_the_noise_figures_and_rejects_unknown_names(
     conf.write_text("[fusion]\nbias_prior_sigma = -1\n")
     assert cli_main(["run", "--config", str(conf)]) == 2
     assert "finite number ≥ 0" in capsys.readouterr().err
+
+
+async def test_forged_reboots_are_believed_but_stream_requests_are_throttled(
+    flight: Messages, caplog: pytest.LogCaptureFixture
+) -> None:
+    """Ten forged reboots (five agreeing frames of an earlier clock each, the real clock back
+    after each) within a few seconds: each is believed and undone (clock jumps), the energy
+    state survives, but the autopilot gets at most one round of stream requests per
+    REQUEST_RETRY_S and the log one reboot line per COUNTER_LOG_S."""
+    caplog.set_level(logging.INFO, logger="uav_energy.service")
+    messages = [m for _, m in flight]
+    half = len(messages) // 2
+    received: list[mavlink.MAVLink_message] = []
+    async with running(ServiceConfig(stale_after_s=30.0)) as (service, sender):
+
+        async def collect() -> None:
+            while batch := await sender.recv():
+                received.extend(batch)
+
+        collector = asyncio.create_task(collect())
+        await play(sender, messages[:half])
+        await wait_for(lambda: service.latest is not None and service._streams_ok)
+        requests_before = sum(m.get_type() == "REQUEST_DATA_STREAM" for m in received)
+        energy_before = service.latest.energy_remaining_wh  # type: ignore[union-attr]
+        step = (len(messages) - half) // 10
+        for k in range(10):
+            for j in range(5):  # an earlier clock, five agreeing frames
+                sender.send(sender.mav.attitude_encode(1_000 + 100 * j, 0, 0, 0, 0, 0, 0))
+            await play(sender, messages[half + k * step : half + (k + 1) * step])
+        await wait_for(lambda: service.decoder.counts["clock_jumps"] == 10)
+        await asyncio.sleep(0.3)
+        collector.cancel()
+    requests_after = sum(m.get_type() == "REQUEST_DATA_STREAM" for m in received)
+    assert service.decoder.counts["reboots"] == 10
+    assert service.pipeline.counts["reboot"] == 20  # each forged reboot and its undoing
+    streams = 2  # REQUEST_DATA_STREAM per round: position and extended status
+    assert requests_after - requests_before <= 2 * streams  # at most two rounds, not ten
+    assert caplog.text.count("autopilot rebooted") == 1
+    latest = service.latest
+    assert latest is not None and latest.time_s > messages[-1].time_boot_ms / 1000 - 2
+    assert latest.energy_remaining_wh == pytest.approx(energy_before, rel=0.05)
+
+
+def test_battery_status_replaces_sys_status_after_three_and_falls_back_when_it_stops() -> None:
+    """One BATTERY_STATUS does not switch SYS_STATUS off; three in a row do; SYS_STATUS is
+    used again 3 s (autopilot clock) after the last BATTERY_STATUS."""
+    codec = mavlink.MAVLink(None, srcSystem=1, srcComponent=1)
+    parser = FrameParser()
+
+    def frames(t_ms: int, battery_status: bool) -> list[mavlink.MAVLink_message]:
+        msgs = [
+            codec.heartbeat_encode(2, 3, 0, 0, 4),
+            codec.attitude_encode(t_ms, 0, 0, 0, 0, 0, 0),
+            codec.sys_status_encode(0, 0, 0, 500, 22_000, 1_000, 80, 0, 0, 0, 0, 0, 0),
+        ]
+        if battery_status:
+            cells = [22_100] + [65_535] * 9
+            msgs.append(codec.battery_status_encode(0, 0, 0, 2_500, cells, 1_000, 100, -1, 80))
+        return [m for msg in msgs for m in parser.feed(msg.pack(codec))]
+
+    decoder = TelemetryDecoder()
+
+    def sources(t_ms: int, battery_status: bool) -> list[float]:
+        samples = decoder.decode_all(frames(t_ms, battery_status))
+        return [s.voltage_v for s in samples if isinstance(s, BatterySample)]
+
+    for t_ms in range(1_000, 2_000, 200):  # the clock starts
+        sources(t_ms, False)
+    assert sources(2_000, True) == [22.0]  # one BATTERY_STATUS: SYS_STATUS still used
+    assert sources(2_200, False) == [22.0]
+    assert sources(2_400, True) == [22.0]
+    assert sources(2_600, True) == [22.0, 22.1]  # the third in a row takes over
+    assert sources(2_800, True) == [22.1]
+    assert sources(4_000, False) == []  # 1.2 s without: still BATTERY_STATUS's turn
+    assert sources(6_000, False) == [22.0]  # 3.2 s without: SYS_STATUS again
+    assert decoder.counts["battery_status_stopped"] == 1

@@ -187,7 +187,8 @@ def replay_log(
 ) -> FlightReplay:
     """Replay one log file (format by content unless ``fmt`` says)."""
     path = Path(path)
-    return replay_stream(iter_samples(path, fmt), vehicle, path.stem, settings)
+    stream = iter_samples(path, fmt, vehicle.input_limits())
+    return replay_stream(stream, vehicle, path.stem, settings)
 
 
 def summarize(flights: Iterable[FlightReplay]) -> Summary:

@@ -22,6 +22,7 @@ from estimator.analysis.fit_points import PreprocessOptions, preprocess
 from estimator.analysis.theory_fit import Priors
 from estimator.errors import UserError
 from estimator.logs import FORMATS, FlightSeries, load_flights
+from estimator.logs.sanity import flight_warnings
 from estimator.physics.vehicle import BatterySpec, Vehicle
 
 #: Highest per-cell voltage of a charged LiPo under light load, V (for inferring the cell count).
@@ -82,6 +83,10 @@ def run(args: argparse.Namespace) -> int:
     _check_args(args)
     with console.status("reading logs") as status:
         flights = load_flights(args.logs, args.format)
+        for warning in flight_warnings(flights, args.cells):
+            console.print(
+                f"uav-energy fit: warning: {warning}", highlight=False, soft_wrap=True, markup=False
+            )
         options = FitOptions(
             preprocess=PreprocessOptions(
                 sample_rate_hz=args.rate_hz,

@@ -192,7 +192,7 @@ def _replay_one(
     args: argparse.Namespace,
     progress: Progress,
 ) -> FlightReplay:
-    stream = iter_samples(path, args.format)
+    stream = iter_samples(path, args.format, vehicle.input_limits())
     task = progress.add_task(name, total=None)
 
     def on_sample(n: int) -> None:
@@ -201,7 +201,15 @@ def _replay_one(
 
     samples: Iterable[Sample] = stream if args.speed is None else paced(stream, args.speed)
     try:
-        return replay_stream(stream, vehicle, name, settings, samples, on_sample)
+        flight = replay_stream(stream, vehicle, name, settings, samples, on_sample)
+        for warning in stream.warnings(vehicle.battery.cells):
+            progress.console.print(
+                f"uav-energy replay: warning: {name}: {warning}",
+                highlight=False,
+                soft_wrap=True,
+                markup=False,
+            )
+        return flight
     finally:
         progress.remove_task(task)
         progress.advance(_LOGS_TASK)

@@ -23,6 +23,7 @@ from estimator.analysis.residuals import ResidualOptions, ResidualResult, analyz
 from estimator.errors import UserError
 from estimator.estimation.online_effects import OnlineEffects, track_series
 from estimator.logs import FORMATS, FlightSeries, load_flights
+from estimator.logs.sanity import flight_warnings
 from estimator.physics.effects import EFFECT_TYPES, Climb, effects_to_tables
 from estimator.physics.vehicle import Vehicle, load_vehicle
 
@@ -121,6 +122,13 @@ def run(args: argparse.Namespace) -> int:
         raise UserError(f"--write {args.write} is a directory")
     with console.status("reading logs") as status:
         flights = _select(load_flights(args.logs, args.format), args.flight)
+        for warning in flight_warnings(flights, vehicle.battery.cells):
+            console.print(
+                f"uav-energy residuals: warning: {warning}",
+                highlight=False,
+                soft_wrap=True,
+                markup=False,
+            )
         status.update(f"analysing {len(flights)} flight(s)")
         result = analyze(
             flights, vehicle, options, progress=lambda m: status.update(f"residuals: {m}")

@@ -3,8 +3,12 @@
 Two views of a log:
 
 - :func:`iter_samples` streams :mod:`estimator.telemetry.samples` samples in time order (replay, the
-  daemon-equivalence tests). Counters ``skipped``, ``bad_frames`` and ``truncated`` are
-  readable on the returned :class:`SampleStream` after iteration.
+  daemon-equivalence tests). Counters ``skipped``, ``bad_frames``, ``truncated`` and
+  ``checks``, and the sanity warnings (:mod:`estimator.logs.sanity`), are readable on the
+  returned :class:`SampleStream` after iteration. Every sample passes the plausibility and
+  time checks of :mod:`estimator.telemetry.plausibility` (MAVLink logs in the decoder, the others
+  in a
+  :class:`~estimator.telemetry.plausibility.SampleGuard`).
 - :func:`load_flights` gives whole flights as numpy arrays (:class:`FlightSeries`) for offline
   work: fitting, residual analysis.
 
@@ -17,6 +21,7 @@ from __future__ import annotations
 
 import importlib
 import os
+from collections import Counter
 from collections.abc import Iterable, Iterator, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -26,6 +31,9 @@ import numpy as np
 from numpy.typing import NDArray
 
 from estimator.errors import UserError
+from estimator.logs.sanity import SanityRecorder
+from estimator.telemetry.decode import SKIP_COUNTERS
+from estimator.telemetry.plausibility import InputLimits, SampleGuard
 from estimator.telemetry.samples import (
     ArmedSample,
     BatterySample,
@@ -95,8 +103,10 @@ class SampleStream(Iterator[Sample]):
     """Samples of one log in time order; counters are final once iteration has ended.
 
     ``skipped``: records passed over on purpose (message types the decoder does not use, rows
-    with missing values); ``bad_frames``: corrupt records; ``truncated``: the file ended in the
-    middle of a record (everything before the damage was read).
+    with missing values, values or stamps not believed); ``checks``: of those, the ones the
+    plausibility and time checks skipped, by reason; ``bad_frames``: corrupt records;
+    ``truncated``: the file ended in the middle of a record (everything before the damage was
+    read). ``velocity_source`` names the logged vertical velocity (for warnings).
     """
 
     def __init__(self, path: Path, fmt: str, samples: Iterable[Sample]) -> None:
@@ -105,13 +115,28 @@ class SampleStream(Iterator[Sample]):
         self.skipped = 0
         self.bad_frames = 0
         self.truncated = False
+        self.checks: Counter[str] = Counter()
+        self.velocity_source = "vertical velocity"
+        self.sanity = SanityRecorder()
         self._it = iter(samples)
 
     def __iter__(self) -> SampleStream:
         return self
 
     def __next__(self) -> Sample:
-        return next(self._it)
+        sample = next(self._it)
+        self.sanity.observe(sample)
+        return sample
+
+    def warnings(self, cells: int | None = None) -> list[str]:
+        """The sanity checks' warnings once iterated (pack voltage when ``cells`` is given)."""
+        return self.sanity.warnings(cells, self.velocity_source)
+
+    def count_checks(self, counts: Counter[str]) -> None:
+        """Take the plausibility and time checks' skips from ``counts`` (added to ``skipped``)."""
+        found = Counter({k: counts[k] for k in SKIP_COUNTERS if counts[k]})
+        self.checks.update(found)
+        self.skipped += sum(found.values())
 
 
 def detect_format(path: str | Path) -> str:
@@ -135,12 +160,28 @@ def detect_format(path: str | Path) -> str:
     )
 
 
-def iter_samples(path: str | Path, fmt: str = "auto") -> SampleStream:
-    """Stream the telemetry samples of one log (see :class:`SampleStream`)."""
+def iter_samples(
+    path: str | Path, fmt: str = "auto", limits: InputLimits | None = None
+) -> SampleStream:
+    """Stream the telemetry samples of one log (see :class:`SampleStream`); values beyond
+    ``limits`` (default: any multirotor's) are skipped and counted."""
     path = Path(path)
     fmt = _resolve(path, fmt)
-    stream: SampleStream = _module(fmt).iter_samples(path)
+    if fmt == "tlog":
+        stream: SampleStream = _module(fmt).iter_samples(path, limits)
+    else:
+        stream = _module(fmt).iter_samples(path)
+        stream._it = _guarded(stream._it, stream, SampleGuard(limits))
     return stream
+
+
+def _guarded(
+    samples: Iterator[Sample], stream: SampleStream, guard: SampleGuard
+) -> Iterator[Sample]:
+    for sample in samples:
+        yield from guard.check(sample)
+    yield from guard.flush()
+    stream.count_checks(guard.counts)
 
 
 def load_flights(paths: Sequence[str | Path], fmt: str = "auto") -> list[FlightSeries]:

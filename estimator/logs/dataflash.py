@@ -12,6 +12,9 @@ record's ``TimeUS`` (µs since the autopilot's boot) / 1e6. What is used:
   drops the record). Logs older than ``BAT`` (Copter ≤ 3.3) have ``CURR``, whose integer
   ``Volt``/``Curr`` columns are centivolts / centiamps;
 - armed state: ``ARM.ArmState``, or ``EV`` ids 10 (armed) / 11 (disarmed) in older logs.
+  ArduCopter opens its log at arming (``LOG_DISARMED`` 0, the default) and the ``ARM`` record
+  of that arming is written before the file is ready: a log whose first arming record is a
+  disarm was armed from its start, and says so with an armed sample at its first record.
 
 Counters, final after iteration: ``skipped`` (records with unusable values, or older than
 samples already given), ``bad_frames`` (corrupt regions between records), ``truncated`` (the
@@ -63,7 +66,12 @@ def iter_samples(path: str | Path) -> SampleStream:
     """Samples of a DataFlash log in time order (see :class:`estimator.logs.SampleStream`)."""
     path = Path(path)
     stream = SampleStream(path, "dataflash", ())
-    stream._it = _Decoder(_open(path), stream).samples()
+    decoder = _Decoder(_open(path), stream)
+    if decoder.velocity_type is not None:
+        stream.velocity_source = (
+            f"{decoder.velocity_type}.{'VZ' if decoder.velocity_type == 'GPS' else 'VD'}"
+        )
+    stream._it = decoder.samples()
     return stream
 
 
@@ -73,12 +81,14 @@ class _Decoder:
     def __init__(self, log: _DataFlashIndex, stream: SampleStream) -> None:
         self._log = log
         self._stream = stream
-        self._velocity_type = next((t for t in VELOCITY_TYPES if self._count(t) > 0), None)
+        self.velocity_type = next((t for t in VELOCITY_TYPES if self._count(t) > 0), None)
         self._ekf_core: int | None = None
         self._gps_alt0_m: float | None = None
         self._armed: bool | None = None
         self._battery_type = "BAT" if self._count("BAT") > 0 else "CURR"
         self._bat_instance = _column(log, self._battery_type, _BAT_INSTANCE_COLUMNS)
+        self._arming_type = "ARM" if self._count("ARM") > 0 else "EV"
+        self._armed_from_start = self._first_arming_is_disarm()
 
     # -- reading -------------------------------------------------------------------------------
 
@@ -86,13 +96,31 @@ class _Decoder:
         type_id = self._log.name_to_id.get(name)
         return 0 if type_id is None else int(self._log.counts[type_id])
 
+    def _first_arming_is_disarm(self) -> bool:
+        """Whether the log's first arming record (ARM, else EV 10/11) is a disarm."""
+        if self._count(self._arming_type) == 0:
+            return False
+        first: bool | None = None
+        with _quiet_python_output():
+            while first is None:
+                msg = self._log.recv_match(type={self._arming_type}, strict=True)
+                if msg is None:
+                    break
+                try:
+                    if msg.get_type() == "ARM":
+                        first = bool(msg.ArmState)
+                    elif msg.Id in (EVENT_ARMED, EVENT_DISARMED):
+                        first = msg.Id == EVENT_ARMED
+                except (AttributeError, KeyError, TypeError, ValueError):
+                    continue  # a corrupt FMT: counted when the records are read
+            self._log.rewind()
+        return first is False
+
     def samples(self) -> Iterator[Sample]:
         self._check_framing()
-        wanted = {t for t in (self._battery_type, "ARM") if self._count(t) > 0}
-        if "ARM" not in wanted and self._count("EV") > 0:
-            wanted.add("EV")
-        if self._velocity_type is not None:
-            wanted.add(self._velocity_type)
+        wanted = {t for t in (self._battery_type, self._arming_type) if self._count(t) > 0}
+        if self.velocity_type is not None:
+            wanted.add(self.velocity_type)
         heap: list[tuple[float, int, Sample]] = []
         last_out_s = -math.inf
         seq = 0
@@ -114,6 +142,11 @@ class _Decoder:
                     continue
                 if sample is None:
                     continue
+                if self._armed_from_start:
+                    self._armed_from_start = False
+                    self._armed = True
+                    heapq.heappush(heap, (sample.time_s, seq, ArmedSample(sample.time_s, True)))
+                    seq += 1
                 if sample.time_s < last_out_s:
                     self._stream.skipped += 1
                     continue

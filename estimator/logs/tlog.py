@@ -21,6 +21,7 @@ from pathlib import Path
 from estimator.errors import UserError
 from estimator.logs import SampleStream
 from estimator.telemetry.decode import USED_MESSAGE_IDS, FrameParser, TelemetryDecoder
+from estimator.telemetry.plausibility import InputLimits
 from estimator.telemetry.samples import Sample
 
 STAMP_BYTES = 8
@@ -33,8 +34,9 @@ _SIGNED_FLAG = 0x01
 _RESYNC_WINDOW_US = 3600 * 1_000_000
 
 
-def iter_samples(path: Path) -> SampleStream:
-    """Stream the samples of a tlog (see :class:`estimator.logs.SampleStream`)."""
+def iter_samples(path: Path, limits: InputLimits | None = None) -> SampleStream:
+    """Stream the samples of a tlog (see :class:`estimator.logs.SampleStream`); values beyond
+    ``limits`` are skipped and counted by the decoder."""
     try:
         data = path.read_bytes()
     except OSError as exc:
@@ -42,7 +44,7 @@ def iter_samples(path: Path) -> SampleStream:
     if len(data) <= STAMP_BYTES or data[STAMP_BYTES] not in (_STX_V1, _STX_V2):
         raise UserError(f"{path} is not a MAVLink telemetry log (no frame after the first stamp)")
     stream = SampleStream(path, "tlog", iter(()))
-    stream._it = _records(data, stream)
+    stream._it = _records(data, stream, TelemetryDecoder(limits=limits))
     return stream
 
 
@@ -74,9 +76,8 @@ def frame_source(data: bytes, start: int) -> tuple[int, int]:
     return data[start + 5], data[start + 6]
 
 
-def _records(data: bytes, stream: SampleStream) -> Iterator[Sample]:
+def _records(data: bytes, stream: SampleStream, decoder: TelemetryDecoder) -> Iterator[Sample]:
     parser = FrameParser()
-    decoder = TelemetryDecoder()
     end = len(data)
     pos = 0
     last_good: int | None = None  # offset of the last good record (its stamp anchors resync)
@@ -107,6 +108,10 @@ def _records(data: bytes, stream: SampleStream) -> Iterator[Sample]:
             stream.bad_frames += 1
             continue
         yield from decoder.decode(msg)
+    yield from decoder.flush()
+    stream.count_checks(decoder.counts)
+    if decoder.velocity_type is not None:
+        stream.velocity_source = f"{decoder.velocity_type}.vz"
 
 
 def _stamp_us(data: bytes, record: int) -> int:

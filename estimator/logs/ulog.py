@@ -111,6 +111,7 @@ def _velocities(data: dict[str, Any], stream: SampleStream) -> list[Sample]:
     ok = _flag(data, "v_xy_valid", len(t)) & _flag(data, "v_z_valid", len(t))
     ok &= np.isfinite(v).all(axis=1)
     stream.skipped += int(np.count_nonzero(~ok))
+    stream.velocity_source = "vehicle_local_position.vz"
     return [
         VelocitySample(
             float(t[i]),

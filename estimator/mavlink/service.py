@@ -6,9 +6,11 @@ BATTERY_STATUS at the configured rate), heartbeat + watchdog (1 Hz: our HEARTBEA
 detection, stream requests until telemetry flows, counters of bad input), and a drain per
 output link. Wall clock is used only for these timers; the estimates run on the autopilot's
 clock.
-One log line per event: autopilot found, streams requested, energy initialized, model-only
-mode, reboot, link silent (stale) / resumed, bad frames and floods (at most one line per
-10 s each).
+One log line per event: autopilot found, streams requested, energy initialized (with a
+warning when the pack voltage does not fit the vehicle file's cell count), model-only mode,
+reboot or clock jump, link silent (stale) / resumed, bad frames, floods and input skipped as
+implausible (at most one line per 10 s each). Reboots are throttled: stream requests go out at
+most once per :data:`REQUEST_RETRY_S`, however often the clock is re-referenced.
 """
 
 from __future__ import annotations
@@ -28,7 +30,9 @@ from estimator.mavlink import publish
 from estimator.mavlink.config import ServiceConfig
 from estimator.mavlink.link import MavlinkLink, open_link, parse_url
 from estimator.physics.vehicle import Vehicle
-from estimator.telemetry.decode import TelemetryDecoder
+from estimator.telemetry.decode import SKIP_COUNTERS, TelemetryDecoder
+from estimator.telemetry.plausibility import pack_voltage_problem
+from estimator.telemetry.samples import BatterySample
 
 log = logging.getLogger("uav_energy.service")
 
@@ -63,7 +67,11 @@ class Service:
         target = None
         if config.target_system:
             target = (config.target_system, config.target_component or 1)
-        self.decoder = TelemetryDecoder(target=target, own=(config.system_id, OWN_COMPONENT))
+        self.decoder = TelemetryDecoder(
+            target=target,
+            own=(config.system_id, OWN_COMPONENT),
+            limits=vehicle.input_limits(),
+        )
         self.latest: Estimate | None = None
         self.stale = False
         self.internal_errors = 0
@@ -76,7 +84,8 @@ class Service:
         self._last_json_s = -1e9
         self._last_request_s = -1e9
         self._streams_ok = False
-        self._logged: dict[str, tuple[int, float]] = {}
+        self._logged: dict[str, tuple[int, float]] = {}  # counter → (value, wall s) logged
+        self._event_logged_s: dict[str, float] = {}
         # BATTERY_STATUS.battery_remaining is a share of a full pack's usable energy.
         self._full_usable_wh = float(self.pipeline.pack.usable_energy_wh(1.0))
 
@@ -166,15 +175,31 @@ class Service:
 
     def _handle(self, msg: mavlink.MAVLink_message, now_s: float) -> None:
         had_target = self.decoder.target is not None
-        reboots = self.decoder.counts["reboots"]
+        counts = self.decoder.counts
+        reboots, jumps = counts["reboots"], counts["clock_jumps"]
         samples = self.decoder.decode(msg)
         if not had_target and self.decoder.target is not None:
             log.info("autopilot found: system %d component %d", *self.decoder.target)
             self._request_streams(now_s)
-        if self.decoder.counts["reboots"] != reboots:
-            log.warning("autopilot rebooted (clock went back to %.1f s)", self.decoder.clock_s)
+        if counts["reboots"] != reboots:
+            self._log_throttled(
+                "reboots",
+                now_s,
+                "autopilot rebooted (clock went back to %.1f s; %d reboot(s) so far)",
+                self.decoder.clock_s,
+                counts["reboots"],
+            )
             self._streams_ok = False
-            self._request_streams(now_s)
+            if now_s - self._last_request_s >= REQUEST_RETRY_S:  # forged reboots: throttled
+                self._request_streams(now_s)
+        if counts["clock_jumps"] != jumps:
+            self._log_throttled(
+                "clock_jumps",
+                now_s,
+                "autopilot clock jumped to %.1f s: re-referenced (%d jump(s) so far)",
+                self.decoder.clock_s,
+                counts["clock_jumps"],
+            )
         if not samples:
             return
         self._last_rx_s = now_s
@@ -188,6 +213,10 @@ class Service:
                 self._deliver(estimate, now_s)
         if not was_initialized and self.pipeline.energy.initialized:
             log.info("energy initialized: SoC %.0f %%", 100 * self.pipeline.energy.soc)
+            battery = next(s for s in samples if isinstance(s, BatterySample))
+            cells = self.pipeline.vehicle.battery.cells
+            if (problem := pack_voltage_problem(battery.voltage_v, cells)) is not None:
+                log.warning("%s", problem)
         if (
             self.latest is not None
             and not self._streams_ok
@@ -313,14 +342,30 @@ class Service:
             and now_s - self._last_request_s >= REQUEST_RETRY_S
         ):
             self._request_streams(now_s)
+        skipped = {k: self.decoder.counts[k] for k in SKIP_COUNTERS if self.decoder.counts[k]}
+        self._log_count(
+            "implausible",
+            sum(skipped.values()),
+            now_s,
+            f"implausible inputs skipped so far ({_format_counts(skipped)})",
+        )
         if self.link is None:
             return
         for key, what in (("bad_frames", "bad frames"), ("dropped", "messages dropped (flood)")):
-            value = self.link.counts[key]
-            logged_value, logged_s = self._logged.get(key, (0, -1e9))
-            if value != logged_value and now_s - logged_s >= COUNTER_LOG_S:
-                log.warning("%d %s so far (input skipped)", value, what)
-                self._logged[key] = (value, now_s)
+            self._log_count(key, self.link.counts[key], now_s, f"{what} so far (input skipped)")
+
+    def _log_count(self, key: str, value: int, now_s: float, what: str) -> None:
+        """Warn "<value> <what>" when the counter moved, at most once per COUNTER_LOG_S."""
+        logged_value, logged_s = self._logged.get(key, (0, -1e9))
+        if value != logged_value and now_s - logged_s >= COUNTER_LOG_S:
+            log.warning("%d %s", value, what)
+            self._logged[key] = (value, now_s)
+
+    def _log_throttled(self, key: str, now_s: float, fmt: str, *args: object) -> None:
+        """Warn for an event at most once per COUNTER_LOG_S (the counts say how many)."""
+        if now_s - self._event_logged_s.get(key, -1e9) >= COUNTER_LOG_S:
+            log.warning(fmt, *args)
+            self._event_logged_s[key] = now_s
 
 
 async def _stdout_transport() -> asyncio.WriteTransport | None:

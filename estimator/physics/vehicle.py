@@ -22,6 +22,7 @@ import tomli_w
 
 from estimator.errors import UserError
 from estimator.physics.model import COEFFICIENT_NAMES, PowerModel
+from estimator.telemetry.plausibility import InputLimits
 from estimator.toml_files import read_toml
 
 
@@ -42,6 +43,10 @@ class Vehicle:
     battery: BatterySpec
     model_stderr: dict[str, float] = field(default_factory=dict)
     effects: dict[str, dict[str, Any]] = field(default_factory=dict)
+
+    def input_limits(self) -> InputLimits:
+        """Plausibility limits of telemetry for this vehicle's pack (cells) and hover power."""
+        return InputLimits.for_pack(self.battery.cells, self.model.hover_power_w)
 
     def to_toml(self) -> dict[str, Any]:
         model: dict[str, Any] = self.model.as_dict()

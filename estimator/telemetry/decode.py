@@ -3,33 +3,62 @@
 Bytes are parsed with pymavlink's generated ``dialects.v20.common`` codec (robust parsing on;
 MAVLink 1 frames parse too). Messages become :mod:`estimator.telemetry.samples` samples:
 
-- time is the autopilot's ``time_boot_ms``; messages without a stamp (SYS_STATUS,
-  BATTERY_STATUS, HEARTBEAT) take the latest autopilot time seen, so a replay and a live run
-  of the same byte stream give the same samples;
+- time is the autopilot's ``time_boot_ms``, judged by an
+  :class:`~estimator.telemetry.plausibility.AutopilotClock` (a stamp far from the clock is skipped
+  until several frames confirm a reboot or a gap); messages without a stamp (SYS_STATUS,
+  BATTERY_STATUS, HEARTBEAT) take the latest believed autopilot time, so a replay and a live
+  run of the same byte stream give the same samples;
 - unknown-value sentinels (current −1, voltage UINT16_MAX, cell voltage UINT16_MAX or 0,
-  consumed −1, remaining −1) become ``None`` or drop the sample;
+  consumed −1, remaining −1) become ``None`` or drop the sample; values beyond
+  :class:`~estimator.telemetry.plausibility.InputLimits` (NaN, ±inf, 1e30, a current no pack gives)
+  drop the frame, counted under the reason;
+- the battery comes from BATTERY_STATUS (our ``battery_id``) once :data:`BATTERY_STATUS_CONFIRM`
+  of them arrived, each within :data:`BATTERY_STATUS_TIMEOUT_S` of the last, else from
+  SYS_STATUS — also again when BATTERY_STATUS stops for that long;
 - only the selected autopilot is decoded (default: the first autopilot HEARTBEAT);
   our own component's messages and everyone else's are counted and skipped.
+
+Every skip is counted in :attr:`TelemetryDecoder.counts` (see :data:`SKIP_COUNTERS`).
 """
 
 from __future__ import annotations
 
+import math
 from collections import Counter
 from collections.abc import Iterable
 
 from pymavlink.dialects.v20 import common as mavlink
 
+from estimator.telemetry.plausibility import (
+    ClockFilter,
+    ClockSettings,
+    ClockVerdict,
+    InputLimits,
+    battery_problem,
+    velocity_problem,
+)
 from estimator.telemetry.samples import (
     ArmedSample,
     BatterySample,
-    RebootSample,
     Sample,
     VelocitySample,
 )
 
 UINT16_MAX = 65535
-#: A backward step of the autopilot clock larger than this is a reboot, smaller is reordering.
-REBOOT_BACKSTEP_S = 2.0
+#: BATTERY_STATUS frames in a row (each within the timeout) before they replace SYS_STATUS.
+BATTERY_STATUS_CONFIRM = 3
+#: Seconds of autopilot clock without BATTERY_STATUS after which SYS_STATUS is used again.
+BATTERY_STATUS_TIMEOUT_S = 3.0
+#: Counters of input skipped because it was not believed (values, time), for the daemon's log.
+SKIP_COUNTERS = (
+    "velocity_not_finite",
+    "velocity_beyond_limits",
+    "altitude_implausible",
+    "voltage_implausible",
+    "current_implausible",
+    "consumed_implausible",
+    "time_jump",
+)
 #: Message types the decoder uses; every other type is skipped (and may be skipped unparsed).
 USED_MESSAGE_IDS = frozenset(
     {
@@ -41,7 +70,7 @@ USED_MESSAGE_IDS = frozenset(
         mavlink.MAVLINK_MSG_ID_ATTITUDE,
     }
 )
-#: The velocity message types by id (the decoder uses the first one it sees).
+#: The velocity message types by id (the decoder uses the one of the first believed frame).
 _VELOCITY_TYPES = {
     mavlink.MAVLINK_MSG_ID_GLOBAL_POSITION_INT: "GLOBAL_POSITION_INT",
     mavlink.MAVLINK_MSG_ID_LOCAL_POSITION_NED: "LOCAL_POSITION_NED",
@@ -94,7 +123,8 @@ class TelemetryDecoder:
     """Turns the selected autopilot's messages into samples, with counters for what it skips.
 
     ``target`` is ``(system_id, component_id)`` of the autopilot, or ``None`` to lock onto the
-    first autopilot HEARTBEAT. ``own`` is our own ``(system_id, component_id)``.
+    first autopilot HEARTBEAT. ``own`` is our own ``(system_id, component_id)``. ``limits``:
+    the values believed (default: any multirotor's); ``clock``: the time checks.
     """
 
     def __init__(
@@ -102,21 +132,37 @@ class TelemetryDecoder:
         target: tuple[int, int] | None = None,
         own: tuple[int, int] = (1, mavlink.MAV_COMP_ID_ONBOARD_COMPUTER),
         battery_id: int = 0,
+        limits: InputLimits | None = None,
+        clock: ClockSettings | None = None,
     ) -> None:
         self.target = target
         self.own = own
         self.battery_id = battery_id
+        self.limits = limits or InputLimits()
         self.counts: Counter[str] = Counter()
-        self._clock_s: float | None = None
+        self._time = ClockFilter(self.counts, clock)
         self._velocity_type: str | None = None
         self._last_velocity_s: float | None = None
-        self._battery_status_seen = False
+        # BATTERY_STATUS in a row and the clock of the last one (SYS_STATUS fallback)
+        self._battery_status_frames = 0
+        self._battery_status_s = -math.inf
         self._armed: bool | None = None
 
     @property
     def clock_s(self) -> float | None:
-        """Latest autopilot time seen (s since its boot), None before the first stamp."""
-        return self._clock_s
+        """Latest believed autopilot time (s since its boot), None before the first stamp."""
+        return self._time.clock.time_s
+
+    @property
+    def velocity_type(self) -> str | None:
+        """The message type velocity is taken from, None before the first one."""
+        return self._velocity_type
+
+    def flush(self) -> list[Sample]:
+        """End of input (a log): samples still held for a stamp never confirmed."""
+        out = self._time.flush()
+        self._note_velocity(out)
+        return out
 
     def discards(self, msgid: int, system: int, component: int) -> bool:
         """Whether :meth:`decode` would drop a message with this id from this source without
@@ -155,51 +201,82 @@ class TelemetryDecoder:
             self.counts["unused"] += 1
             return []
         self.counts[kind] += 1
-        return handler(self, msg)
+        samples = handler(self, msg)
+        return [*self._time.take_pending(), *samples]
 
     # -- clock -------------------------------------------------------------------------------
 
-    def _stamp(self, time_boot_ms: int) -> list[Sample]:
-        """Advance the autopilot clock; return a RebootSample when it jumps backwards."""
-        t = time_boot_ms / 1000.0
-        if self._clock_s is not None and t < self._clock_s - REBOOT_BACKSTEP_S:
-            self.counts["reboots"] += 1
-            self._clock_s = t
+    def _stamp(
+        self, time_s: float, sample: VelocitySample | None = None, kind: str | None = None
+    ) -> list[Sample] | None:
+        """Judge a frame's stamp (s) with the clock filter: None skips the frame (``sample``
+        is held until the stamp is confirmed or refuted); else the samples to deliver before
+        the frame's own. A re-referenced clock restarts what belongs to the old one."""
+        out = self._time.stamped(time_s, sample, kind)
+        verdict = self._time.verdict
+        if out is not None and verdict in (ClockVerdict.REBOOT, ClockVerdict.JUMP):
             self._last_velocity_s = None
-            self._armed = None
-            return [RebootSample(t)]
-        if self._clock_s is None or t > self._clock_s:
-            self._clock_s = t
+            self._battery_status_frames, self._battery_status_s = 0, -math.inf
+            if verdict is ClockVerdict.REBOOT:
+                self._armed = None
+        self._note_velocity(out or [])
+        return out
+
+    def _note_velocity(self, released: list[Sample]) -> None:
+        for sample in released:
+            if isinstance(sample, VelocitySample):
+                self._last_velocity_s = sample.time_s
+
+    def _skip(self, reason: str) -> list[Sample]:
+        self.counts[reason] += 1
         return []
 
     # -- handlers ----------------------------------------------------------------------------
 
+    def _clock_s(self) -> float | None:
+        """Time for a message without a stamp: the clock, or before it starts the stamp of the
+        first frames (the sample is then held until they are confirmed)."""
+        clock = self._time.clock
+        if clock.time_s is None and clock.candidates:
+            return max(clock.candidates, key=lambda c: c.frames).last_s
+        return clock.time_s
+
     def _heartbeat(self, msg: mavlink.MAVLink_message) -> list[Sample]:
         armed = bool(msg.base_mode & mavlink.MAV_MODE_FLAG_SAFETY_ARMED)
-        if self._clock_s is None or armed == self._armed:
+        clock_s = self._clock_s()
+        if clock_s is None or armed == self._armed:
             return []
         self._armed = armed
-        return [ArmedSample(self._clock_s, armed)]
+        return self._time.clocked(ArmedSample(clock_s, armed))
 
     def _attitude(self, msg: mavlink.MAVLink_message) -> list[Sample]:
-        return self._stamp(msg.time_boot_ms)
+        return self._stamp(msg.time_boot_ms / 1000.0) or []
 
     def _velocity(
         self, msg: mavlink.MAVLink_message, v_ned: tuple[float, float, float], alt_m: float
     ) -> list[Sample]:
         kind = msg.get_type()
-        if self._velocity_type is None:
-            self._velocity_type = kind
-        elif kind != self._velocity_type:
-            self.counts["duplicate_velocity_source"] += 1
-            return []
-        out = self._stamp(msg.time_boot_ms)
+        if self._velocity_type not in (None, kind):
+            return self._skip("duplicate_velocity_source")
         t = msg.time_boot_ms / 1000.0
+        sample = VelocitySample(t, v_ned[0], v_ned[1], v_ned[2], alt_m)
+        problem = velocity_problem(sample, self.limits)
+        if problem is not None:
+            return self._skip(problem)
+        out = self._stamp(t, sample, kind)
+        if out is None:
+            return []
+        if self._velocity_type is None:  # the source of the first believed velocity
+            joined = self._time.clock.joined
+            self._velocity_type = kind if joined is None or joined.tag is None else joined.tag
+        if kind != self._velocity_type:
+            self.counts["duplicate_velocity_source"] += 1
+            return out
         if self._last_velocity_s is not None and t <= self._last_velocity_s:
             self.counts["out_of_order"] += 1
             return out
         self._last_velocity_s = t
-        out.append(VelocitySample(t, v_ned[0], v_ned[1], v_ned[2], alt_m))
+        out.append(sample)
         return out
 
     def _global_position(self, msg: mavlink.MAVLink_message) -> list[Sample]:
@@ -210,18 +287,23 @@ class TelemetryDecoder:
         return self._velocity(msg, (msg.vx, msg.vy, msg.vz), -msg.z)
 
     def _sys_status(self, msg: mavlink.MAVLink_message) -> list[Sample]:
-        if self._battery_status_seen:
-            return []
+        clock_s = self._time.clock.time_s
+        if self._battery_status_frames >= BATTERY_STATUS_CONFIRM:
+            if clock_s is not None and clock_s - self._battery_status_s <= BATTERY_STATUS_TIMEOUT_S:
+                return []  # BATTERY_STATUS is flowing: it is the battery source
+            self._battery_status_frames = 0
+            self.counts["battery_status_stopped"] += 1
         voltage_mv = msg.voltage_battery
         if voltage_mv in (0, UINT16_MAX):
             self.counts["battery_voltage_unknown"] += 1
             return []
-        return self._battery(
+        sample = self._battery(
             voltage_mv / 1000.0,
             _current_a(msg.current_battery),
             None,
             _remaining_pct(msg.battery_remaining),
         )
+        return [] if sample is None else self._time.clocked(sample)
 
     def _battery_status(self, msg: mavlink.MAVLink_message) -> list[Sample]:
         if msg.id != self.battery_id:
@@ -232,14 +314,23 @@ class TelemetryDecoder:
         if not known:
             self.counts["battery_voltage_unknown"] += 1
             return []
-        self._battery_status_seen = True
-        consumed = None if msg.current_consumed < 0 else float(msg.current_consumed)
-        return self._battery(
+        consumed = None if msg.current_consumed == -1 else float(msg.current_consumed)
+        sample = self._battery(
             sum(known) / 1000.0,
             _current_a(msg.current_battery),
             consumed,
             _remaining_pct(msg.battery_remaining),
         )
+        if sample is None:
+            return []
+        if sample.time_s - self._battery_status_s > BATTERY_STATUS_TIMEOUT_S:
+            self._battery_status_frames = 0
+        self._battery_status_frames += 1
+        self._battery_status_s = sample.time_s
+        if self._battery_status_frames < BATTERY_STATUS_CONFIRM:
+            self.counts["battery_status_unconfirmed"] += 1
+            return []
+        return self._time.clocked(sample)
 
     def _battery(
         self,
@@ -247,11 +338,19 @@ class TelemetryDecoder:
         current_a: float | None,
         consumed_mah: float | None,
         remaining_pct: float | None,
-    ) -> list[Sample]:
-        if self._clock_s is None:
+    ) -> BatterySample | None:
+        """A pack reading on the clock, or None when there is no clock yet or it is not
+        plausible (counted)."""
+        clock_s = self._clock_s()
+        if clock_s is None:
             self.counts["battery_before_clock"] += 1
-            return []
-        return [BatterySample(self._clock_s, voltage_v, current_a, consumed_mah, remaining_pct)]
+            return None
+        sample = BatterySample(clock_s, voltage_v, current_a, consumed_mah, remaining_pct)
+        problem = battery_problem(sample, self.limits)
+        if problem is not None:
+            self.counts[problem] += 1
+            return None
+        return sample
 
 
 def _is_autopilot(msg: mavlink.MAVLink_message) -> bool:

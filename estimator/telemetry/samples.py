@@ -46,7 +46,9 @@ class ArmedSample:
 
 @dataclass(frozen=True, slots=True)
 class RebootSample:
-    """The autopilot's clock went backwards: it rebooted. Carries the new clock time."""
+    """The autopilot's clock was re-referenced: it went backwards (a reboot), or jumped far
+    ahead (confirmed by several frames). Carries the new clock time; what came before is
+    not continued on the new clock."""
 
     time_s: float
 

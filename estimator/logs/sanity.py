@@ -1,0 +1,141 @@
+"""Sanity checks of a whole log, each giving one warning sentence (never an error):
+
+- vertical velocity against the altitude rate: on every pair of successive velocity samples
+  (at most :data:`MAX_PAIR_GAP_S` apart) where the height changes by at least
+  :data:`MIN_RATE_MPS` and the logged climb rate is as large, their signs should agree; a log
+  where they disagree on most such pairs has its vertical velocity the wrong way up (the
+  IRIS+ logs of APM:Copter 3.3 send GLOBAL_POSITION_INT.vz positive up), and the climb power
+  is predicted with the wrong sign;
+- pack voltage against the vehicle file's cell count: the 95th percentile of the logged pack
+  voltage (the pack near rest) per cell must lie where a lithium cell can
+  (:func:`estimator.telemetry.plausibility.pack_voltage_problem`); else the energy figures are wrong
+  (a 6-cell file on a 3-cell pack reads an empty pack: 0 Wh).
+
+:class:`SanityRecorder` collects what the checks need from a stream of samples (replay);
+:func:`flight_warnings` runs them on :class:`~estimator.logs.FlightSeries` (fit, residuals).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from typing import TYPE_CHECKING
+
+import numpy as np
+from numpy.typing import ArrayLike
+
+from estimator.telemetry.plausibility import pack_voltage_problem
+from estimator.telemetry.samples import BatterySample, RebootSample, Sample, VelocitySample
+
+if TYPE_CHECKING:  # the package imports this module
+    from estimator.logs import FlightSeries
+
+#: Smallest height rate (and logged climb rate) a pair of samples is judged on, m/s.
+MIN_RATE_MPS = 0.5
+#: Successive velocity samples further apart than this (s) are not paired.
+MAX_PAIR_GAP_S = 5.0
+#: Fewest judged pairs for a verdict.
+MIN_PAIRS = 5
+#: Share of judged pairs whose signs disagree above which the log is warned about.
+MAX_DISAGREEMENT = 0.5
+#: Percentile of the pack voltage compared with the cell count (the pack near rest).
+VOLTAGE_PERCENTILE = 95.0
+
+
+def vertical_velocity_problem(
+    time_s: ArrayLike, vd_mps: ArrayLike, alt_m: ArrayLike, source: str = "vertical velocity"
+) -> str | None:
+    """A sentence when the logged down-velocity (m/s, NED) disagrees in sign with the rate of
+    the height over home (m) on most climbing or descending pairs, else None."""
+    return _vertical_verdict(*_judged_pairs(time_s, vd_mps, alt_m), source)
+
+
+def _judged_pairs(
+    time_s: ArrayLike, vd_mps: ArrayLike, alt_m: ArrayLike
+) -> tuple[np.ndarray, np.ndarray]:
+    """(height rate, logged climb rate) in m/s of the successive sample pairs judged."""
+    t = np.asarray(time_s, dtype=float)
+    vd = np.asarray(vd_mps, dtype=float)
+    alt = np.asarray(alt_m, dtype=float)
+    if len(t) < 2:
+        return np.empty(0), np.empty(0)
+    dt = np.diff(t)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        rate = np.diff(alt) / dt
+    climb = -0.5 * (vd[1:] + vd[:-1])
+    judged = (
+        (dt > 0)
+        & (dt <= MAX_PAIR_GAP_S)
+        & np.isfinite(rate)
+        & np.isfinite(climb)
+        & (np.abs(rate) >= MIN_RATE_MPS)
+        & (np.abs(climb) >= MIN_RATE_MPS)
+    )
+    return rate[judged], climb[judged]
+
+
+def _vertical_verdict(rate: np.ndarray, climb: np.ndarray, source: str) -> str | None:
+    n = len(rate)
+    if n < MIN_PAIRS:
+        return None
+    disagree = int(np.count_nonzero(np.sign(rate) != np.sign(climb)))
+    if disagree <= MAX_DISAGREEMENT * n:
+        return None
+    corr = float(np.corrcoef(rate, climb)[0, 1])
+    return (
+        f"{source} disagrees in sign with the altitude rate on {disagree} of {n} climbing or "
+        f"descending samples (correlation {corr:+.2f}): the log's vertical velocity looks "
+        "positive up, so climb power is predicted with the wrong sign"
+    )
+
+
+def voltage_problem(voltage_v: ArrayLike, cells: int) -> str | None:
+    """A sentence when the pack voltages (V) do not fit ``cells`` series cells, else None."""
+    v = np.asarray(voltage_v, dtype=float)
+    v = v[np.isfinite(v) & (v > 0)]
+    if not len(v):
+        return None
+    return pack_voltage_problem(float(np.percentile(v, VOLTAGE_PERCENTILE)), cells)
+
+
+def flight_warnings(flights: Sequence[FlightSeries], cells: int | None = None) -> list[str]:
+    """Warnings of :func:`vertical_velocity_problem` per flight and of :func:`voltage_problem`
+    over all flights (when ``cells`` is known), each prefixed with what it is about."""
+    out = []
+    for f in flights:
+        if (problem := vertical_velocity_problem(f.time_s, f.vd_mps, f.alt_m)) is not None:
+            out.append(f"{f.flight_id}: {problem}")
+    if cells is not None and flights:
+        voltages = np.concatenate([f.voltage_v for f in flights])
+        if (problem := voltage_problem(voltages, cells)) is not None:
+            out.append(problem)
+    return out
+
+
+class SanityRecorder:
+    """Collects velocity and voltage from samples as they stream past (per autopilot boot)."""
+
+    def __init__(self) -> None:
+        self._velocity: list[list[tuple[float, float, float]]] = [[]]
+        self._voltage_v: list[float] = []
+
+    def observe(self, sample: Sample) -> None:
+        if isinstance(sample, VelocitySample):
+            alt = np.nan if sample.alt_m is None else sample.alt_m
+            self._velocity[-1].append((sample.time_s, sample.vd_mps, alt))
+        elif isinstance(sample, BatterySample):
+            self._voltage_v.append(sample.voltage_v)
+        elif isinstance(sample, RebootSample):
+            self._velocity.append([])
+
+    def warnings(self, cells: int | None = None, source: str = "vertical velocity") -> list[str]:
+        """The checks' warnings over what was observed (voltage only when ``cells`` is known);
+        no pair of velocity samples spans a reboot."""
+        out = []
+        pairs = [_judged_pairs(*np.array(boot).T) for boot in self._velocity if len(boot) > 1]
+        if pairs:
+            rate, climb = (np.concatenate(column) for column in zip(*pairs, strict=True))
+            if (problem := _vertical_verdict(rate, climb, source)) is not None:
+                out.append(problem)
+        if cells is not None and (problem := voltage_problem(self._voltage_v, cells)):
+            out.append(problem)
+        return out
