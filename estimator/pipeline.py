@@ -15,8 +15,15 @@ once for the whole period:
 3. the period's battery readings update the fusion (:mod:`estimator.fusion`): their mean
    measured power against the mean model power in force when each arrived, the latest
    consumed charge and the latest terminal voltage;
-4. the online wind/mass tracker takes the latest reading (every ``track_period_s``);
+4. the online wind/mass tracker takes the readings queued since its last step (every
+   ``track_period_s``);
 5. one :class:`Estimate` is published.
+
+Only *flying* readings (:mod:`estimator.airborne`: not on the ground, not in the take-off
+transient) teach the fusion's bias and the tracker; before the first of them the energy
+state draws the measured power, and the endurance is flagged not yet valid
+(:attr:`Estimate.endurance_valid`) until they have been fused for
+``endurance_valid_after_s``.
 
 Per-sample numpy work would cost more than decoding the sample; per period it is amortized
 over every sample of the period. A :class:`RebootSample` closes the open period, restarts the
