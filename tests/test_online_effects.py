@@ -6,11 +6,13 @@ start."""
 from __future__ import annotations
 
 import math
+from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
 import pytest
 
+from estimator.estimation.airborne import TAKEOFF_SETTLE_S
 from estimator.estimation.online_effects import (
     OnlineEffects,
     TrackPoint,
@@ -18,10 +20,11 @@ from estimator.estimation.online_effects import (
     wind_from_vector,
 )
 from estimator.logs import iter_samples
-from estimator.physics.effects import Climb, Effect, Mass, Wind, effects_to_tables
+from estimator.physics.effects import Climb, Effect, Mass, PowerContext, Wind, effects_to_tables
 from estimator.physics.vehicle import Vehicle, default_vehicle
 from estimator.sim.files import write_tlog
-from estimator.sim.run import SimConfig
+from estimator.sim.plans import Leg, Plan
+from estimator.sim.run import SimConfig, SimRun
 from estimator.sim.simulator import simulate
 
 VEHICLE = default_vehicle()
@@ -71,8 +74,9 @@ def test_payload_picked_up_in_flight_is_followed(tmp_path: Path) -> None:
 
 
 def test_clean_flight_stays_at_no_wind_and_file_mass(tmp_path: Path) -> None:
+    # the wind is held in hover (module docstring), so the first legs settle it: after 150 s
     points = track(tmp_path, "mixed", 45, ())
-    late = [p for p in points if p.time_s > 120.0]
+    late = [p for p in points if p.time_s > 150.0]
     assert max(p.wind_speed_mps for p in late) < 1.0
     assert max(abs(p.mass_delta_kg) for p in late) < 0.05
 
@@ -118,3 +122,106 @@ def test_a_covariance_that_lost_positive_definiteness_is_restarted_not_raised() 
     assert tracker.resets == 1
     assert math.isfinite(tracker.wind.speed_mps) and math.isfinite(tracker.mass_delta_kg)
     assert np.all(np.linalg.eigvalsh(tracker._ukf.P) > 0)
+
+
+@dataclass(frozen=True)
+class WindFrom(Wind):
+    """A hidden wind that sets in at ``at_s`` (s on the flight's clock): for the simulator."""
+
+    at_s: float = 0.0
+
+    def adjust(self, ctx: PowerContext) -> None:
+        wn, we = self.vector_ne_mps()
+        on = (ctx.state.time_s >= self.at_s).astype(float)
+        ctx.air_vn_mps = ctx.air_vn_mps - wn * on
+        ctx.air_ve_mps = ctx.air_ve_mps - we * on
+
+
+HOVER_FIRST = Plan(
+    "hover-then-legs",
+    (
+        Leg("hover", duration_s=60.0),
+        *(Leg("straight", 10.0, heading_deg=h, duration_s=40.0) for h in (30.0, 120.0, 210.0)),
+        *(Leg("straight", 10.0, heading_deg=h, duration_s=40.0) for h in (300.0, 30.0, 120.0)),
+        Leg("hover", duration_s=60.0),
+    ),
+)
+
+
+def track_plan(
+    tmp_path: Path, plan: Plan, effects: tuple[Effect, ...]
+) -> tuple[SimRun, list[TrackPoint], OnlineEffects]:
+    run = simulate(SimConfig(plan=plan, seed=7, effects=effects))
+    path = write_tlog(run, tmp_path / "flight.tlog", truth_csv=False)
+    tracker = OnlineEffects.from_vehicle(VEHICLE)
+    return run, track_samples(iter_samples(path), tracker), tracker
+
+
+def hover_reached_s(run: SimRun) -> float:
+    return float(run.truth.time_s[np.nonzero(run.truth.alt_m > 19.5)[0][0]])
+
+
+def test_nothing_is_learnt_on_the_ground_nor_in_the_take_off_climb(tmp_path: Path) -> None:
+    run, points, _ = track_plan(tmp_path, HOVER_FIRST, (Mass(1.0),))
+    airborne_s = float(run.truth.time_s[np.nonzero(run.truth.alt_m > 1.0)[0][0]])
+    assert points[0].time_s >= airborne_s + TAKEOFF_SETTLE_S
+    climbing = run.truth.vd_mps[run.truth.at(points[0].time_s)] < -1.0
+    assert not climbing
+
+
+def test_a_payload_carried_from_take_off_is_learnt_within_20_s_of_hover(tmp_path: Path) -> None:
+    run, points, _ = track_plan(tmp_path, HOVER_FIRST, (Mass(1.0),))
+    hover_s = hover_reached_s(run)
+    for p in (at(points, hover_s + 20.0), at(points, hover_s + 45.0)):
+        assert abs(p.mass_delta_kg - 1.0) < 0.15
+        assert abs(p.wind_speed_mps) < 0.5  # a hover step is mass: the wind is held
+
+
+def test_a_payload_released_in_hover_is_learnt_within_5_s(tmp_path: Path) -> None:
+    release_s = 340.0  # in the last hover
+    run, points, tracker = track_plan(
+        tmp_path, HOVER_FIRST, (Mass(1.0), Mass(-1.0, at_s=release_s))
+    )
+    assert run.truth.speed_mps[run.truth.at(release_s)] < 0.5
+    assert abs(at(points, release_s - 5.0).mass_delta_kg - 1.0) < 0.15
+    assert abs(at(points, release_s + 5.0).mass_delta_kg) < 0.15
+    assert tracker.changes >= 1
+
+
+def test_a_payload_picked_up_in_forward_flight_wins_over_a_wind_change(tmp_path: Path) -> None:
+    pickup_s = 150.0  # on the third leg
+    _, points, _ = track_plan(tmp_path, HOVER_FIRST, (Mass(0.6, at_s=pickup_s),))
+    after = at(points, pickup_s + 30.0)
+    assert abs(after.mass_delta_kg - 0.6) < 0.15
+    assert after.wind_speed_mps < 1.0
+
+
+def test_a_wind_setting_in_during_forward_flight_is_detected(tmp_path: Path) -> None:
+    onset_s = 150.0
+    wind = WindFrom(6.0, 60.0, at_s=onset_s)
+    _, points, tracker = track_plan(tmp_path, HOVER_FIRST, (wind,))
+    before = at(points, onset_s - 5.0)
+    assert before.wind_speed_mps < 1.0
+    after = at(points, onset_s + 40.0)
+    assert abs(after.wind_speed_mps - 6.0) < 1.5
+    assert angle_diff_deg(after.wind_from_deg, 60.0) < 25.0
+    assert abs(after.mass_delta_kg) < 0.15
+    assert tracker.changes >= 1
+
+
+def test_the_wind_along_the_track_is_applied_before_the_wind_across_it(tmp_path: Path) -> None:
+    """One straight leg into a headwind: the along-track component is identified, the cross
+    one is not; the effects to apply carry the former and the vehicle file's value of the
+    latter."""
+    plan = Plan("one-leg", (Leg("straight", 10.0, heading_deg=90.0, duration_s=120.0),))
+    _, _, tracker = track_plan(tmp_path, plan, (Wind(5.0, 90.0),))
+    along, across = math.radians(90.0), math.radians(0.0)
+    sigma = tracker.sigma
+    assert sigma["wind_n_mps"] > 1.0  # across the track: not identified
+    effects = tracker.identified_effects(along, 1.0, 0.15)
+    assert effects is not None
+    applied = next(e for e in effects if isinstance(e, Wind))
+    wn, we = applied.vector_ne_mps()
+    assert we == pytest.approx(-5.0, abs=1.0)  # the headwind, along the track (east)
+    assert wn == pytest.approx(0.0, abs=1e-9)  # across: the vehicle file's (none)
+    assert tracker.identified_effects(across, 1.0, 0.0) is None

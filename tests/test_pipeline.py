@@ -9,8 +9,9 @@ import pytest
 
 from estimator.estimation.pipeline import Estimate, Pipeline, PipelineSettings
 from estimator.physics.battery import PackModel
-from estimator.physics.effects import Effect, Wind
+from estimator.physics.effects import Effect, Mass, Wind
 from estimator.physics.vehicle import default_vehicle
+from estimator.sim.plans import Leg, Plan
 from estimator.sim.run import SimConfig
 from estimator.sim.simulator import simulate
 from estimator.telemetry.decode import TelemetryDecoder
@@ -215,3 +216,48 @@ def test_an_unidentified_wind_leaves_the_model_alone() -> None:
     run(pipeline, flight(120.0))
     assert pipeline.online is not None and pipeline.online.updates > 0
     assert pipeline.effects == Pipeline(VEHICLE).effects
+
+
+def test_arming_at_idle_on_the_ground_teaches_the_bias_nothing() -> None:
+    """Armed on the ground at 0 A (the model says hover power): the bias keeps its prior and
+    the endurance is not valid, so no absurd time reaches the ground station."""
+    p = Pipeline(VEHICLE)
+    samples: list[Sample] = [BatterySample(0.0, FULL_V, 0.0, 0.0), ArmedSample(0.0, True)]
+    for k in range(1, 300):
+        t = k * 0.1
+        samples.append(VelocitySample(t, 0.0, 0.0, 0.0, 0.05))
+        if k % 5 == 0:
+            samples.append(BatterySample(t, FULL_V, 0.3, 0.0))
+    estimates = run(p, samples)
+    assert estimates and all(not e.endurance_valid for e in estimates)
+    assert estimates[-1].bias == pytest.approx(1.0, abs=0.01)
+    assert p.counts["readings_ground"] > 50
+    assert p.online is not None and p.online.steps == 0
+
+
+def _first_valid(effects: tuple[Effect, ...]) -> tuple[Estimate, float, list[Estimate]]:
+    """Hover at 20 m until the reserve: the first estimate with a valid endurance, the true
+    time to the reserve then, and the estimates before it."""
+    plan = Plan("hover", (Leg("hover", duration_s=400.0),))
+    sim = simulate(SimConfig(plan=plan, effects=effects, seed=5))
+    decoder, pipeline = TelemetryDecoder(), Pipeline(VEHICLE)
+    estimates = []
+    for _, msg in sim.messages:
+        for sample in decoder.decode(msg):
+            est = pipeline.process(sample)
+            if est is not None:
+                estimates.append(est)
+                if est.endurance_valid:
+                    truth_s = float(sim.truth.time_to_reserve_s[sim.truth.at(est.time_s)])
+                    return est, truth_s, estimates[:-1]
+    raise AssertionError("no valid endurance")
+
+
+@pytest.mark.parametrize("payload_kg", [0.0, 1.0])
+def test_the_first_endurance_published_after_take_off_is_within_10_percent(
+    payload_kg: float,
+) -> None:
+    first, truth_s, before = _first_valid((Mass(payload_kg),) if payload_kg else ())
+    assert first.endurance_s == pytest.approx(truth_s, rel=0.10)
+    assert first.time_s < 20.0  # take-off at 2 s, 20 m reached at about 13 s
+    assert before and all(not e.endurance_valid for e in before)

@@ -248,9 +248,13 @@ class EnergyFilter:
 
     # -- predict / update -------------------------------------------------------------------
 
-    def predict(self, time_s: float, power_model_w: float, loss_factor: float) -> None:
+    def predict(
+        self, time_s: float, power_model_w: float, loss_factor: float, measured: bool = False
+    ) -> None:
         """Advance to ``time_s`` drawing ``b · power_model_w`` at the terminals (W), with
-        chemical energy leaving ``loss_factor`` (= OCV/V ≥ 1) times faster."""
+        chemical energy leaving ``loss_factor`` (= OCV/V ≥ 1) times faster. ``measured``: the
+        power is a measured one (V·I, where the model does not hold: on the ground, at
+        take-off), drawn as it is, with the measurement's error and no tie to the bias."""
         kf = self._require()
         assert self._time_s is not None
         dt = time_s - self._time_s
@@ -259,10 +263,15 @@ class EnergyFilter:
         self._time_s = time_s
         s = self.settings
         drain_wh = power_model_w * loss_factor * dt / 3600.0
-        f = np.array([[1.0, -drain_wh], [0.0, 1.0]])
-        q_e = (s.model_power_noise_fraction * drain_wh) ** 2
         q_b = s.bias_walk_per_sqrt_s**2 * dt
-        kf.predict(F=f, Q=np.diag([q_e, q_b]))
+        if measured:
+            q_e = (s.power_noise_fraction * drain_wh) ** 2
+            kf.x[0] -= drain_wh
+            kf.predict(F=np.eye(2), Q=np.diag([q_e, q_b]))
+        else:
+            f = np.array([[1.0, -drain_wh], [0.0, 1.0]])
+            q_e = (s.model_power_noise_fraction * drain_wh) ** 2
+            kf.predict(F=f, Q=np.diag([q_e, q_b]))
         self._cap_bias_variance()
 
     def flight_state_changed(self, steady_power_w: float) -> None:
@@ -281,6 +290,21 @@ class EnergyFilter:
             kf.P[1, 1] += (s.state_change_bias_sigma * move) ** 2
             self._anchor_power_w = steady_power_w
             self._cap_bias_variance()
+
+    def rescale_bias(self, factor: float) -> None:
+        """The model's effects changed so that its power is 1/``factor`` times what it was
+        for the same flight (e.g. a payload now in the model): the measured power did not
+        change, so the bias (and its uncertainty and the state-change anchor) scales by
+        ``factor``."""
+        kf = self._require()
+        if not (math.isfinite(factor) and factor > 0):
+            return
+        kf.x[1] *= factor
+        kf.P[1, :] *= factor
+        kf.P[:, 1] *= factor
+        if self._anchor_power_w is not None:
+            self._anchor_power_w /= factor
+        self._cap_bias_variance()
 
     def _cap_bias_variance(self) -> None:
         """The bias is never less known than the prior says the model is: without

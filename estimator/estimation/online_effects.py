@@ -15,16 +15,31 @@ Robustness: the measurement noise is an absolute floor plus a fraction of the po
 kinetic term's uncertainty (m·V·σ_a from the kinematics filter) plus a learnt excess (the
 squared innovations' surplus over their predicted variance, followed with gain
 ``noise_gain``: real power telemetry is noisier than a current sensor's datasheet says, and
-model error looks like noise to the filter); an innovation beyond
-``gate_sigma`` standard deviations is not used (counted in ``rejected``), nor are samples in
-fast vertical motion (|v_z| > ``max_vertical_speed_mps``: take-off, landing, where the climb
-term is the least certain part of the model; counted in ``vertical``) and readings below
-``min_power_fraction_of_hover`` of the model's hover power (idle motors on the ground,
-``idle``); when the recent
-normalised innovations keep one sign (their mean over ``change_window`` samples is more than
-``change_sigma`` standard errors from 0) the mass uncertainty is widened back to its initial
-value so the filter can follow a payload step (``changes`` counts these).
+model error looks like noise to the filter); an innovation beyond ``gate_sigma`` standard
+deviations is not used (counted in ``rejected``) unless it starts a detected change (below),
+nor are samples in fast vertical motion (|v_z| > ``max_vertical_speed_mps``: take-off,
+landing, where the climb term is the least certain part of the model; counted in
+``vertical``) and readings below ``min_power_fraction_of_hover`` of the model's hover power
+(idle motors, ``idle``). Readings from the ground and the take-off transient never reach the
+filter: its callers gate them (:class:`~estimator.estimation.airborne.AirborneGate`).
 
+Steps (payload picked up or released, wind setting in): a random walk slow enough to keep
+the estimate quiet follows a step only at its own pace (a 1 kg release took about a minute).
+Each step's normalised innovation ν = y/√S (unit variance while the filter is right) feeds a
+two-sided CUSUM, g⁺ ← max(0, g⁺ + ν − k), g⁻ ← max(0, g⁻ − ν − k), with drift
+``cusum_drift_sigma`` (k) and threshold ``cusum_threshold_sigma`` (h): the sequential test
+for a shift of the innovations' mean (Page's CUSUM; with k = 0.5, h = 7 a filter that is
+right raises a false alarm about once in 3 500 steps, two hours of the pipeline's 2 s steps;
+a shift of 3σ is caught in about three steps, one of 7.5σ, like a 1 kg release, in one). On
+an alarm the step is undone and redone from the prior with the uncertainty of a changed state
+back at its initial value (its cross-covariances cleared). In hover that state is the mass (a
+wind shows in hover only through translational lift, weakly, and is held there, below). In
+forward flight a payload step and a wind change both move the power, so both hypotheses run
+side by side, each its own filter from the same prior (one with the mass widened, one with
+the wind): the likelier one by the summed innovation log-likelihood −½(ν² + ln S) is the
+estimate, and the other is dropped once the ratio passes ``hypothesis_nats`` (100:1) or
+after ``hypothesis_max_steps`` steps, a multiple-model test that the next change of speed or
+heading, where a wind and a mass differ, settles. ``changes`` counts the alarms.
 A step takes one reading or several taken close together (:meth:`~OnlineEffects.update_readings`;
 the pipeline gives it the readings of each ``track_period_s``): their mean measured power
 against the mean of the predictions at each reading's own flight state, with the noise of a mean
@@ -34,13 +49,21 @@ one vectorized call per step.
 
 Identifiability: wind direction needs flight in more than one direction; in hover only the
 wind speed is seen, and a hover power offset is shared between wind and mass until the vehicle
-moves. The filter carries this in its covariance (``sigma``).
+moves. The filter carries this in its covariance (``sigma``), with one exception. In hover
+(ground speed below ``moving_speed_mps``) the wind is *held* at its estimate: the sigma points
+spread over the mass alone. At zero airspeed the power's slope in the wind is zero, so the
+wind's sigma points would only shift the predicted mean by the curvature of P(V) (an unknown
+wind of 3 m/s makes the mean hover power lower, and a clean hover read +0.2 kg), a shift
+that the point estimate applied afterwards never reproduces. A mass learnt in hover is thus
+conditional on the wind held: when the vehicle then moves while the wind is not known to
+``wind_known_sigma_mps``, the mass variance goes back to its initial value and the moving
+flight, which sees the wind, settles both. :meth:`~OnlineEffects.identified_effects` says
+which parts are known well enough to apply (the wind along the track flown, the mass).
 """
 
 from __future__ import annotations
 
 import math
-from collections import deque
 from collections.abc import Iterable, Iterator, Sequence
 from dataclasses import dataclass
 from typing import NamedTuple
@@ -48,6 +71,7 @@ from typing import NamedTuple
 import numpy as np
 from filterpy.kalman import MerweScaledSigmaPoints, UnscentedKalmanFilter
 
+from estimator.estimation.airborne import IDLE_FRACTION_OF_HOVER, AirborneGate, Phase
 from estimator.logs import FlightSeries
 from estimator.physics.effects import (
     Effect,
@@ -69,8 +93,8 @@ from estimator.telemetry.samples import (
     VelocitySample,
 )
 
-#: Below this height over home (m) the vehicle is on the ground (no update).
-AIRBORNE_ALT_M = 1.0
+#: Variance (m²/s²) standing in for a held wind's in the sigma points (positive definite).
+_HELD_VARIANCE = 1e-9
 
 
 def wind_from_vector(wn_mps: float, we_mps: float) -> Wind:
@@ -78,6 +102,30 @@ def wind_from_vector(wn_mps: float, we_mps: float) -> Wind:
     speed = math.hypot(wn_mps, we_mps)
     from_deg = math.degrees(math.atan2(-we_mps, -wn_mps)) % 360.0 if speed > 0 else 0.0
     return Wind(speed_mps=speed, from_deg=from_deg)
+
+
+class _Step(NamedTuple):
+    """One filter step's data: readings' flight-state rows (k × 8, the FlightState fields),
+    their mean measured power (W) and its noise variance (W²), and whether the vehicle moves
+    (else hovers)."""
+
+    rows: np.ndarray
+    measured_w: float
+    noise_var_w2: float
+    moving: bool
+
+
+class _Hypothesis(NamedTuple):
+    """A filter state [w_n, w_e, δm] with covariance, its summed innovation log-likelihood,
+    and its last step's normalised innovation (None: no update), squared innovation (W²)
+    and innovation variance (W²)."""
+
+    x: np.ndarray
+    p: np.ndarray
+    loglik: float = 0.0
+    nu: float | None = None
+    y2: float = 0.0
+    s_var: float = 1.0
 
 
 class TrackerReading(NamedTuple):
@@ -102,11 +150,21 @@ class OnlineSettings:
     gate_sigma: float = 5.0
     max_vertical_speed_mps: float = 1.0
     #: Power below this fraction of the model's hover power is not flight (idle motors).
-    min_power_fraction_of_hover: float = 0.3
+    min_power_fraction_of_hover: float = IDLE_FRACTION_OF_HOVER
     #: Gain of the adaptive measurement-noise estimate (per power sample).
     noise_gain: float = 0.02
-    change_window: int = 30
-    change_sigma: float = 5.0
+    #: CUSUM on the normalised innovations (see the module docstring): drift k and threshold h.
+    cusum_drift_sigma: float = 0.5
+    cusum_threshold_sigma: float = 7.0
+    #: Below this ground speed (m/s) the vehicle hovers: the wind is held and a detected
+    #: change is taken for mass; above it, for wind.
+    moving_speed_mps: float = 2.0
+    #: A wind known to this 1σ (m/s, both components) makes a mass learnt in hover final.
+    wind_known_sigma_mps: float = 1.0
+    #: A change in forward flight: the mass-step and wind-change hypotheses run until one is
+    #: this much likelier (log-likelihood ratio, nats; 4.6 = 100:1) or for this many steps.
+    hypothesis_nats: float = 4.6
+    hypothesis_max_steps: int = 30
     #: Mass may not drop below this fraction of the vehicle file's.
     min_mass_fraction: float = 0.3
     #: No multirotor flies in more wind than this (m/s): the estimate is held below it.
@@ -152,7 +210,11 @@ class OnlineEffects:
         )
         self._ukf.P = np.diag(self._initial_var)
         self._time_s: float | None = None
-        self._recent: deque[float] = deque(maxlen=s.change_window)
+        self._cusum = [0.0, 0.0]  # g⁺, g⁻ of the normalised innovations
+        self._hovering = False  # the last step was in hover (wind held)
+        self._loglik = 0.0  # the estimate's summed innovation log-likelihood (while in a duel)
+        self._rival: _Hypothesis | None = None  # the other hypothesis after a change
+        self._duel_steps = 0
         #: Measurement noise beyond the configured one, learnt from the innovations, W².
         self.extra_noise_var_w2 = 0.0
         self._hover_w = model.hover_power_w
@@ -204,6 +266,48 @@ class OnlineEffects:
     def effects(self) -> tuple[Effect, ...]:
         """Effects to predict power with now (frame effects first)."""
         return self._effects(self._ukf.x)
+
+    def identified_effects(
+        self,
+        track_rad: float,
+        wind_sigma_mps: float,
+        mass_sigma_kg: float,
+        in_use: Sequence[Effect] = (),
+    ) -> tuple[Effect, ...] | None:
+        """The effects to apply now: those ``in_use`` (default: the vehicle file's), with each
+        part of the estimate that is known well enough in their place. Mass: when its 1σ is
+        at most ``mass_sigma_kg``. Wind: the whole vector when both components' 1σ are at
+        most ``wind_sigma_mps``; else its component along the track flown (``track_rad``,
+        from north towards east), the one that sets the power at the current course, when
+        that component's 1σ is; the component across keeps the value in use. None when
+        nothing is identified."""
+        x, p = self._ukf.x, self._ukf.P
+        used_wind = next((e for e in in_use if isinstance(e, Wind)), None)
+        used_mass = next((e for e in in_use if isinstance(e, Mass)), None)
+        wind = (
+            np.array(self._file_wind_ne_mps)
+            if used_wind is None
+            else np.array(used_wind.vector_ne_mps())
+        )
+        mass = self._file_mass_kg() if used_mass is None else used_mass.delta_kg
+        mass_known = float(p[2, 2]) <= mass_sigma_kg**2
+        if mass_known:
+            mass = float(x[2])
+        along = np.array([math.cos(track_rad), math.sin(track_rad)])
+        wind_var = p[:2, :2]
+        if max(wind_var[0, 0], wind_var[1, 1]) <= wind_sigma_mps**2:
+            wind = x[:2]
+        elif float(along @ wind_var @ along) <= wind_sigma_mps**2:
+            wind = wind + along * float(along @ (x[:2] - wind))
+        elif not mass_known:
+            return None
+        return self._effects(np.array([*wind, mass]))
+
+    def _file_mass_kg(self) -> float:
+        """The vehicle file's mass difference now (kg): a stepped one from its time on."""
+        at_s = self._file_mass.at_s
+        now = at_s is None or (self._time_s is not None and self._time_s >= at_s)
+        return self._file_mass.delta_kg if now else 0.0
 
     def _effects(self, x: np.ndarray) -> tuple[Effect, ...]:
         return (wind_from_vector(float(x[0]), float(x[1])), Mass(float(x[2])), *self.others)
@@ -290,72 +394,152 @@ class OnlineEffects:
         if not kept:
             return self.effects
         self.steps += 1
-        ukf = self._ukf
         time_s = kept[-1][0].state.time_s
-        dt = 0.0 if self._time_s is None else time_s - self._time_s
+        dt = 0.0 if self._time_s is None else max(time_s - self._time_s, 0.0)
         self._time_s = time_s
-        # predict even when dt = 0: it draws the sigma points the update evaluates
         wind_q = s.wind_walk_mps_per_sqrt_s**2 * dt
-        ukf.Q = np.diag([wind_q, wind_q, s.mass_walk_kg_per_sqrt_s**2 * dt])
-        try:
-            ukf.predict(dt=dt)
-        except np.linalg.LinAlgError:
-            ukf.P = np.diag(self._initial_var)
-            self.resets += 1
-            ukf.predict(dt=dt)
+        q = np.diag([wind_q, wind_q, s.mass_walk_kg_per_sqrt_s**2 * dt])
         rows = np.array([(*motion, 0.0, r.voltage_v) for r, motion in kept], dtype=float)
         measured = np.array([r.measured_power_w for r, _ in kept])
-        file_mass = self._file_mass
-        file_delta_kg = file_mass.delta_kg * (file_mass.at_s is None or time_s >= file_mass.at_s)
-        hypotheses = [ukf.x, [*self._file_wind_ne_mps, file_delta_kg]]
-        powers_w = self._powers_w(np.vstack([ukf.sigmas_f, *hypotheses]), rows).mean(axis=1)
-        self._sigma_powers_w = iter(powers_w[:-2].tolist())
-        measured_w = float(measured.mean())
-        self.last_step_w = (measured_w, float(powers_w[-2]), float(powers_w[-1]))
         kinetic_sd = self.mass_kg * np.array(
             [r.state.speed_mps * r.state.accel_sigma_mps2 for r, _ in kept]
         )
         r_each = s.power_noise_w**2 + (s.power_noise_fraction * measured) ** 2 + kinetic_sd**2
-        noise_var_w2 = float(r_each.sum()) / len(kept) ** 2 + self.extra_noise_var_w2
-        x_prior, p_prior = ukf.x.copy(), ukf.P.copy()
-        try:
-            ukf.update(np.array([measured_w]), R=np.array([[noise_var_w2]]))
-        except np.linalg.LinAlgError:  # covariance lost positive definiteness: start it over
-            ukf.x, ukf.P = x_prior, np.diag(self._initial_var)
-            self.resets += 1
-            return self.effects
-        ukf.P = 0.5 * (ukf.P + ukf.P.T)
-        y2, s_var = float(ukf.y[0]) ** 2, float(ukf.S[0, 0])
-        nu = float(ukf.y[0]) / math.sqrt(s_var)
-        # adaptive measurement noise: drive E[y²] towards S (outliers clipped at the gate)
-        excess = min(y2, s.gate_sigma**2 * s_var) - s_var
-        self.extra_noise_var_w2 = max(0.0, self.extra_noise_var_w2 + s.noise_gain * excess)
-        if abs(nu) > s.gate_sigma:
-            ukf.x, ukf.P = x_prior, p_prior
-            self.rejected += 1
+        step = _Step(
+            rows,
+            float(measured.mean()),
+            float(r_each.sum()) / len(kept) ** 2 + self.extra_noise_var_w2,
+            float(np.mean([r.state.speed_mps for r, _ in kept])) > s.moving_speed_mps,
+        )
+        reopen = step.moving and self._hovering
+        self._hovering = not step.moving
+        main = self._prior(_Hypothesis(self._ukf.x, self._ukf.P, self._loglik), q, reopen)
+        file_x = np.array([*self._file_wind_ne_mps, self._file_mass_kg()])
+        done, (estimate_w, file_w) = self._step(main, step, np.vstack([main.x, file_x]))
+        self.last_step_w = (step.measured_w, estimate_w, file_w)
+        if self._rival is not None:
+            rival, _ = self._step(self._prior(self._rival, q, reopen), step)
+            main, self._rival = self._duel(done, rival)
+        elif done.nu is not None and self._change_detected(done.nu):
+            # redo the step from the prior with the changed state's uncertainty restored; in
+            # forward flight two hypotheses (a mass step, a wind change) run side by side
+            mass_step, _ = self._step(_Hypothesis(main.x, self._widened(main.p, False)), step)
+            if step.moving:
+                wind_step, _ = self._step(_Hypothesis(main.x, self._widened(main.p, True)), step)
+                self._duel_steps = 0
+                main, self._rival = self._duel(mass_step, wind_step)
+            else:
+                main = mass_step
         else:
+            main = done
+            if done.nu is not None:
+                # adaptive measurement noise: drive E[y²] towards S (outliers clipped at the
+                # gate)
+                excess = min(done.y2, s.gate_sigma**2 * done.s_var) - done.s_var
+                self.extra_noise_var_w2 = max(0.0, self.extra_noise_var_w2 + s.noise_gain * excess)
+        if main.nu is not None and abs(main.nu) > s.gate_sigma:
+            self.rejected += 1
+        elif main.nu is not None:
             self.updates += 1
-        self._recent.append(nu)
-        self._check_change()
-        ukf.x[2] = max(ukf.x[2], (s.min_mass_fraction - 1.0) * self.mass_kg)
-        wind_mps = math.hypot(ukf.x[0], ukf.x[1])
-        if wind_mps > s.max_wind_mps:
-            ukf.x[:2] *= s.max_wind_mps / wind_mps
+        self._ukf.x, self._ukf.P, self._loglik = main.x, main.p, main.loglik
         return self.effects
 
-    def _check_change(self) -> None:
-        """Widen the mass uncertainty back to the initial one when recent innovations keep one
-        sign (a payload step); never beyond it."""
+    def _prior(self, h: _Hypothesis, q: np.ndarray, reopen: bool) -> _Hypothesis:
+        """A hypothesis' prior for a step: the random walks' process noise ``q`` added;
+        ``reopen``: the vehicle starts moving after a hover (see the module docstring)."""
+        p = h.p + q
+        wind_known = max(p[0, 0], p[1, 1]) <= self.settings.wind_known_sigma_mps**2
+        if reopen and not wind_known:
+            p = self._widened(p, wind=False)
+        return _Hypothesis(np.array(h.x, dtype=float), 0.5 * (p + p.T), h.loglik)
+
+    def _step(
+        self, prior: _Hypothesis, step: _Step, extra: np.ndarray | None = None
+    ) -> tuple[_Hypothesis, list[float]]:
+        """One filter step of a hypothesis: the updated one (the prior itself when the
+        innovation is beyond the gate or the covariance broke), and the mean model powers (W)
+        of the step's readings at the points ``extra`` (m × 3), from the same prediction."""
+        s, ukf = self.settings, self._ukf
+        ukf.x = prior.x.copy()
+        try:
+            self._draw(prior.p, step.moving)
+        except np.linalg.LinAlgError:  # covariance lost positive definiteness: start it over
+            self.resets += 1
+            prior = _Hypothesis(prior.x, np.diag(self._initial_var), prior.loglik)
+            self._draw(prior.p, step.moving)
+        points = ukf.sigmas_f if extra is None else np.vstack([ukf.sigmas_f, extra])
+        powers_w = self._powers_w(points, step.rows).mean(axis=1)
+        n = len(ukf.sigmas_f)
+        self._sigma_powers_w = iter(powers_w[:n].tolist())
+        try:
+            ukf.update(np.array([step.measured_w]), R=np.array([[step.noise_var_w2]]))
+        except np.linalg.LinAlgError:  # covariance lost positive definiteness: start it over
+            self.resets += 1
+            restart = _Hypothesis(prior.x, np.diag(self._initial_var), prior.loglik)
+            return restart, powers_w[n:].tolist()
+        y2, s_var = float(ukf.y[0]) ** 2, float(ukf.S[0, 0])
+        nu = float(ukf.y[0]) / math.sqrt(s_var)
+        loglik = prior.loglik - 0.5 * (y2 / s_var + math.log(s_var))
+        if abs(nu) > s.gate_sigma:
+            return _Hypothesis(prior.x, prior.p, loglik, nu, y2, s_var), powers_w[n:].tolist()
+        x, p = ukf.x.copy(), 0.5 * (ukf.P + ukf.P.T)
+        if not step.moving:  # the wind was held: its uncertainty is what it was
+            p[:2, :] = p[:, :2] = 0.0
+            p[:2, :2] = prior.p[:2, :2]
+        x[2] = max(x[2], (s.min_mass_fraction - 1.0) * self.mass_kg)
+        wind_mps = math.hypot(x[0], x[1])
+        if wind_mps > s.max_wind_mps:
+            x[:2] *= s.max_wind_mps / wind_mps
+        return _Hypothesis(x, p, loglik, nu, y2, s_var), powers_w[n:].tolist()
+
+    def _duel(
+        self, first: _Hypothesis, second: _Hypothesis
+    ) -> tuple[_Hypothesis, _Hypothesis | None]:
+        """Two hypotheses after a change in forward flight: the likelier one is the estimate,
+        the other its rival until the log-likelihood ratio exceeds ``hypothesis_nats`` or
+        ``hypothesis_max_steps`` steps have passed (then it is dropped)."""
         s = self.settings
-        if len(self._recent) < s.change_window:
-            return
-        mean = float(np.mean(self._recent))
-        if abs(mean) * math.sqrt(len(self._recent)) > s.change_sigma:
-            # only the mass steps (payload); wind changes slowly and follows its random walk
-            raise_by = max(self._initial_var[2] - float(self._ukf.P[2, 2]), 0.0)
-            self._ukf.P[2, 2] += raise_by
-            self._recent.clear()
-            self.changes += 1
+        self._duel_steps += 1
+        lead, trail = (first, second) if first.loglik >= second.loglik else (second, first)
+        decided = lead.loglik - trail.loglik > s.hypothesis_nats
+        if decided or self._duel_steps >= s.hypothesis_max_steps:
+            return lead, None
+        return lead, trail
+
+    def _change_detected(self, nu: float) -> bool:
+        """Two-sided CUSUM of the normalised innovations (module docstring); an alarm clears
+        it and counts in ``changes``."""
+        s = self.settings
+        k, h = s.cusum_drift_sigma, s.cusum_threshold_sigma
+        up, down = self._cusum
+        self._cusum = [max(0.0, up + nu - k), max(0.0, down - nu - k)]
+        if max(self._cusum) <= h:
+            return False
+        self._cusum = [0.0, 0.0]
+        self.changes += 1
+        return True
+
+    def _draw(self, p: np.ndarray, moving: bool) -> None:
+        """Draw the sigma points the update evaluates from the estimate and covariance ``p``;
+        not ``moving`` (hover), with the wind held at its estimate (see the module
+        docstring)."""
+        ukf = self._ukf
+        ukf.P = p.copy()
+        if not moving:
+            ukf.P[:2, :] = ukf.P[:, :2] = 0.0
+            ukf.P[0, 0] = ukf.P[1, 1] = _HELD_VARIANCE
+        ukf.Q = np.zeros((3, 3))
+        ukf.predict(dt=0.0)
+
+    def _widened(self, p: np.ndarray, wind: bool) -> np.ndarray:
+        """``p`` with the wind (``wind``) or else the mass back at its initial variance and no
+        covariance with the rest; never narrower than it was."""
+        p = p.copy()
+        for i in (0, 1) if wind else (2,):
+            var = max(float(p[i, i]), float(self._initial_var[i]))
+            p[i, :] = p[:, i] = 0.0
+            p[i, i] = var
+        return p
 
 
 def _identity(x: np.ndarray, dt: float) -> np.ndarray:
@@ -378,7 +562,9 @@ class TrackPoint:
 
 class _Runner:
     """Feeds a tracker the daemon's way: causal kinematics on velocity, an update per
-    airborne power reading with the latest state (not older than ``max_age_s``)."""
+    flying power reading (:class:`~estimator.estimation.airborne.AirborneGate`: not on the ground
+    nor
+    in the take-off transient) with the latest state (not older than ``max_age_s``)."""
 
     def __init__(self, tracker: OnlineEffects, max_age_s: float = 1.0) -> None:
         self.tracker = tracker
@@ -386,6 +572,7 @@ class _Runner:
         self.kinematics = KinematicsFilter()
         self.state: KinematicState | None = None
         self.armed: bool | None = None
+        self.gate = AirborneGate(tracker.model.hover_power_w)
         self.points: list[TrackPoint] = []
 
     def velocity(self, sample: VelocitySample) -> None:
@@ -394,12 +581,14 @@ class _Runner:
     def reboot(self) -> None:
         self.kinematics.reset()
         self.state, self.armed = None, None
+        self.gate.reset()
 
     def power(self, time_s: float, power_w: float, voltage_v: float) -> None:
         state = self.state
-        if state is None or self.armed is False or time_s - state.time_s > self.max_age_s:
+        if state is None or time_s - state.time_s > self.max_age_s:
             return
-        if state.alt_m is not None and state.alt_m < AIRBORNE_ALT_M:
+        phase = self.gate.phase(time_s, self.armed, state.alt_m, power_w, state.vd_mps)
+        if phase is not Phase.FLYING:
             return
         tracker = self.tracker
         tracker.update_kinematics(state, power_w, voltage_v)

@@ -15,8 +15,15 @@ once for the whole period:
 3. the period's battery readings update the fusion (:mod:`estimator.estimation.fusion`): their mean
    measured power against the mean model power in force when each arrived, the latest
    consumed charge and the latest terminal voltage;
-4. the online wind/mass tracker takes the latest reading (every ``track_period_s``);
+4. the online wind/mass tracker takes the readings queued since its last step (every
+   ``track_period_s``);
 5. one :class:`Estimate` is published.
+
+Only *flying* readings (:mod:`estimator.estimation.airborne`: not on the ground, not in the take-off
+transient) teach the fusion's bias and the tracker; before the first of them the energy
+state draws the measured power, and the endurance is flagged not yet valid
+(:attr:`Estimate.endurance_valid`) until they have been fused for
+``endurance_valid_after_s``.
 
 Per-sample numpy work would cost more than decoding the sample; per period it is amortized
 over every sample of the period. A :class:`RebootSample` closes the open period, restarts the
@@ -36,6 +43,7 @@ from dataclasses import dataclass, field, fields
 
 import numpy as np
 
+from estimator.estimation.airborne import AirborneGate, Phase
 from estimator.estimation.fusion import EnergyFilter, FusionSettings
 from estimator.estimation.online_effects import OnlineEffects, TrackerReading
 from estimator.physics.battery import PackModel
@@ -58,11 +66,13 @@ from estimator.telemetry.samples import (
 
 #: Speeds (m/s) on which V_me and V_mr are searched, with the vehicle's effects applied.
 _SPEED_GRID_MPS = np.linspace(0.0, 30.0, 601)
-#: Tracked wind and mass replace the file's once the wind is known to this 1σ (m/s) and they
-#: predict the measured power better (one step ahead) than the file's.
+#: Tracked wind and mass replace the file's while they predict the measured power better (one
+#: step ahead) than the file's, each part once it is known: the wind (or its component along
+#: the track flown) to this 1σ (m/s), the mass to this fraction of the vehicle's (1σ).
 #: Before that (hover, one-direction flight) wind and mass trade off against each other and
 #: the point estimate is biased by the curvature of P(V).
 _TRACKED_WIND_SIGMA_MPS = 1.0
+_TRACKED_MASS_SIGMA_FRACTION = 0.05
 #: Gain of the moving averages that score tracked against vehicle-file effects (per update).
 _SCORE_GAIN = 1.0 / 30.0
 #: Above this horizontal speed (m/s) the course over ground is the direction of flight.
@@ -82,7 +92,11 @@ class PipelineSettings:
     estimate_period_s: one estimate per this much sample clock (s); see the module
     docstring. track_period_s: the online tracker takes one reading per this much sample
     clock (s): wind and payload change over tens of seconds, and readings close together
-    share their errors (gusts, ESC ripple)."""
+    share their errors (gusts, ESC ripple). endurance_valid_after_s: endurance figures are
+    published once flying readings (:mod:`estimator.estimation.airborne`) have been fused for this
+    long
+    (s, sample clock): the bias then rests on them, not on its prior (a payload carried from
+    take-off puts the measured power 30–40 % above the model's)."""
 
     kinematics: KinematicsSettings = field(default_factory=KinematicsSettings)
     fusion: FusionSettings = field(default_factory=FusionSettings)
@@ -91,6 +105,7 @@ class PipelineSettings:
     track_effects: bool = True
     estimate_period_s: float = 1.0
     track_period_s: float = 2.0
+    endurance_valid_after_s: float = 2.0
 
 
 @dataclass(frozen=True, slots=True)
@@ -107,6 +122,11 @@ class Estimate:
     *_sigma_*: 1σ of the quantity named before it (first-order propagation).
     stale: battery telemetry older than the configured limit (or, in the daemon, a silent
     link).
+    endurance_valid: the endurance figures rest on flight: False from start-up until the
+    first reading after take-off (:mod:`estimator.estimation.airborne`) has been fused, since the
+    model's
+    scale is learnt only in flight. Publishers do not give the endurance figures before
+    (:mod:`estimator.mavlink.publish`).
     """
 
     time_s: float
@@ -135,6 +155,7 @@ class Estimate:
     hover_endurance_sigma_s: float = math.nan
     vme_endurance_sigma_s: float = math.nan
     range_vmr_sigma_m: float = math.nan
+    endurance_valid: bool = True
 
     def as_dict(self) -> dict[str, float | bool | None]:
         return {name: getattr(self, name) for name in _ESTIMATE_FIELDS}
@@ -211,6 +232,14 @@ class Pipeline:
         self.pack = PackModel(vehicle.battery)
         self.kinematics = KinematicsFilter(self.settings.kinematics)
         self.energy = EnergyFilter(self.pack, self.settings.fusion)
+        self._gate = AirborneGate(vehicle.model.hover_power_w)
+        self._phase = Phase.GROUND  # of the latest battery reading
+        self._phases: dict[int, Phase] = {}  # of the open period's readings, by id
+        #: Flying readings have been fused (or, without a current sensor, seen) for
+        #: ``endurance_valid_after_s``: endurance is published from then on
+        #: (:attr:`Estimate.endurance_valid`).
+        self.endurance_valid = False
+        self._flying_since_s: float | None = None  # first flying reading fused (sample clock)
         self.counts: Counter[str] = Counter()
         self.last: Estimate | None = None
         self.readings: list[PowerReading] = []
@@ -306,6 +335,15 @@ class Pipeline:
             for e in events
         ]
 
+    def _steady_model_w(self) -> float:
+        """Model power (W) in steady flight at the current speed and turn, effects in use."""
+        state = self._state
+        speed_mps = 0.0 if state is None else state.speed_mps
+        accel_mps2 = 0.0 if state is None else state.accel_centripetal_mps2
+        return float(
+            self._predict((), np.array([speed_mps]), accel_mps2, time_s=self._time_s or 0.0)[0]
+        )
+
     def _kinetic_sigma_w(self) -> float:
         """1σ of the kinetic term m vᵀa from the filtered acceleration's uncertainty, W."""
         state = self._state
@@ -396,6 +434,8 @@ class Pipeline:
         estimate = self.flush()
         self.kinematics.reset()
         self._track_queue, self._track_bin, self._speeds_time_s = [], None, -math.inf
+        self._gate.reset()
+        self._phase, self._flying_since_s = Phase.GROUND, None
         if self.online is not None:
             self.online.restart_clock()
         self._state = None
@@ -413,6 +453,7 @@ class Pipeline:
     # -- one period -----------------------------------------------------------------------------
 
     def _close_period(self, time_s: float) -> Estimate:
+        self._classify_readings()
         powers_w = self._event_powers_w(self._events, time_s)
         self._integrate(time_s, powers_w)
         # each reading against the power in force when it arrived
@@ -426,6 +467,26 @@ class Pipeline:
         self._events, self._pending = [], []
         self._start_period(time_s)
         return self._emit(time_s)
+
+    def _classify_readings(self) -> None:
+        """The flight phase of each of the period's readings
+        (:mod:`estimator.estimation.airborne`): only
+        flying readings teach the bias and the tracker; counts the others."""
+        self._phases = {
+            id(r): self._gate.phase(
+                r.sample.time_s,
+                r.armed,
+                r.alt_m,
+                r.sample.power_w,
+                None if r.state is None else r.state.vd_mps,
+            )
+            for r in self._pending
+        }
+        for phase in self._phases.values():
+            if phase is not Phase.FLYING:
+                self.counts[f"readings_{phase.value}"] += 1
+        if self._pending:
+            self._phase = self._phases[id(self._pending[-1])]
 
     def _integrate(self, time_s: float, powers_w: list[float]) -> None:
         """Energy predict to ``time_s`` at the period's mean model power (each power holds
@@ -441,7 +502,13 @@ class Pipeline:
                 t = event.time_s
             p = power_w
         energy_ws += p * (time_s - t)
-        self.energy.predict(time_s, energy_ws / (time_s - start_s), self._loss_factor)
+        measured_w = [r.sample.power_w for r in self._pending if r.sample.power_w is not None]
+        if self._phase is not Phase.FLYING and measured_w:
+            # the flight model does not hold on the ground nor at take-off: draw what is measured
+            mean_w = sum(measured_w) / len(measured_w)
+            self.energy.predict(time_s, mean_w, self._loss_factor, measured=True)
+        else:
+            self.energy.predict(time_s, energy_ws / (time_s - start_s), self._loss_factor)
         if self._steady_power_w > 0:
             self.energy.flight_state_changed(self._steady_power_w)
 
@@ -462,7 +529,13 @@ class Pipeline:
             PowerReading(r.sample.time_s, measured_w, p_w, r.armed, r.alt_m)
             for r, p_w, measured_w in scored
         ]
-        powered = [(r, p_w, measured_w) for r, p_w, measured_w in scored if p_w > 0]
+        phases = self._phases
+        flying = Phase.FLYING in phases.values()
+        powered = [
+            (r, p_w, measured_w)
+            for r, p_w, measured_w in scored
+            if p_w > 0 and phases[id(r)] is Phase.FLYING
+        ]
         latest = pending[-1].sample
         if powered:
             n = len(powered)
@@ -478,6 +551,11 @@ class Pipeline:
                 if r.state is not None
             ]
             self._track_effects(latest.time_s)
+        if powered or (flying and not scored):
+            if self._flying_since_s is None:
+                self._flying_since_s = latest.time_s
+            flown_s = latest.time_s - self._flying_since_s
+            self.endurance_valid |= flown_s >= self.settings.endurance_valid_after_s
         charge = [r.sample.consumed_mah for r in pending if r.sample.consumed_mah is not None]
         if charge:
             self.energy.update_charge(charge[-1])
@@ -504,25 +582,34 @@ class Pipeline:
         self._track_bin = track_bin
         readings, self._track_queue = self._track_queue, []
         steps = online.steps
-        tracked = online.update_readings(readings)
+        online.update_readings(readings)
         if online.steps == steps:
             return  # nothing used (idle, vertical motion, bad values)
         measured_w, tracked_w, file_w = online.last_step_w
         self._tracked_sq_w2 += _SCORE_GAIN * ((measured_w - tracked_w) ** 2 - self._tracked_sq_w2)
         self._file_sq_w2 += _SCORE_GAIN * ((measured_w - file_w) ** 2 - self._file_sq_w2)
-        sigma = online.sigma
-        identified = max(sigma["wind_n_mps"], sigma["wind_e_mps"]) <= _TRACKED_WIND_SIGMA_MPS
-        in_use = self.effects != self.file_effects
         if self._tracked_sq_w2 >= self._file_sq_w2:
             chosen = self.file_effects  # the tracker went astray: the file's model is better
-        elif identified or in_use:
-            chosen = tracked
         else:
-            return  # not identified yet: keep the file's effects (the fusion bias absorbs it)
-        if chosen == self.file_effects and not in_use:
+            identified = online.identified_effects(
+                self._track_rad,
+                _TRACKED_WIND_SIGMA_MPS,
+                _TRACKED_MASS_SIGMA_FRACTION * self.vehicle.mass_kg,
+                self.effects,
+            )
+            if identified is None:
+                return  # nothing identified (yet, or since a change): keep what is in use
+            chosen = identified
+        if chosen == self.effects:
             return
-        self.counts["tracked_effects" if chosen is tracked else "file_effects"] += 1
+        self.counts["file_effects" if chosen == self.file_effects else "tracked_effects"] += 1
+        before_w = self._steady_power_w
         self.effects = chosen
+        after_w = self._steady_model_w()
+        if before_w > 0 and after_w > 0:
+            # the bias absorbed what the model now explains: it moves by the model's change
+            self.energy.rescale_bias(before_w / after_w)
+            self._steady_power_w = after_w
         if time_s - self._speeds_time_s >= _SPEEDS_REFRESH_S:
             self._refresh_speeds()
             self._speeds_time_s = time_s
@@ -565,6 +652,7 @@ class Pipeline:
             hover_endurance_sigma_s=hover_sigma_s,
             vme_endurance_sigma_s=vme_sigma_s,
             range_vmr_sigma_m=self.v_mr_mps * vmr_sigma_s,
+            endurance_valid=self.endurance_valid,
         )
         self.last = estimate
         self.counts["estimates"] += 1

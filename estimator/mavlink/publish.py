@@ -6,11 +6,16 @@ MAVLink (encoded with each link's own codec, system id from the config, componen
 - HEARTBEAT at 1 Hz: MAV_TYPE_ONBOARD_CONTROLLER, MAV_AUTOPILOT_INVALID, system status
   STANDBY before the first estimate, ACTIVE after, CRITICAL while stale.
 - NAMED_VALUE_FLOAT (``time_boot_ms`` = the estimate's autopilot time), names in
-  :data:`NAMED_VALUES` (≤ 10 characters).
+  :data:`NAMED_VALUES` (≤ 10 characters); the endurance and range figures are NaN until
+  :attr:`Estimate.endurance_valid` (FLAGS bit 2 set until then).
 - BATTERY_STATUS with our own ``id`` (default 9): ``time_remaining`` = endurance (s) at the
-  current power, ``battery_remaining`` = usable energy left above the reserve, % of the
-  usable energy of a full pack, pack voltage in ``voltages[0]`` (mV; UINT16_MAX if > 65.5 V),
-  measured current (cA, −1 unknown); charge state OK/LOW/CRITICAL at 30 % / 10 %.
+  current power (0, MAVLink's "not provided", until :attr:`Estimate.endurance_valid`),
+  ``battery_remaining`` = usable energy left above the reserve, % of the usable energy of a
+  full pack, pack voltage in ``voltages[0]`` (mV; UINT16_MAX if > 65.5 V), measured current
+  (cA, −1 unknown); charge state OK/LOW/CRITICAL at 30 % / 10 %.
+
+JSON lines carry every field of the estimate; the endurance and range figures are null until
+``endurance_valid``.
 """
 
 from __future__ import annotations
@@ -44,8 +49,29 @@ NAMED_VALUES: dict[str, tuple[str, Callable[[Estimate], float]]] = {
     "RANGE_SIG": ("m, 1σ of RANGE_VMR", lambda e: e.range_vmr_sigma_m),
     "BIAS": ("measured / model power", lambda e: e.bias),
     "BIAS_SIG": ("1σ of BIAS", lambda e: e.bias_sigma),
-    "FLAGS": ("bit 0 model_only, bit 1 stale", lambda e: float(e.model_only + 2 * e.stale)),
+    "FLAGS": (
+        "bit 0 model_only, bit 1 stale, bit 2 endurance not yet valid",
+        lambda e: float(e.model_only + 2 * e.stale + 4 * (not e.endurance_valid)),
+    ),
 }
+#: Estimate fields not published before :attr:`Estimate.endurance_valid`.
+ENDURANCE_FIELDS = frozenset(
+    {
+        "endurance_s",
+        "endurance_sigma_s",
+        "hover_endurance_s",
+        "hover_endurance_sigma_s",
+        "vme_endurance_s",
+        "vme_endurance_sigma_s",
+        "range_vmr_m",
+        "range_vmr_sigma_m",
+    }
+)
+#: NAMED_VALUES that carry those fields.
+_ENDURANCE_NAMES = frozenset(
+    {"ENDUR_S", "ENDUR_SIG", "ENDUR_HOV", "HOV_SIG", "ENDUR_VME", "VME_SIG", "RANGE_VMR"}
+    | {"RANGE_SIG"}
+)
 
 
 def _nan(value: float | None) -> float:
@@ -66,8 +92,11 @@ def heartbeat(link: MavlinkLink, estimate: Estimate | None) -> mavlink.MAVLink_m
 
 def named_values(link: MavlinkLink, estimate: Estimate) -> list[mavlink.MAVLink_message]:
     time_ms = _time_ms(estimate)
+    hidden = set() if estimate.endurance_valid else _ENDURANCE_NAMES
     return [
-        link.mav.named_value_float_encode(time_ms, name.encode(), float(getter(estimate)))
+        link.mav.named_value_float_encode(
+            time_ms, name.encode(), math.nan if name in hidden else float(getter(estimate))
+        )
         for name, (_, getter) in NAMED_VALUES.items()
     ]
 
@@ -96,7 +125,8 @@ def battery_status(
     else:
         state = mavlink.MAV_BATTERY_CHARGE_STATE_CRITICAL
     endurance = estimate.endurance_s
-    time_remaining = int(min(endurance, 2**31 - 1)) if math.isfinite(endurance) else 0
+    known = estimate.endurance_valid and math.isfinite(endurance) and endurance > 0
+    time_remaining = int(min(endurance, 2**31 - 1)) if known else 0
     return link.mav.battery_status_encode(
         battery_id,
         mavlink.MAV_BATTERY_FUNCTION_ALL,
@@ -113,9 +143,11 @@ def battery_status(
 
 
 def json_line(estimate: Estimate) -> str:
-    """One estimate as a JSON object on one line (NaN/inf become null)."""
+    """One estimate as a JSON object on one line (NaN/inf, and the endurance figures before
+    ``endurance_valid``, become null)."""
+    hidden = frozenset() if estimate.endurance_valid else ENDURANCE_FIELDS
     doc = {
-        k: (None if isinstance(v, float) and not math.isfinite(v) else v)
+        k: (None if k in hidden or (isinstance(v, float) and not math.isfinite(v)) else v)
         for k, v in estimate.as_dict().items()
     }
     return json.dumps(doc, separators=(",", ":"))
