@@ -146,7 +146,9 @@ def _markdown(result: ResidualResult, title: str, files: list[Path]) -> str:
         f"| before | {s['rmse_before_w']:.2f} | {s['mape_before_pct']:.2f} |",
         f"| after | {s['rmse_after_w']:.2f} | {s['mape_after_pct']:.2f} |",
         "",
-        f"Noise floor (successive differences): {s['noise_floor_w']:.2f} W.",
+        f"Noise floor (successive differences): {s['noise_floor_w']:.2f} W; held-out RMSE after "
+        f"= {s['rmse_to_floor']:.1f} × the floor, {100 * s['unexplained_share']:.0f} % of the "
+        "remaining variance above it.",
         "",
         f"**{s['attribution']['verdict']}**",
         "",
@@ -155,7 +157,7 @@ def _markdown(result: ResidualResult, title: str, files: list[Path]) -> str:
     ]
     if s["effects"]:
         lines += [
-            "| order | effect | parameters | ±1σ over folds | RMSE after (W) | z "
+            "| order | effect (values, when) | parameters | ±1σ over folds | RMSE after (W) | z "
             "| as good held out (RMSE W, z) |",
             "|---|---|---|---|---|---|---|",
         ]
@@ -163,7 +165,7 @@ def _markdown(result: ResidualResult, title: str, files: list[Path]) -> str:
             params = ", ".join(f"{k} = {v}" for k, v in e["params"].items())
             spread = ", ".join(f"{k} {v}" for k, v in e["params_fold_sd"].items())
             lines.append(
-                f"| {i} | {e['name']} | {params} | {spread} | {e['rmse_after_w']:.2f} | "
+                f"| {i} | {e['description']} | {params} | {spread} | {e['rmse_after_w']:.2f} | "
                 f"{e['z']:.1f} | "
                 + ", ".join(
                     f"{t['candidate']} ({t['rmse_w']:.2f}, {t['z']:.1f})"

@@ -45,7 +45,10 @@ def register(subparsers: argparse._SubParsersAction[argparse.ArgumentParser]) ->
         "--write", type=Path, metavar="FILE.toml", help="save the vehicle with the chosen effects"
     )
     g = p.add_argument_group("selection")
-    g.add_argument("--folds", type=int, default=d.folds, help="time chunks per flight")
+    g.add_argument("--folds", type=int, default=d.folds, help="held-out folds")
+    g.add_argument(
+        "--chunk-s", type=float, default=d.chunk_s, help="held-out chunk length, s (in turn)"
+    )
     g.add_argument("--block-s", type=float, default=d.block_s, help="test block length, s")
     g.add_argument("--guard-s", type=float, default=d.guard_s, help="gap around held-out, s")
     g.add_argument("--z", type=float, default=d.z_threshold, help="test threshold (z)")
@@ -94,6 +97,7 @@ def _options(args: argparse.Namespace) -> ResidualOptions:
         )
     return ResidualOptions(
         folds=args.folds,
+        chunk_s=args.chunk_s,
         block_s=args.block_s,
         guard_s=args.guard_s,
         z_threshold=args.z,
@@ -206,13 +210,12 @@ def format_summary(s: dict[str, Any]) -> str:
         f"{s['split']}",
         f"  before: RMSE {s['rmse_before_w']:.2f} W  MAPE {s['mape_before_pct']:.2f} %",
         f"  after:  RMSE {s['rmse_after_w']:.2f} W  MAPE {s['mape_after_pct']:.2f} %   "
-        f"(noise floor ≈ {s['noise_floor_w']:.2f} W)",
+        f"(noise floor ≈ {s['noise_floor_w']:.2f} W, ×{s['rmse_to_floor']:.1f})",
     ]
     if not s["effects"]:
         lines.append("  effects: none")
     for e in s["effects"]:
-        params = ", ".join(f"{k}={v}" for k, v in e["params"].items())
-        lines.append(f"  + {e['name']:<13} {params}  → RMSE {e['rmse_after_w']:.2f} W")
+        lines.append(f"  + {e['description']}  → RMSE {e['rmse_after_w']:.2f} W (z {e['z']:.1f})")
         for t in e["indistinguishable_from"]:
             lines.append(f"      as good held out: {t['candidate']} (RMSE {t['rmse_w']:.2f} W)")
     lines.append(s["attribution"]["verdict"])
