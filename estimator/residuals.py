@@ -578,7 +578,8 @@ def _search_window(
     middle = float(np.median(ts))
     first_fit = frozenset({0} if warm else ())
     best: tuple[float, Term] | None = None
-    for window in ((None, None), (None, middle), (middle, None)):
+    starts: list[tuple[float | None, float | None]] = [(None, None), (None, middle), (middle, None)]
+    for window in starts:
         start = Term(term.candidate, term.x, *window)
         current = _fit_terms(problem, [start], f_scale_w, first_fit, fixed)[0]
         found: tuple[float | None, float | None] | None = None
