@@ -93,7 +93,7 @@ class ResidualOptions:
 
     folds: int = 5
     #: Length of the held-out chunks (s), assigned to the folds in turn.
-    chunk_s: float = 30.0
+    chunk_s: float = 20.0
     block_s: float = 5.0
     guard_s: float = 5.0
     z_threshold: float = 3.0
@@ -725,6 +725,8 @@ class ResidualResult:
     attribution: list[ChannelScore]
     attribution_before: list[ChannelScore]
     noise_floor_w: float
+    #: The final effects (fitted on all samples) at every sample: the in-sample fit, W.
+    predicted_final_w: FloatArray | None = None
 
     @property
     def effects(self) -> list[Effect]:
@@ -743,6 +745,12 @@ class ResidualResult:
     def mape_pct(self, after: bool) -> float:
         r = self.residual_after_w() if after else self.residual_before_w()
         return float(np.mean(np.abs(r) / np.abs(self.samples.power_w)) * 100.0)
+
+    def rmse_in_sample_w(self) -> float:
+        """RMSE of the final effects (fitted on all samples, change times included), W: what
+        the held-out RMSE cannot reach when a change falls inside a held-out chunk."""
+        final = self.predicted_after_w if self.predicted_final_w is None else self.predicted_final_w
+        return float(np.sqrt(np.mean((self.samples.power_w - final) ** 2)))
 
     def rmse_to_floor(self) -> float:
         """Held-out RMSE after selection over the noise floor (1 = white noise only)."""
@@ -832,6 +840,7 @@ class ResidualResult:
             f"{100 * self.options.min_gain_fraction:g} %",
             "noise_floor_w": round(self.noise_floor_w, 3),
             "rmse_to_floor": round(self.rmse_to_floor(), 2),
+            "rmse_in_sample_w": round(self.rmse_in_sample_w(), 3),
             "unexplained_share": round(self.unexplained_share(), 3),
         }
 
@@ -1010,6 +1019,9 @@ def analyze(
         attribution=attribution,
         attribution_before=attribution_before,
         noise_floor_w=_noise_floor_w(samples, after_resid),
+        predicted_final_w=_Problem(vehicle, samples, everything).predict(
+            [s.effect for s in selected]
+        ),
     )
 
 

@@ -107,10 +107,21 @@ def _options(args: argparse.Namespace) -> ResidualOptions:
     )
 
 
-def with_effects(vehicle: Vehicle, result: ResidualResult) -> Vehicle:
-    """``vehicle`` with the selected effects added to its ``[effects.NAME]`` tables."""
+def with_effects(
+    vehicle: Vehicle, result: ResidualResult, console: Console | None = None
+) -> Vehicle:
+    """``vehicle`` with the selected effects added to its ``[effects.NAME]`` tables. A vehicle
+    file holds one table per effect: a second window of the same effect is left out (with a
+    warning on ``console``)."""
     tables = dict(vehicle.effects)
-    for name, params in effects_to_tables(result.effects).items():
+    first: dict[str, Any] = {}
+    for effect in result.effects:
+        if effect.name in first:
+            if console is not None:
+                console.print(f"--write: a second {effect.name} window is not written")
+            continue
+        first[effect.name] = effect
+    for name, params in effects_to_tables(list(first.values())).items():
         # six significant digits: far below the parameters' uncertainty, readable files
         tables[name] = {
             k: (v if v is None else float(f"{float(v):.6g}")) for k, v in params.items()
@@ -136,7 +147,7 @@ def run(args: argparse.Namespace) -> int:
             status.update("writing the report")
             write_report(result, args.report, _title(args.logs, vehicle))
     summary = result.summary()
-    improved = with_effects(vehicle, result)
+    improved = with_effects(vehicle, result, console if args.write is not None else None)
     if args.online:
         with console.status("online tracking"):
             summary["online"] = online_summary(flights, vehicle)
