@@ -334,3 +334,27 @@ def test_the_autopilots_wind_estimate_is_a_channel(tmp_path: Path) -> None:
     assert known.mean() > 0.8
     assert np.allclose(speed[known], 4.0, atol=1e-4)
     assert np.allclose(flight.extras["autopilot_wind_from_deg"][known], 250.0, atol=1e-3)
+
+
+def test_an_implausible_autopilot_wind_is_a_counted_skip() -> None:
+    from pymavlink.dialects.v20 import ardupilotmega
+
+    from estimator.decode import FrameParser, TelemetryDecoder
+    from estimator.telemetry import WindSample
+
+    apm = ardupilotmega.MAVLink(None, srcSystem=1, srcComponent=1)
+    beat = apm.heartbeat_encode(2, 3, 0, 0, 4)  # quadrotor, ArduPilot
+    clock = apm.attitude_encode(5000, 0, 0, 0, 0, 0, 0)
+    frames = [beat, clock] + [
+        apm.wind_encode(direction=90.0, speed=speed, speed_z=0.0)
+        for speed in (3.0, math.nan, 1e30, math.inf)
+    ]
+    parser, decoder = FrameParser(), TelemetryDecoder()
+    samples = []
+    for msg in frames:
+        for parsed in parser.feed(bytes(msg.pack(apm))):
+            samples += decoder.decode(parsed)
+    winds = [s for s in samples if isinstance(s, WindSample)]
+    assert len(winds) == 1 and winds[0].time_s == 5.0
+    assert winds[0].wind_e_mps == pytest.approx(-3.0) and abs(winds[0].wind_n_mps) < 1e-9
+    assert decoder.counts["wind_implausible"] == 3
