@@ -447,9 +447,12 @@ def candidates_for(vehicle: Vehicle, samples: Samples, names: Sequence[str]) -> 
         ),
     ]
     declared = set(vehicle.effects)
+    # a window is on each flight's own clock: shared by several flights it would mean "every
+    # flight changed at the same time"; several flights are analysed per flight (--flight)
+    one_flight = len(samples.flight_ids) == 1
     out = []
     for cand in all_candidates:
-        if cand.name not in names or cand.name in declared:
+        if cand.name not in names or cand.name in declared or (cand.windowed and not one_flight):
             continue
         if cand.name == "voltage" and not samples.has_voltage:
             continue

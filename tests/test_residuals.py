@@ -11,6 +11,7 @@ import numpy as np
 import pytest
 
 from estimator.effects import (
+    EFFECT_TYPES,
     Acceleration,
     AirDensity,
     Avionics,
@@ -31,12 +32,14 @@ from estimator.residuals import (
     _block_gain_z,
     analyze,
     best_window,
+    candidates_for,
     prepare,
 )
 from estimator.sim import SimConfig, simulate, write_tlog
 from estimator.vehicle import Vehicle, default_vehicle
 
 VEHICLE = default_vehicle()
+EFFECT_NAMES = tuple(EFFECT_TYPES)
 DURATION_S = {"mixed": 600.0, "straight": 420.0, "circles": None}
 
 
@@ -358,3 +361,13 @@ def test_an_implausible_autopilot_wind_is_a_counted_skip() -> None:
     assert len(winds) == 1 and winds[0].time_s == 5.0
     assert winds[0].wind_e_mps == pytest.approx(-3.0) and abs(winds[0].wind_n_mps) < 1e-9
     assert decoder.counts["wind_implausible"] == 3
+
+
+def test_windows_are_tried_on_one_flight_only(tmp_path: Path) -> None:
+    one = prepare(flights_of(tmp_path, "straight", 3))
+    two = prepare([*flights_of(tmp_path, "straight", 3), *flights_of(tmp_path, "circles", 2)])
+    labels_one = {c.label for c in candidates_for(VEHICLE, one, EFFECT_NAMES)}
+    labels_two = {c.label for c in candidates_for(VEHICLE, two, EFFECT_NAMES)}
+    assert {"wind (window)", "mass (window)", "avionics (window)"} <= labels_one
+    assert not any(label.endswith("(window)") for label in labels_two)
+    assert {"wind", "mass", "avionics"} <= labels_two
