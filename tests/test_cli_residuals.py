@@ -49,9 +49,11 @@ def test_json_has_the_issue_keys_and_effects_in_order(
         assert isinstance(doc[key], float)
     assert doc["rmse_after_w"] < doc["rmse_before_w"]
     effect = doc["effects"][0]
-    assert {"name", "params", "rmse_after_w"} <= set(effect)
+    assert {"name", "label", "description", "params", "rmse_after_w"} <= set(effect)
+    assert effect["description"].startswith("wind ") and "m/s from" in effect["description"]
+    assert doc["rmse_to_floor"] > 0 and 0 <= doc["unexplained_share"] <= 1
     assert effect["name"] == "wind"
-    assert set(effect["params"]) == {"speed_mps", "from_deg"}
+    assert set(effect["params"]) == {"speed_mps", "from_deg", "at_s", "until_s"}
     assert abs(effect["params"]["speed_mps"] - WIND.speed_mps) < 1.0
     channels = doc["attribution"]["channels"]
     assert doc["attribution"]["best_channel"] == channels[0]["channel"]

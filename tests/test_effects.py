@@ -188,9 +188,14 @@ def test_flight_state_rejects_mismatched_arrays() -> None:
 
 
 def test_effects_round_trip_through_a_vehicle_file(tmp_path) -> None:  # type: ignore[no-untyped-def]
-    effects = [Wind(4.5, 270.0), Mass(0.3, None), Avionics(15.0, 120.0), Voltage(0.1, 25.2)]
+    effects = [
+        Wind(4.5, 270.0, at_s=60.0),
+        Mass(0.3, None, until_s=200.0),
+        Avionics(15.0, 120.0, 300.0),
+        Voltage(0.1, 25.2),
+    ]
     tables = effects_to_tables(effects)
-    assert tables["wind"] == {"speed_mps": 4.5, "from_deg": 270.0}
+    assert tables["wind"] == {"speed_mps": 4.5, "from_deg": 270.0, "at_s": 60.0, "until_s": None}
     vehicle = VEHICLE.__class__(**{**VEHICLE.__dict__, "effects": tables})
     path = tmp_path / "v.toml"
     vehicle.save(path)
@@ -220,3 +225,21 @@ def test_bad_effect_tables_are_one_line_user_errors(
     with pytest.raises(UserError, match=message) as info:
         effect_from_params(name, params)
     assert "\n" not in str(info.value)
+
+
+def test_time_windows_bound_mass_wind_and_load() -> None:
+    st = state(vn=5.0, n=8)
+    t = st.time_s
+    released = power(st, Mass(delta_kg=0.5, until_s=4.0)) - power(st)
+    assert np.all(released[t < 4.0] > 0) and np.all(released[t >= 4.0] == 0)
+    gust = power(st, Wind(speed_mps=4.0, from_deg=0.0, at_s=2.0, until_s=5.0)) - power(st)
+    inside = (t >= 2.0) & (t < 5.0)
+    assert np.all(gust[inside] != 0) and np.all(gust[~inside] == 0)
+    load = power(st, Avionics(power_w=25.0, at_s=3.0, until_s=6.0)) - power(st)
+    assert np.allclose(load, np.where((t >= 3.0) & (t < 6.0), 25.0, 0.0))
+
+
+def test_a_window_that_ends_before_it_starts_is_a_user_error() -> None:
+    with pytest.raises(UserError, match="until_s"):
+        effect_from_params("mass", {"delta_kg": 1.0, "at_s": 5.0, "until_s": 3.0})
+    assert effect_from_params("wind", {"speed_mps": 3.0, "until_s": 3.0}).params["at_s"] is None

@@ -16,10 +16,13 @@ from estimator.analysis.residuals import (
     Samples,
     _block_gain_z,
     analyze,
+    best_window,
+    candidates_for,
     prepare,
 )
 from estimator.logs import FlightSeries, load_flights
 from estimator.physics.effects import (
+    EFFECT_TYPES,
     Acceleration,
     AirDensity,
     Avionics,
@@ -38,6 +41,7 @@ from estimator.sim.run import SimConfig
 from estimator.sim.simulator import simulate
 
 VEHICLE = default_vehicle()
+EFFECT_NAMES = tuple(EFFECT_TYPES)
 DURATION_S = {"mixed": 600.0, "straight": 420.0, "circles": None}
 
 
@@ -168,7 +172,8 @@ def test_unexplained_residual_points_at_the_channel_that_predicts_it(tmp_path: P
     options = ResidualOptions(candidates=("wind", "turn", "climb"))
     result = analyze(flights, VEHICLE, options)
     assert result.selected == []
-    assert "no candidate effect explains the residual" in result.verdict()
+    assert "no candidate effect improves" in result.verdict()
+    assert "not noise" in result.verdict()
     assert result.attribution[0].channel in ("time_s", "energy_used_wh", "voltage_v")
     assert result.attribution[0].r2 > 0.5
 
@@ -184,8 +189,11 @@ def test_held_out_rows_never_train_and_guard_is_kept(tmp_path: Path) -> None:
         t_train = samples.state.time_s[train]
         gap = np.min(np.abs(t_train[:, None] - t_held[None, :]))
         assert gap > opt.guard_s
-        # folds are contiguous time chunks
-        assert np.all(np.diff(samples.fold) >= 0)
+    # chunks of chunk_s are contiguous in time and go to the folds in turn
+    assert np.all(np.diff(samples.chunk) >= 0)
+    span_s = [np.ptp(samples.state.time_s[samples.chunk == c]) for c in np.unique(samples.chunk)]
+    assert max(span_s) <= opt.chunk_s
+    assert np.array_equal(samples.fold, samples.chunk % opt.folds)
 
 
 def _fake_samples(blocks: np.ndarray) -> Samples:
@@ -199,6 +207,7 @@ def _fake_samples(blocks: np.ndarray) -> Samples:
         state=FlightState(np.arange(n, dtype=float), z, z, z, z, z, z, z),
         power_w=np.ones(n),
         fold=np.zeros(n, dtype=np.int64),
+        chunk=np.zeros(n, dtype=np.int64),
         block=blocks.astype(np.int64),
         channels={},
     )
@@ -224,4 +233,148 @@ def test_json_summary_has_the_issue_keys(tmp_path: Path) -> None:
         assert math.isfinite(s[key])
     assert s["mape_after_pct"] < s["mape_before_pct"]
     assert s["effects"][0]["name"] == "wind"
-    assert set(s["effects"][0]["params"]) == {"speed_mps", "from_deg"}
+    assert set(s["effects"][0]["params"]) == {"speed_mps", "from_deg", "at_s", "until_s"}
+
+
+# -- effects that change during a flight ------------------------------------------------------
+
+WINDOWED = [
+    ("wind onset", (Wind(5.0, 60.0, at_s=250.0),)),
+    ("payload released", (Mass(0.8, None, until_s=300.0),)),
+    ("load on, then off", (Avionics(40.0, 150.0, 400.0),)),
+]
+
+
+def _close(got: Effect, truth: Effect) -> bool:
+    """Same kind, values within 1.5 m/s and 25°, 0.15 kg or 20 %, times within 10 s."""
+    if type(got) is not type(truth):
+        return False
+    p, q = got.params, truth.params
+    for key in ("at_s", "until_s"):
+        if (p[key] is None) != (q[key] is None):
+            return False
+        if p[key] is not None and abs(p[key] - q[key]) > 10.0:
+            return False
+    if isinstance(got, Wind):
+        return abs(p["speed_mps"] - q["speed_mps"]) < 1.5 and (
+            angle_diff_deg(p["from_deg"], q["from_deg"]) < 25.0
+        )
+    if isinstance(got, Mass):
+        return abs(p["delta_kg"] - q["delta_kg"]) < 0.15
+    return abs(p["power_w"] - q["power_w"]) < 0.2 * abs(q["power_w"])
+
+
+@pytest.mark.parametrize(("case", "hidden"), WINDOWED, ids=[c for c, _ in WINDOWED])
+def test_effect_that_changes_in_flight_is_named_first_with_its_values_and_times(
+    tmp_path: Path, case: str, hidden: tuple[Effect, ...]
+) -> None:
+    result = analyze(flights_of(tmp_path, "mixed", 7, hidden), VEHICLE)
+    first = result.selected[0]
+    assert first.label.endswith("(window)")
+    assert _close(first.effect, hidden[0]), (case, first.effect)
+    # the change time is known to a held-out chunk (30 s) only: the error there is the
+    # step's size over the seconds between the training rows either side
+    assert result.rmse_w(True) < 3.0 * result.noise_floor_w
+    assert result.rmse_w(True) < 0.5 * result.rmse_w(False)
+    assert "(as good held out" not in result.verdict() or isinstance(hidden[0], Avionics)
+
+
+def test_payload_released_and_wind_onset_together_are_both_named(tmp_path: Path) -> None:
+    payload, wind = Mass(0.6, None, until_s=350.0), Wind(5.0, 300.0, at_s=200.0)
+    result = analyze(flights_of(tmp_path, "mixed", 7, (payload, wind)), VEHICLE)
+    named = [s.effect for s in result.selected]
+    assert _close(named[0], payload), named
+    assert any(_close(e, wind) for e in named[1:]), named
+    assert result.rmse_w(True) < 2.0 * result.noise_floor_w
+
+
+def test_a_large_load_as_good_as_a_mass_is_named_as_the_mass(tmp_path: Path) -> None:
+    payload = Mass(0.6, None, until_s=350.0)
+    result = analyze(flights_of(tmp_path, "mixed", 7, (payload,)), VEHICLE)
+    assert isinstance(result.selected[0].effect, Mass)
+
+
+def test_best_window_is_the_run_with_the_largest_summed_gain() -> None:
+    t = np.arange(100.0)[::-1].copy()  # any order: the rows are sorted by time
+    gain = np.where((t >= 30) & (t < 70), 1.0, -0.5)
+    first, last, total = best_window(t, gain)
+    assert (first, last) == (30, 69) and total == pytest.approx(40.0)
+    assert best_window(t, np.full(100, -1.0))[2] == pytest.approx(-1.0)
+
+
+def test_verdict_never_says_noise_when_the_residual_is_far_above_the_floor(
+    tmp_path: Path,
+) -> None:
+    flights = flights_of(tmp_path, "mixed", 7, (Wind(5.0, 60.0, at_s=250.0),))
+    result = analyze(flights, VEHICLE, ResidualOptions(candidates=("turn",)))
+    assert result.rmse_to_floor() > 4.0
+    verdict = result.verdict()
+    assert "noise" in verdict and "not noise" in verdict and "looks like noise" not in verdict
+    assert f"{100 * result.unexplained_share():.0f} %" in verdict
+    assert result.attribution[0].channel in verdict
+
+
+def test_the_autopilots_wind_estimate_is_a_channel(tmp_path: Path) -> None:
+    """ArduPilot WIND (outside the common dialect) and PX4 WIND_COV become per-row wind speed
+    and direction-from channels of the flight."""
+    from pymavlink.dialects.v20 import ardupilotmega, common
+    from tlog_builder import flight_frames, write_tlog
+
+    frames = flight_frames(60)
+    apm = ardupilotmega.MAVLink(None, srcSystem=1, srcComponent=1)
+    px4 = common.MAVLink(None, srcSystem=1, srcComponent=1)
+    extra = []
+    for i, (us, _) in enumerate(frames[::3]):
+        if i % 2:
+            msg = apm.wind_encode(direction=250.0, speed=4.0, speed_z=0.0)
+            extra.append((us + 1, bytes(msg.pack(apm))))
+        else:  # 4 m/s from 250°: the air moves towards 70°
+            rad = math.radians(70.0)
+            msg = px4.wind_cov_encode(0, 4 * math.cos(rad), 4 * math.sin(rad), 0, 0, 0, 0, 0, 0)
+            extra.append((us + 1, bytes(msg.pack(px4))))
+    path = write_tlog(tmp_path / "wind.tlog", sorted(frames + extra))
+    flight = load_flights([path])[0]
+    speed = flight.extras["autopilot_wind_speed_mps"]
+    known = np.isfinite(speed)
+    assert known.mean() > 0.8
+    assert np.allclose(speed[known], 4.0, atol=1e-4)
+    assert np.allclose(flight.extras["autopilot_wind_from_deg"][known], 250.0, atol=1e-3)
+
+
+def test_an_implausible_autopilot_wind_is_a_counted_skip() -> None:
+    from pymavlink.dialects.v20 import ardupilotmega
+
+    from estimator.telemetry.decode import FrameParser, TelemetryDecoder
+    from estimator.telemetry.plausibility import ClockSettings
+    from estimator.telemetry.samples import WindSample
+
+    apm = ardupilotmega.MAVLink(None, srcSystem=1, srcComponent=1)
+    beat = apm.heartbeat_encode(2, 3, 0, 0, 4)  # quadrotor, ArduPilot
+    # the first clock is believed once enough stamped frames agree (until then samples wait)
+    clock = [
+        apm.attitude_encode(5000 - 100 * k, 0, 0, 0, 0, 0, 0)
+        for k in reversed(range(ClockSettings().confirm_frames))
+    ]
+    frames = [beat, *clock] + [
+        apm.wind_encode(direction=90.0, speed=speed, speed_z=0.0)
+        for speed in (3.0, math.nan, 1e30, math.inf)
+    ]
+    parser, decoder = FrameParser(), TelemetryDecoder()
+    samples = []
+    for msg in frames:
+        for parsed in parser.feed(bytes(msg.pack(apm))):
+            samples += decoder.decode(parsed)
+    winds = [s for s in samples if isinstance(s, WindSample)]
+    assert len(winds) == 1 and winds[0].time_s == 5.0
+    assert winds[0].wind_e_mps == pytest.approx(-3.0) and abs(winds[0].wind_n_mps) < 1e-9
+    assert decoder.counts["wind_implausible"] == 3
+
+
+def test_windows_are_tried_on_one_flight_only(tmp_path: Path) -> None:
+    one = prepare(flights_of(tmp_path, "straight", 3))
+    two = prepare([*flights_of(tmp_path, "straight", 3), *flights_of(tmp_path, "circles", 2)])
+    labels_one = {c.label for c in candidates_for(VEHICLE, one, EFFECT_NAMES)}
+    labels_two = {c.label for c in candidates_for(VEHICLE, two, EFFECT_NAMES)}
+    assert {"wind (window)", "mass (window)", "avionics (window)"} <= labels_one
+    assert not any(label.endswith("(window)") for label in labels_two)
+    assert {"wind", "mass", "avionics"} <= labels_two

@@ -15,9 +15,11 @@ Method
    speed, heading, a⊥, tangential acceleration, climb rate, altitude, battery voltage, energy
    drawn so far (a state-of-charge proxy from the measured power), and the log's own numeric
    extras (CMU: payload, airflow).
-2. **Held-out split**: each flight is cut into ``folds`` contiguous time chunks; fold j holds
-   out chunk j of every flight and trains on the rest minus a guard of ``guard_s`` seconds on
-   both sides of the held-out chunk (correlated noise must not leak). Never random samples.
+2. **Held-out split**: each flight is cut into contiguous time chunks of ``chunk_s`` seconds,
+   assigned to the ``folds`` in turn; fold j holds out its chunks and trains on the rest minus
+   a guard of ``guard_s`` seconds on both sides of each held-out chunk (correlated noise must
+   not leak). Never random samples. Short chunks keep the training data close to every
+   held-out time: an effect that changes in flight is located within a chunk.
 3. **Candidates**: one :class:`Candidate` per effect of :mod:`estimator.physics.effects` not
 already in
    the vehicle file, each with one or two parameters fitted by ``scipy.optimize.least_squares``
@@ -91,6 +93,8 @@ class ResidualOptions:
     """Settings of the analysis (SI units); see the module docstring."""
 
     folds: int = 5
+    #: Length of the held-out chunks (s), assigned to the folds in turn.
+    chunk_s: float = 20.0
     block_s: float = 5.0
     guard_s: float = 5.0
     z_threshold: float = 3.0
@@ -105,6 +109,12 @@ class ResidualOptions:
     candidates: tuple[str, ...] = tuple(EFFECT_TYPES)
     #: Channels with a held-out R² below this do not count as predicting the residual.
     min_r2: float = 0.05
+    #: A residual whose held-out RMSE exceeds this many noise floors is not noise.
+    noise_ratio: float = 2.0
+    #: At most this many effects are selected.
+    max_effects: int = 6
+    #: A load (W) above this that is as good held out as a mass is named as the mass.
+    max_load_w: float = 50.0
 
 
 # -- samples ----------------------------------------------------------------------------------
@@ -114,7 +124,9 @@ class ResidualOptions:
 class Samples:
     """Airborne rows of all flights, concatenated (NED frame, flight clock per flight).
 
-    ``fold``: held-out chunk of each row; ``block``: evaluation block id (unique over flights);
+    ``chunk``: held-out chunk of each row (unique over flights, one unused id between
+    flights); ``fold``: the fold that holds it out; ``block``: evaluation block id (unique over
+    flights);
     ``channels``: per-row telemetry for structure plots and attribution (``*_deg`` circular).
     """
 
@@ -123,6 +135,7 @@ class Samples:
     state: FlightState
     power_w: FloatArray
     fold: IntArray
+    chunk: IntArray
     block: IntArray
     channels: dict[str, FloatArray]
     skipped_flights: list[str] = field(default_factory=list)
@@ -144,16 +157,20 @@ class Samples:
         )
 
     def train_rows(self, fold: int, guard_s: float) -> NDArray[np.bool_]:
-        """Rows outside held-out chunk ``fold`` and further than ``guard_s`` from it."""
+        """Rows outside the chunks of ``fold`` and further than ``guard_s`` from them (chunks
+        are longer than two guards, so only the neighbouring chunks matter)."""
         t = self.state.time_s
-        train = self.fold != fold
-        for f in np.unique(self.flight):
-            held = (self.flight == f) & (self.fold == fold)
-            if not held.any():
-                continue
-            lo, hi = t[held].min() - guard_s, t[held].max() + guard_s
-            train &= ~((self.flight == f) & (t >= lo) & (t <= hi))
-        return train
+        n_chunks = int(self.chunk.max()) + 1
+        start, end = np.full(n_chunks, np.inf), np.full(n_chunks, -np.inf)
+        np.minimum.at(start, self.chunk, t)
+        np.maximum.at(end, self.chunk, t)
+        held = np.zeros(n_chunks + 1, dtype=bool)  # the extra one: "no neighbour"
+        held[self.chunk[self.fold == fold]] = True
+        prev = np.where(self.chunk > 0, self.chunk - 1, n_chunks)
+        nxt = np.minimum(self.chunk + 1, n_chunks)
+        near_prev = held[prev] & (t - end[np.minimum(prev, n_chunks - 1)] <= guard_s)
+        near_next = held[nxt] & (start[np.minimum(nxt, n_chunks - 1)] - t <= guard_s)
+        return ~held[self.chunk] & ~near_prev & ~near_next
 
     @property
     def has_voltage(self) -> bool:
@@ -167,6 +184,7 @@ def prepare(flights: Sequence[FlightSeries], options: ResidualOptions | None = N
     ids: list[str] = []
     skipped: list[str] = []
     block_base = 0
+    chunk_base = 0
     for flight in flights:
         part = _flight_rows(flight, opt)
         if part is None:
@@ -175,6 +193,8 @@ def prepare(flights: Sequence[FlightSeries], options: ResidualOptions | None = N
         part["flight"] = np.full(len(part["time_s"]), float(len(ids)))
         part["block"] = part["block"] + block_base
         block_base = int(part["block"].max()) + 1
+        part["chunk"] = part["chunk"] + chunk_base
+        chunk_base = int(part["chunk"].max()) + 2
         ids.append(flight.flight_id)
         parts.append(part)
     if not parts:
@@ -217,6 +237,7 @@ def prepare(flights: Sequence[FlightSeries], options: ResidualOptions | None = N
         state=state,
         power_w=cols["power_w"],
         fold=cols["fold"].astype(np.int64),
+        chunk=cols["chunk"].astype(np.int64),
         block=cols["block"].astype(np.int64),
         channels=channels,
         skipped_flights=skipped,
@@ -232,7 +253,7 @@ def prepare(flights: Sequence[FlightSeries], options: ResidualOptions | None = N
 
 _PART_KEYS = (
     *("time_s", "vn_mps", "ve_mps", "vd_mps", "an_mps2", "ae_mps2", "alt_m", "voltage_v"),
-    *("power_w", "energy_used_wh", "fold", "block", "flight"),
+    *("power_w", "energy_used_wh", "fold", "chunk", "block", "flight"),
 )
 
 
@@ -264,8 +285,7 @@ def _flight_rows(f: FlightSeries, opt: ResidualOptions) -> dict[str, FloatArray]
     power = f.power_w[rows]
     dt = np.diff(t, prepend=t[0])
     dt[np.r_[True, seg[1:] != seg[:-1]]] = 0.0
-    span = t[-1] - t[0]
-    fold = np.minimum(((t - t[0]) / span * opt.folds).astype(int), opt.folds - 1)
+    chunk = np.floor((t - t[0]) / opt.chunk_s)
     part: dict[str, FloatArray] = {
         "time_s": t,
         "vn_mps": vn,
@@ -277,7 +297,8 @@ def _flight_rows(f: FlightSeries, opt: ResidualOptions) -> dict[str, FloatArray]
         "voltage_v": f.voltage_v[rows],
         "power_w": power,
         "energy_used_wh": np.cumsum(power * dt) / 3600.0,
-        "fold": fold.astype(float),
+        "fold": chunk % opt.folds,
+        "chunk": chunk,
         "block": np.floor((t - t[0]) / opt.block_s),
     }
     for key, values in f.extras.items():
@@ -318,7 +339,9 @@ def _gradient(x: FloatArray, t: FloatArray, seg: IntArray) -> FloatArray:
 class Candidate:
     """A candidate effect: fitted parameters x ↔ :class:`Effect`.
 
-    ``stepped``: the effect applies from a step time ``at_s`` searched on the training data.
+    ``windowed``: the effect acts in a time window ``[at_s, until_s)`` searched on the training
+    data (a wind that starts or stops, a payload picked up or released, a load switched on or
+    off); either end may be open (the flight's start or end).
     ``null``: x at which the effect does nothing (None when it always acts, like ``climb``).
     """
 
@@ -326,24 +349,25 @@ class Candidate:
     x0: tuple[float, ...]
     lower: tuple[float, ...]
     upper: tuple[float, ...]
-    build: Callable[[FloatArray, float | None], Effect]
+    build: Callable[[FloatArray, float | None, float | None], Effect]
     null: tuple[float, ...] | None = None
-    stepped: bool = False
+    windowed: bool = False
     starts: tuple[tuple[float, ...], ...] = ()
 
     @property
     def label(self) -> str:
-        return f"{self.name} (step)" if self.stepped else self.name
+        return f"{self.name} (window)" if self.windowed else self.name
 
 
-def _wind(x: FloatArray, _at: float | None) -> Effect:
+def _wind(x: FloatArray, at_s: float | None, until_s: float | None) -> Effect:
     """x = air-mass velocity over ground (north, east), m/s."""
-    return wind_from_vector(float(x[0]), float(x[1]))
+    wind = wind_from_vector(float(x[0]), float(x[1]))
+    return replace(wind, at_s=at_s, until_s=until_s)
 
 
-def _constant_and_stepped(candidate: Candidate) -> tuple[Candidate, Candidate]:
-    """The candidate acting all flight, and the same from a step time searched in the data."""
-    return candidate, replace(candidate, stepped=True)
+def _constant_and_windowed(candidate: Candidate) -> tuple[Candidate, Candidate]:
+    """The candidate acting all flight, and the same in a time window searched in the data."""
+    return candidate, replace(candidate, windowed=True)
 
 
 def candidates_for(vehicle: Vehicle, samples: Samples, names: Sequence[str]) -> list[Candidate]:
@@ -356,18 +380,27 @@ def candidates_for(vehicle: Vehicle, samples: Samples, names: Sequence[str]) -> 
     turn_lo, turn_hi = Turn.bounds["power_w_per_g2"]
     wind_max = Wind.bounds["speed_mps"][1]
     all_candidates = [
-        Candidate(
-            "wind",
-            (0.0, 0.0),
-            (-wind_max, -wind_max),
-            (wind_max, wind_max),
-            _wind,
-            null=(0.0, 0.0),
-            starts=tuple((4.0 * math.cos(a), 4.0 * math.sin(a)) for a in np.radians([0, 120, 240])),
-        ),
-        *_constant_and_stepped(
+        *_constant_and_windowed(
             Candidate(
-                "mass", (0.0,), (mass_lo,), (mass_hi,), lambda x, at: Mass(float(x[0]), at), (0.0,)
+                "wind",
+                (0.0, 0.0),
+                (-wind_max, -wind_max),
+                (wind_max, wind_max),
+                _wind,
+                null=(0.0, 0.0),
+                starts=tuple(
+                    (4.0 * math.cos(a), 4.0 * math.sin(a)) for a in np.radians([0, 120, 240])
+                ),
+            )
+        ),
+        *_constant_and_windowed(
+            Candidate(
+                "mass",
+                (0.0,),
+                (mass_lo,),
+                (mass_hi,),
+                lambda x, at, until: Mass(float(x[0]), at, until),
+                (0.0,),
             )
         ),
         Candidate(
@@ -375,17 +408,17 @@ def candidates_for(vehicle: Vehicle, samples: Samples, names: Sequence[str]) -> 
             (SEA_LEVEL_DENSITY_KGPM3,),
             (rho_lo,),
             (rho_hi,),
-            lambda x, _at: AirDensity(float(x[0])),
+            lambda x, _at, _until: AirDensity(float(x[0])),
             (SEA_LEVEL_DENSITY_KGPM3,),
         ),
-        Candidate("climb", (0.6,), (0.2,), (1.0,), lambda x, _at: Climb(float(x[0]))),
-        *_constant_and_stepped(
+        Candidate("climb", (0.6,), (0.2,), (1.0,), lambda x, _at, _until: Climb(float(x[0]))),
+        *_constant_and_windowed(
             Candidate(
                 "avionics",
                 (0.0,),
                 (avi_lo,),
                 (avi_hi,),
-                lambda x, at: Avionics(float(x[0]), at),
+                lambda x, at, until: Avionics(float(x[0]), at, until),
                 (0.0,),
             )
         ),
@@ -394,7 +427,7 @@ def candidates_for(vehicle: Vehicle, samples: Samples, names: Sequence[str]) -> 
             (0.0,),
             (0.0,),
             (Voltage.bounds["resistance_ohm"][1],),
-            lambda x, _at: Voltage(float(x[0]), ref_v),
+            lambda x, _at, _until: Voltage(float(x[0]), ref_v),
             (0.0,),
         ),
         Candidate(
@@ -402,15 +435,25 @@ def candidates_for(vehicle: Vehicle, samples: Samples, names: Sequence[str]) -> 
             (0.95, 0.95),
             (0.2, 0.0),
             (1.0, 1.0),
-            lambda x, _at: Acceleration(float(x[0]), float(x[1])),
+            lambda x, _at, _until: Acceleration(float(x[0]), float(x[1])),
             (1.0, 1.0),
         ),
-        Candidate("turn", (0.0,), (turn_lo,), (turn_hi,), lambda x, _at: Turn(float(x[0])), (0.0,)),
+        Candidate(
+            "turn",
+            (0.0,),
+            (turn_lo,),
+            (turn_hi,),
+            lambda x, _at, _until: Turn(float(x[0])),
+            (0.0,),
+        ),
     ]
     declared = set(vehicle.effects)
+    # a window is on each flight's own clock: shared by several flights it would mean "every
+    # flight changed at the same time"; several flights are analysed per flight (--flight)
+    one_flight = len(samples.flight_ids) == 1
     out = []
     for cand in all_candidates:
-        if cand.name not in names or cand.name in declared:
+        if cand.name not in names or cand.name in declared or (cand.windowed and not one_flight):
             continue
         if cand.name == "voltage" and not samples.has_voltage:
             continue
@@ -423,24 +466,31 @@ def candidates_for(vehicle: Vehicle, samples: Samples, names: Sequence[str]) -> 
 
 @dataclass
 class Term:
-    """A candidate with fitted parameters (and step time)."""
+    """A candidate with fitted parameters (and, when windowed, its time window, s)."""
 
     candidate: Candidate
     x: FloatArray
     at_s: float | None = None
+    until_s: float | None = None
 
     def effect(self) -> Effect:
-        return self.candidate.build(self.x, self.at_s)
+        return self.candidate.build(self.x, self.at_s, self.until_s)
 
 
 class _Problem:
-    """Predictions for a set of rows with the vehicle's model and base effects."""
+    """Predictions for a set of rows with the vehicle's model and base effects.
+
+    ``first_s``/``last_s``: the flight clock's first and last airborne time over all samples
+    (a window reaching them is open on that side).
+    """
 
     def __init__(self, vehicle: Vehicle, samples: Samples, rows: NDArray[np.bool_]) -> None:
         self.vehicle = vehicle
         self.state = samples.state_at(rows)
         self.power_w = samples.power_w[rows]
         self.base = effects_from_tables(vehicle.effects)
+        self.first_s = float(samples.state.time_s.min())
+        self.last_s = float(samples.state.time_s.max())
 
     def predict(self, effects: Sequence[Effect]) -> FloatArray:
         return predict_power_w(
@@ -449,10 +499,15 @@ class _Problem:
 
 
 def _fit_terms(
-    problem: _Problem, terms: list[Term], f_scale_w: float, warm: frozenset[str] = frozenset()
+    problem: _Problem,
+    terms: list[Term],
+    f_scale_w: float,
+    warm: frozenset[int] = frozenset(),
+    fixed: Sequence[Effect] = (),
 ) -> list[Term]:
-    """Joint least squares of all terms' x (step times held); multi-start where given,
-    except for terms whose label is in ``warm`` (their x is already a good start)."""
+    """Joint least squares of all terms' x (windows held) on top of the ``fixed`` effects;
+    multi-start where given, except for terms whose index is in ``warm`` (their x is already
+    a good start)."""
     if not terms:
         return terms
     sizes = [len(t.x) for t in terms]
@@ -462,16 +517,16 @@ def _fit_terms(
     def unpack(x: FloatArray) -> list[Term]:
         out, k = [], 0
         for term, n in zip(terms, sizes, strict=True):
-            out.append(Term(term.candidate, x[k : k + n].copy(), term.at_s))
+            out.append(Term(term.candidate, x[k : k + n].copy(), term.at_s, term.until_s))
             k += n
         return out
 
     def resid(x: FloatArray) -> FloatArray:
-        return problem.predict([t.effect() for t in unpack(x)]) - problem.power_w
+        return problem.predict([*fixed, *(t.effect() for t in unpack(x))]) - problem.power_w
 
     starts = [np.concatenate([t.x for t in terms])]
     for i, term in enumerate(terms):
-        if term.candidate.label in warm:
+        if i in warm:
             continue
         for s in term.candidate.starts:
             x = starts[0].copy()
@@ -491,80 +546,113 @@ def _fit_terms(
     return unpack(best.x)
 
 
-def _search_step(
-    problem: _Problem, others: list[Term], term: Term, f_scale_w: float
-) -> float | None:
-    """Step time minimising the linearised squared error of ``term`` on top of ``others``."""
-    cand = term.candidate
-    assert cand.null is not None
-    effects = [t.effect() for t in others]
-    base = problem.predict(effects)
-    r = problem.power_w - base
-    null = np.asarray(cand.null, dtype=float)
-    span = np.asarray(cand.upper) - np.asarray(cand.lower)
-    jac = []
-    for k in range(len(null)):
-        h = np.zeros(len(null))
-        h[k] = 0.05 * span[k]
-        jac.append((problem.predict([*effects, cand.build(null + h, None)]) - base) / h[k])
-    j = np.column_stack(jac)
-    # robust: do not let outliers pick the step
-    clip = 3.0 * f_scale_w
-    r = np.clip(r, -clip, clip)
+def best_window(time_s: FloatArray, gain: FloatArray) -> tuple[int, int, float]:
+    """The time window where an effect helps most: first and last index (into the rows sorted
+    by time) and the summed ``gain`` (per-row loss without the effect minus with it) of the
+    contiguous run with the largest sum. Prefix sums: O(n log n) for the sort, O(n) after."""
+    order = np.argsort(time_s, kind="stable")
+    prefix = np.concatenate([[0.0], np.cumsum(gain[order])])
+    low = np.minimum.accumulate(prefix[:-1])
+    sums = prefix[1:] - low
+    last = int(np.argmax(sums))
+    first = int(np.argmin(prefix[: last + 1]))
+    return first, last, float(sums[last])
+
+
+#: Window ends this close (s) to the flight's first/last airborne sample are open.
+_OPEN_END_S = 10.0
+
+
+def _search_window(
+    problem: _Problem, others: list[Term], term: Term, f_scale_w: float, warm: bool
+) -> Term:
+    """Fit ``term``'s parameters and time window on top of ``others``.
+
+    Starts: the parameters fitted over the whole flight, and over its first and second half
+    (an effect present in one half only, or a different one in each, as a wind that turns).
+    From each, alternately the window with the largest robust gain for these parameters
+    (:func:`best_window`, linear in the samples) and the parameters for that window; the
+    start with the lowest robust loss wins.
+    """
+    fixed = [t.effect() for t in others]
+    loss_cap = (3.0 * f_scale_w) ** 2
+    loss_without = np.minimum((problem.power_w - problem.predict(fixed)) ** 2, loss_cap)
     t = problem.state.time_s
-    order = np.argsort(t, kind="stable")
-    ts = t[order]
-    n = len(ts)
-    if n < 20:
-        return None
-    lo, hi = int(0.05 * n), int(0.95 * n)
-
-    def gain(at: float) -> float:
-        after = t >= at
-        ja, ra = j[after], r[after]
-        gram = ja.T @ ja
-        if np.linalg.det(gram) <= 1e-12:
-            return -np.inf
-        delta = np.linalg.solve(gram, ja.T @ ra)
-        return float(ra @ ja @ delta)
-
-    coarse = np.unique(ts[np.linspace(lo, hi, 60).astype(int)])
-    gains = np.array([gain(a) for a in coarse])
-    i = int(np.argmax(gains))
-    a_lo = coarse[max(i - 1, 0)]
-    a_hi = coarse[min(i + 1, len(coarse) - 1)]
-    fine = np.unique(ts[(ts >= a_lo) & (ts <= a_hi)])
-    k = int(np.argmax([gain(a) for a in fine]))
-    # any time between the previous sample and the chosen one splits the data alike (a
-    # held-out gap, for one): take the middle
-    before = ts[ts < fine[k]]
-    return float(fine[k] if len(before) == 0 else 0.5 * (before[-1] + fine[k]))
+    ts = np.sort(t)
+    middle = float(np.median(ts))
+    first_fit = frozenset({0} if warm else ())
+    best: tuple[float, Term] | None = None
+    starts: list[tuple[float | None, float | None]] = [(None, None), (None, middle), (middle, None)]
+    for window in starts:
+        start = Term(term.candidate, term.x, *window)
+        current = _fit_terms(problem, [start], f_scale_w, first_fit, fixed)[0]
+        found: tuple[float | None, float | None] | None = None
+        for _ in range(4):
+            always = Term(current.candidate, current.x)
+            loss_with = np.minimum(
+                (problem.power_w - problem.predict([*fixed, always.effect()])) ** 2, loss_cap
+            )
+            lo, hi, _gain = best_window(t, loss_without - loss_with)
+            window = (
+                None
+                if lo == 0 or ts[lo] - problem.first_s < _OPEN_END_S
+                # any time between two training rows splits them alike (a held-out gap)
+                else 0.5 * float(ts[lo - 1] + ts[lo]),
+                None
+                if hi == len(ts) - 1 or problem.last_s - ts[hi] < _OPEN_END_S
+                else 0.5 * float(ts[hi] + ts[hi + 1]),
+            )
+            if window == found:
+                break
+            found = window
+            current = Term(current.candidate, current.x, *window)
+            current = _fit_terms(problem, [current], f_scale_w, frozenset({0}), fixed)[0]
+        loss = float(
+            np.sum(
+                np.minimum(
+                    (problem.power_w - problem.predict([*fixed, current.effect()])) ** 2,
+                    loss_cap,
+                )
+            )
+        )
+        if best is None or loss < best[0]:
+            best = (loss, current)
+    assert best is not None
+    return best[1]
 
 
 def fit_design(
     problem: _Problem,
     candidates: Sequence[Candidate],
     f_scale_w: float,
-    warm: dict[str, FloatArray] | None = None,
+    warm: Sequence[FloatArray | None] = (),
 ) -> list[Term]:
-    """Fit ``candidates`` together: continuous ones first, then each step time, then all.
+    """Fit ``candidates`` together: constant ones first, then each window, then all.
 
-    ``warm``: starting x by candidate label (e.g. from the previous selection step).
+    ``warm``: starting x per candidate position (e.g. from the previous selection step).
     """
-    warm = warm or {}
-    terms = [Term(c, np.asarray(warm.get(c.label, c.x0), dtype=float)) for c in candidates]
-    known = frozenset(warm)
-    steady = [i for i, t in enumerate(terms) if not t.candidate.stepped]
-    fitted = _fit_terms(problem, [terms[i] for i in steady], f_scale_w, known)
+    warm = [*warm, *([None] * (len(candidates) - len(warm)))]
+    terms = [
+        Term(c, np.asarray(c.x0 if w is None else w, dtype=float))
+        for c, w in zip(candidates, warm, strict=True)
+    ]
+    known = frozenset(i for i, w in enumerate(warm) if w is not None)
+    steady = [i for i, t in enumerate(terms) if not t.candidate.windowed]
+    fitted = _fit_terms(
+        problem,
+        [terms[i] for i in steady],
+        f_scale_w,
+        frozenset(k for k, i in enumerate(steady) if i in known),
+    )
     for i, term in zip(steady, fitted, strict=True):
         terms[i] = term
     resolved = list(steady)
     for i, term in enumerate(terms):
-        if term.candidate.stepped:
+        if term.candidate.windowed:
             others = [terms[k] for k in resolved]
-            term.at_s = _search_step(problem, others, term, f_scale_w)
+            terms[i] = _search_window(problem, others, term, f_scale_w, i in known)
             resolved.append(i)
-    return _fit_terms(problem, terms, f_scale_w, known)
+    return _fit_terms(problem, terms, f_scale_w, frozenset(range(len(terms))))
 
 
 # -- selection --------------------------------------------------------------------------------
@@ -596,10 +684,14 @@ class Selected:
     ties: list[tuple[str, float, float]] = field(default_factory=list)
     #: The best other candidate of that step (label, RMSE W, z of chosen vs it), if any.
     runner_up: tuple[str, float, float] | None = None
+    #: The candidate's label ("mass (window)" for one in a time window).
+    label: str = ""
 
     def as_dict(self) -> dict[str, Any]:
         return {
             "name": self.name,
+            "label": self.label or self.name,
+            "description": describe(self.effect),
             "params": _round_params(self.effect.params),
             "rmse_after_w": round(self.rmse_after_w, 3),
             "z": round(self.z, 2),
@@ -637,6 +729,8 @@ class ResidualResult:
     attribution: list[ChannelScore]
     attribution_before: list[ChannelScore]
     noise_floor_w: float
+    #: The final effects (fitted on all samples) at every sample: the in-sample fit, W.
+    predicted_final_w: FloatArray | None = None
 
     @property
     def effects(self) -> list[Effect]:
@@ -656,30 +750,58 @@ class ResidualResult:
         r = self.residual_after_w() if after else self.residual_before_w()
         return float(np.mean(np.abs(r) / np.abs(self.samples.power_w)) * 100.0)
 
+    def rmse_in_sample_w(self) -> float:
+        """RMSE of the final effects (fitted on all samples, change times included), W: what
+        the held-out RMSE cannot reach when a change falls inside a held-out chunk."""
+        final = self.predicted_after_w if self.predicted_final_w is None else self.predicted_final_w
+        return float(np.sqrt(np.mean((self.samples.power_w - final) ** 2)))
+
+    def rmse_to_floor(self) -> float:
+        """Held-out RMSE after selection over the noise floor (1 = white noise only)."""
+        floor = self.noise_floor_w
+        return self.rmse_w(True) / floor if floor > 0 else math.inf
+
+    def unexplained_share(self) -> float:
+        """Share of the remaining residual's variance above the white noise floor (0..1):
+        structure the selected effects do not explain."""
+        rmse = self.rmse_w(True)
+        return max(0.0, 1.0 - (self.noise_floor_w / rmse) ** 2) if rmse > 0 else 0.0
+
     def verdict(self) -> str:
+        """One sentence: what was added and what is left. Never "noise" when the residual's
+        RMSE is more than ``noise_ratio`` noise floors."""
         best = self.attribution[0] if self.attribution else None
-        where = (
-            f"{best.channel} (held-out R² {best.r2:.2f})"
-            if best is not None and best.r2 >= self.options.min_r2
-            else None
+        channel = None if best is None else f"{best.channel} (held-out R² {best.r2:.2f})"
+        predictive = best is not None and best.r2 >= self.options.min_r2
+        ratio = self.rmse_to_floor()
+        level = (
+            f"held-out RMSE {self.rmse_w(True):.1f} W is {ratio:.1f}× the noise floor "
+            f"{self.noise_floor_w:.1f} W"
         )
-        if not self.selected:
-            if where is None:
-                return (
-                    "no candidate effect improves the held-out error and no channel predicts "
-                    "the residual: it looks like noise"
-                )
-            return (
-                "no candidate effect explains the residual; the telemetry channel that best "
-                f"predicts it is {where}"
-            )
-        names = ", ".join(
-            s.name + (f" (as good held out: {', '.join(t[0] for t in s.ties)})" if s.ties else "")
+        added = "; ".join(
+            describe(s.effect)
+            + (f" (as good held out: {', '.join(t[0] for t in s.ties)})" if s.ties else "")
             for s in self.selected
         )
-        if where is None:
-            return f"added {names}; the remaining residual is not predicted by any channel"
-        return f"added {names}; the remaining residual is best predicted by {where}"
+        head = (
+            f"added {added}" if self.selected else "no candidate effect improves the held-out error"
+        )
+        if ratio > self.options.noise_ratio:
+            where = (
+                f"the channel that best predicts it is {channel}"
+                if predictive
+                else f"no channel predicts it well (best: {channel or 'none'})"
+            )
+            return (
+                f"{head}; the remaining residual is not noise: {level}, "
+                f"{100 * self.unexplained_share():.0f} % of its variance is unexplained "
+                f"structure; {where}"
+            )
+        if predictive:
+            return f"{head}; {level}; the remaining residual is best predicted by {channel}"
+        if not self.selected:
+            return f"{head} and no channel predicts the residual ({level}): it looks like noise"
+        return f"{head}; {level}: the remaining residual is at the noise level"
 
     def summary(self) -> dict[str, Any]:
         """The JSON object of ``uav-energy residuals --json``."""
@@ -715,13 +837,42 @@ class ResidualResult:
             "n_flights": len(self.samples.flight_ids),
             "flights": self.samples.flight_ids,
             "skipped_flights": self.samples.skipped_flights,
-            "split": f"{self.options.folds} contiguous time chunks per flight, "
-            f"guard {self.options.guard_s:g} s",
+            "split": f"chunks of {self.options.chunk_s:g} s assigned to {self.options.folds} "
+            f"folds in turn, guard {self.options.guard_s:g} s",
             "test": f"Diebold-Mariano over {len(np.unique(self.samples.block))} blocks of "
             f"{self.options.block_s:g} s, z > {self.options.z_threshold:g} and RMSE gain ≥ "
             f"{100 * self.options.min_gain_fraction:g} %",
             "noise_floor_w": round(self.noise_floor_w, 3),
+            "rmse_to_floor": round(self.rmse_to_floor(), 2),
+            "rmse_in_sample_w": round(self.rmse_in_sample_w(), 3),
+            "unexplained_share": round(self.unexplained_share(), 3),
         }
+
+
+def _when(at_s: float | None, until_s: float | None) -> str:
+    if at_s is None and until_s is None:
+        return "all flight"
+    if at_s is None:
+        return f"from the start until {until_s:.0f} s"
+    if until_s is None:
+        return f"from {at_s:.0f} s on"
+    return f"from {at_s:.0f} s until {until_s:.0f} s"
+
+
+def describe(effect: Effect) -> str:
+    """The effect in words with units, e.g. "wind 6.0 m/s from 61°, from 150 s on"."""
+    p = effect.params
+    if isinstance(effect, Wind):
+        what = f"wind {effect.speed_mps:.1f} m/s from {effect.from_deg:.0f}°"
+    elif isinstance(effect, Mass):
+        what = f"mass {effect.delta_kg:+.2f} kg"
+    elif isinstance(effect, Avionics):
+        what = f"load {effect.power_w:+.1f} W"
+    else:
+        what = effect.name + " " + ", ".join(f"{k} {v:.4g}" for k, v in p.items())
+    if "at_s" in p:
+        return f"{what}, {_when(p['at_s'], p.get('until_s'))}"
+    return what
 
 
 def _round_params(params: dict[str, Any]) -> dict[str, Any]:
@@ -740,7 +891,7 @@ def _held_out(
     candidates: Sequence[Candidate],
     opt: ResidualOptions,
     f_scale_w: float,
-    warm: dict[str, FloatArray],
+    warm: Sequence[FloatArray | None],
 ) -> tuple[FloatArray, list[list[Term]]]:
     """Held-out predictions of the design ``candidates`` and the terms fitted in each fold."""
     predicted = np.empty(len(samples))
@@ -779,13 +930,17 @@ def analyze(
     opt = options or ResidualOptions()
     if opt.folds < 2:
         raise UserError("need at least 2 folds for held-out scoring")
+    if not opt.chunk_s > 2 * opt.guard_s:
+        raise UserError(
+            "held-out chunks must be longer than two guards (--chunk-s > 2 × --guard-s)"
+        )
     samples = prepare(flights, opt)
     everything = np.ones(len(samples), dtype=bool)
     before = _Problem(vehicle, samples, everything).predict([])
     f_scale_w = _robust_scale_w(samples.power_w - before)
     remaining = candidates_for(vehicle, samples, opt.candidates)
     chosen: list[Candidate] = []
-    warm: dict[str, FloatArray] = {}
+    warm: list[FloatArray | None] = []
     current = before
     selected: list[Selected] = []
     table: list[CandidateScore] = []
@@ -808,7 +963,7 @@ def analyze(
         good = [t for t in trials if t[2]]
         if not good:
             break
-        rmse, z, _, cand, predicted, folds = min(good, key=lambda t: t[0])
+        rmse, z, _, cand, predicted, folds = _pick(samples, good, opt)
         # the other candidates of this step, best first (z: chosen vs it); qualifying ones
         # the held-out data cannot tell from the chosen one are ties
         others = [t for t in sorted(trials, key=lambda t: t[0]) if t[3] is not cand]
@@ -828,7 +983,7 @@ def analyze(
         chosen.append(cand)
         current = predicted
         final = fit_design(_Problem(vehicle, samples, everything), chosen, f_scale_w, warm)
-        warm = {t.candidate.label: t.x for t in final}
+        warm = [t.x for t in final]
         fold_effects = [terms[-1].effect() for terms in folds]
         selected.append(
             Selected(
@@ -839,12 +994,20 @@ def analyze(
                 _fold_sd(fold_effects, final[-1]),
                 ties,
                 rivals[0] if rivals else None,
+                cand.label,
             )
         )
         # earlier effects are refitted jointly with the new one
         for i, term in enumerate(final[:-1]):
             selected[i].effect = term.effect()
-        remaining = [c for c in remaining if c.name != cand.name]
+        # a windowed effect may come again (a wind that turns, a second payload): only its
+        # all-flight form leaves; an all-flight effect is final
+        remaining = [
+            c
+            for c in remaining
+            if c.name != cand.name
+            or (cand.windowed and c.windowed and len(chosen) < opt.max_effects)
+        ]
     if progress is not None:
         progress("attribution")
     after_resid = samples.power_w - current
@@ -860,7 +1023,31 @@ def analyze(
         attribution=attribution,
         attribution_before=attribution_before,
         noise_floor_w=_noise_floor_w(samples, after_resid),
+        predicted_final_w=_Problem(vehicle, samples, everything).predict(
+            [s.effect for s in selected]
+        ),
     )
+
+
+def _pick(samples: Samples, good: list[Any], opt: ResidualOptions) -> Any:
+    """The qualifying trial (rmse, z, ok, candidate, predicted, folds) with the lowest held-out
+    RMSE; but a constant load above ``max_load_w`` that held-out data cannot tell from a mass
+    (a payload draws power in every flight state alike when current is linear in thrust) is
+    named as that mass: loads that large are payloads, not electronics."""
+    best = min(good, key=lambda t: t[0])
+    cand, folds = best[3], best[5]
+    if cand.name != "avionics":
+        return best
+    load_w = float(np.median([terms[-1].x[0] for terms in folds]))
+    if abs(load_w) <= opt.max_load_w:
+        return best
+    for trial in good:
+        same_kind = trial[3].name == "mass" and trial[3].windowed == cand.windowed
+        if same_kind:
+            z = _block_gain_z(samples, samples.power_w - trial[4], samples.power_w - best[4])
+            if z < opt.z_threshold:
+                return trial
+    return best
 
 
 def _fold_sd(fold_effects: list[Effect], final: Term) -> dict[str, float]:

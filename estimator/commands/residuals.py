@@ -45,7 +45,10 @@ def register(subparsers: argparse._SubParsersAction[argparse.ArgumentParser]) ->
         "--write", type=Path, metavar="FILE.toml", help="save the vehicle with the chosen effects"
     )
     g = p.add_argument_group("selection")
-    g.add_argument("--folds", type=int, default=d.folds, help="time chunks per flight")
+    g.add_argument("--folds", type=int, default=d.folds, help="held-out folds")
+    g.add_argument(
+        "--chunk-s", type=float, default=d.chunk_s, help="held-out chunk length, s (in turn)"
+    )
     g.add_argument("--block-s", type=float, default=d.block_s, help="test block length, s")
     g.add_argument("--guard-s", type=float, default=d.guard_s, help="gap around held-out, s")
     g.add_argument("--z", type=float, default=d.z_threshold, help="test threshold (z)")
@@ -94,6 +97,7 @@ def _options(args: argparse.Namespace) -> ResidualOptions:
         )
     return ResidualOptions(
         folds=args.folds,
+        chunk_s=args.chunk_s,
         block_s=args.block_s,
         guard_s=args.guard_s,
         z_threshold=args.z,
@@ -103,10 +107,21 @@ def _options(args: argparse.Namespace) -> ResidualOptions:
     )
 
 
-def with_effects(vehicle: Vehicle, result: ResidualResult) -> Vehicle:
-    """``vehicle`` with the selected effects added to its ``[effects.NAME]`` tables."""
+def with_effects(
+    vehicle: Vehicle, result: ResidualResult, console: Console | None = None
+) -> Vehicle:
+    """``vehicle`` with the selected effects added to its ``[effects.NAME]`` tables. A vehicle
+    file holds one table per effect: a second window of the same effect is left out (with a
+    warning on ``console``)."""
     tables = dict(vehicle.effects)
-    for name, params in effects_to_tables(result.effects).items():
+    first: dict[str, Any] = {}
+    for effect in result.effects:
+        if effect.name in first:
+            if console is not None:
+                console.print(f"--write: a second {effect.name} window is not written")
+            continue
+        first[effect.name] = effect
+    for name, params in effects_to_tables(list(first.values())).items():
         # six significant digits: far below the parameters' uncertainty, readable files
         tables[name] = {
             k: (v if v is None else float(f"{float(v):.6g}")) for k, v in params.items()
@@ -139,7 +154,7 @@ def run(args: argparse.Namespace) -> int:
             status.update("writing the report")
             write_report(result, args.report, _title(args.logs, vehicle))
     summary = result.summary()
-    improved = with_effects(vehicle, result)
+    improved = with_effects(vehicle, result, console if args.write is not None else None)
     if args.online:
         with console.status("online tracking"):
             summary["online"] = online_summary(flights, vehicle)
@@ -213,13 +228,12 @@ def format_summary(s: dict[str, Any]) -> str:
         f"{s['split']}",
         f"  before: RMSE {s['rmse_before_w']:.2f} W  MAPE {s['mape_before_pct']:.2f} %",
         f"  after:  RMSE {s['rmse_after_w']:.2f} W  MAPE {s['mape_after_pct']:.2f} %   "
-        f"(noise floor ≈ {s['noise_floor_w']:.2f} W)",
+        f"(noise floor ≈ {s['noise_floor_w']:.2f} W, ×{s['rmse_to_floor']:.1f})",
     ]
     if not s["effects"]:
         lines.append("  effects: none")
     for e in s["effects"]:
-        params = ", ".join(f"{k}={v}" for k, v in e["params"].items())
-        lines.append(f"  + {e['name']:<13} {params}  → RMSE {e['rmse_after_w']:.2f} W")
+        lines.append(f"  + {e['description']}  → RMSE {e['rmse_after_w']:.2f} W (z {e['z']:.1f})")
         for t in e["indistinguishable_from"]:
             lines.append(f"      as good held out: {t['candidate']} (RMSE {t['rmse_w']:.2f} W)")
     lines.append(s["attribution"]["verdict"])

@@ -62,6 +62,7 @@ from estimator.telemetry.samples import (
     RebootSample,
     Sample,
     VelocitySample,
+    WindSample,
 )
 
 #: Speeds (m/s) on which V_me and V_mr are searched, with the vehicle's effects applied.
@@ -386,6 +387,8 @@ class Pipeline:
             return None
         elif isinstance(sample, RebootSample):
             return self._reboot(sample)
+        elif isinstance(sample, WindSample):
+            return None  # the autopilot's wind is a channel of the offline residual analysis
         else:
             self.counts["unknown_sample"] += 1
             return None

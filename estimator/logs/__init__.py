@@ -40,6 +40,7 @@ from estimator.telemetry.samples import (
     RebootSample,
     Sample,
     VelocitySample,
+    WindSample,
 )
 
 FloatArray = NDArray[np.float64]
@@ -61,7 +62,9 @@ class FlightSeries:
     Velocity is NED over ground (m/s), ``alt_m`` above home/take-off (m). ``voltage_v`` and
     ``current_a`` are NaN when the source only has their product ``power_w`` (W).
     ``extras`` holds source-specific per-row columns (CMU: ``payload_kg``,
-    ``airflow_speed_mps``, ``airflow_from_deg``; tlogs: ``armed`` as 0/1/NaN).
+    ``airflow_speed_mps``, ``airflow_from_deg``; tlogs: ``armed`` as 0/1/NaN, and when the
+    autopilot sends its wind estimate ``autopilot_wind_speed_mps`` and
+    ``autopilot_wind_from_deg``, NaN before the first).
     """
 
     flight_id: str
@@ -256,11 +259,15 @@ def flights_from_stream(
 
 def _align(samples: list[Sample], flight_id: str, max_age_s: float) -> FlightSeries | None:
     rows: list[tuple[float, ...]] = []
+    winds: list[tuple[float, float]] = []
     last_v: VelocitySample | None = None
+    last_wind = (float("nan"), float("nan"))
     armed = float("nan")
     for s in samples:
         if isinstance(s, VelocitySample):
             last_v = s
+        elif isinstance(s, WindSample):
+            last_wind = (s.wind_n_mps, s.wind_e_mps)
         elif isinstance(s, ArmedSample):
             armed = 1.0 if s.armed else 0.0
         elif isinstance(s, BatterySample) and s.current_a is not None and last_v is not None:
@@ -279,9 +286,16 @@ def _align(samples: list[Sample], flight_id: str, max_age_s: float) -> FlightSer
                     armed,
                 )
             )
+            winds.append(last_wind)
     if not rows:
         return None
     a = np.array(rows, dtype=float)
+    extras = {"armed": a[:, 7]}
+    if any(isinstance(s, WindSample) for s in samples):
+        w = np.array(winds, dtype=float)
+        extras["autopilot_wind_speed_mps"] = np.hypot(w[:, 0], w[:, 1])
+        # the direction it blows from: opposite to the air-mass velocity
+        extras["autopilot_wind_from_deg"] = np.degrees(np.arctan2(-w[:, 1], -w[:, 0])) % 360.0
     return FlightSeries(
         flight_id=flight_id,
         time_s=a[:, 0],
@@ -292,7 +306,7 @@ def _align(samples: list[Sample], flight_id: str, max_age_s: float) -> FlightSer
         voltage_v=a[:, 5],
         current_a=a[:, 6],
         power_w=a[:, 5] * a[:, 6],
-        extras={"armed": a[:, 7]},
+        extras=extras,
     )
 
 

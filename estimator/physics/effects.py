@@ -14,8 +14,10 @@ on whole arrays (vectorized numpy) in this order:
    pack sags), ``avionics`` (a constant or stepped load).
 
 Each effect is a frozen dataclass whose fields are its parameters (names are part of the
-output format, see ``docs/sim.md``). ``at_s`` parameters are times on the flight's own clock
-(the ``time_s`` of the :class:`FlightState`), ``None`` meaning "from the start".
+output format, see ``docs/sim.md``). ``at_s``/``until_s`` parameters bound the time window in
+which an effect acts, on the flight's own clock (the ``time_s`` of the :class:`FlightState`):
+from ``at_s`` (``None``: from the start) until ``until_s`` (``None``: to the end). A wind that
+starts, a payload released in flight, a load switched off are such windows.
 """
 
 from __future__ import annotations
@@ -122,11 +124,14 @@ class PowerContext:
     propulsion_w: FloatArray | None = None
 
 
-def _step(time_s: FloatArray, at_s: float | None) -> FloatArray:
-    """1 from ``at_s`` on (everywhere when None), else 0."""
-    if at_s is None:
-        return np.ones_like(time_s)
-    return (time_s >= at_s).astype(float)
+def active(time_s: FloatArray, at_s: float | None, until_s: float | None) -> FloatArray:
+    """1 where ``at_s`` ≤ t < ``until_s`` (None: unbounded on that side), else 0."""
+    on = np.ones_like(time_s, dtype=float)
+    if at_s is not None:
+        on *= time_s >= at_s
+    if until_s is not None:
+        on *= time_s < until_s
+    return on
 
 
 @dataclass(frozen=True)
@@ -161,7 +166,8 @@ class Wind(Effect):
     """Steady horizontal wind. The model's airspeed is ground velocity minus the wind vector.
 
     speed_mps: wind speed, m/s. from_deg: direction the wind blows FROM, degrees clockwise from
-    north (0 = a north wind, blowing towards the south).
+    north (0 = a north wind, blowing towards the south). It blows from ``at_s`` until
+    ``until_s`` (s, flight clock; None: from the start / to the end).
     """
 
     name: ClassVar[str] = "wind"
@@ -171,6 +177,8 @@ class Wind(Effect):
     }
     speed_mps: float = 0.0
     from_deg: float = 0.0
+    at_s: float | None = None
+    until_s: float | None = None
 
     def vector_ne_mps(self) -> tuple[float, float]:
         """Air-mass velocity over ground (north, east), m/s."""
@@ -179,13 +187,15 @@ class Wind(Effect):
 
     def adjust(self, ctx: PowerContext) -> None:
         wn, we = self.vector_ne_mps()
-        ctx.air_vn_mps = ctx.air_vn_mps - wn
-        ctx.air_ve_mps = ctx.air_ve_mps - we
+        on = active(ctx.state.time_s, self.at_s, self.until_s)
+        ctx.air_vn_mps = ctx.air_vn_mps - wn * on
+        ctx.air_ve_mps = ctx.air_ve_mps - we * on
 
 
 @dataclass(frozen=True)
 class Mass(Effect):
-    """Mass differs from the vehicle file's by ``delta_kg`` (kg), from ``at_s`` on (None: always).
+    """Mass differs from the vehicle file's by ``delta_kg`` (kg) from ``at_s`` until ``until_s``
+    (s; None: from take-off / to the end): a payload picked up, or carried and released.
 
     The model is rescaled by Zeng's laws (induced c3 ∝ W^{3/2}, c4 ∝ W); the kinetic and climb
     terms use the actual mass.
@@ -195,9 +205,10 @@ class Mass(Effect):
     bounds: ClassVar[dict[str, tuple[float, float]]] = {"delta_kg": (-2.0, 5.0)}
     delta_kg: float = 0.0
     at_s: float | None = None
+    until_s: float | None = None
 
     def adjust(self, ctx: PowerContext) -> None:
-        _add_mass(ctx, self.delta_kg * _step(ctx.state.time_s, self.at_s))
+        _add_mass(ctx, self.delta_kg * active(ctx.state.time_s, self.at_s, self.until_s))
 
 
 @dataclass(frozen=True, eq=False)
@@ -263,18 +274,18 @@ class Climb(Effect):
 
 @dataclass(frozen=True)
 class Avionics(Effect):
-    """A constant electrical load ``power_w`` (W; may be negative) from ``at_s`` on.
-
-    at_s None: the load is there from the start.
+    """A constant electrical load ``power_w`` (W; may be negative) switched on at ``at_s`` and
+    off at ``until_s`` (s; None: on from the start / until the end).
     """
 
     name: ClassVar[str] = "avionics"
     bounds: ClassVar[dict[str, tuple[float, float]]] = {"power_w": (-100.0, 200.0)}
     power_w: float = 0.0
     at_s: float | None = None
+    until_s: float | None = None
 
     def electrical_w(self, ctx: PowerContext) -> FloatArray:
-        return self.power_w * _step(ctx.state.time_s, self.at_s)
+        return self.power_w * active(ctx.state.time_s, self.at_s, self.until_s)
 
 
 @dataclass(frozen=True)
@@ -414,7 +425,7 @@ def effect_from_params(name: str, params: Mapping[str, Any], where: str = "effec
         )
     values: dict[str, Any] = {}
     for key, value in params.items():
-        if value is None and key == "at_s":
+        if value is None and key in _TIME_KEYS:
             values[key] = None
             continue
         number = isinstance(value, int | float) and not isinstance(value, bool)
@@ -424,6 +435,9 @@ def effect_from_params(name: str, params: Mapping[str, Any], where: str = "effec
     effect = cls(**values)
     _validate(effect, f"{where}.{name}")
     return effect
+
+
+_TIME_KEYS = ("at_s", "until_s")
 
 
 def _validate(effect: Effect, where: str) -> None:
@@ -439,6 +453,9 @@ def _validate(effect: Effect, where: str) -> None:
         check = checks.get(key)
         if check is not None and not check(value):
             raise UserError(f"{where}.{key} is out of range: {value!r}")
+    at_s, until_s = effect.params.get("at_s"), effect.params.get("until_s")
+    if at_s is not None and until_s is not None and until_s <= at_s:
+        raise UserError(f"{where}.until_s ({until_s!r}) must be after at_s ({at_s!r})")
 
 
 def effects_from_tables(tables: Mapping[str, Mapping[str, Any]]) -> list[Effect]:

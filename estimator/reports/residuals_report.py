@@ -1,7 +1,8 @@
 """``uav-energy residuals --report DIR``: residual plots before/after and the selection table.
 
 Writes ``residual_time.png`` (residual over each flight, before and after the selected
-effects, held-out), ``residual_channels.png`` (the same against every channel, with binned
+effects, held-out, with the time windows of effects that change in flight shaded),
+``residual_channels.png`` (the same against every channel, with binned
 means), ``attribution.png`` (held-out R² of each channel, before and after) and
 ``summary.md`` (figures, selected effects, the full selection table, the verdict).
 """
@@ -15,8 +16,9 @@ import matplotlib
 matplotlib.use("Agg")
 import matplotlib.pyplot as plt
 import numpy as np
+from matplotlib.axes import Axes
 
-from estimator.analysis.residuals import FloatArray, ResidualResult
+from estimator.analysis.residuals import FloatArray, ResidualResult, describe
 
 _BEFORE = dict(color="tab:red", alpha=0.35, s=3, linewidths=0)
 _AFTER = dict(color="tab:blue", alpha=0.35, s=3, linewidths=0)
@@ -45,6 +47,7 @@ def _time_plot(result: ResidualResult, path: Path) -> Path:
         x = t - t[0] + offset
         ax.plot(x, result.residual_before_w()[rows], color="tab:red", lw=0.6, alpha=0.7)
         ax.plot(x, result.residual_after_w()[rows], color="tab:blue", lw=0.6, alpha=0.8)
+        _mark_windows(ax, result, float(t[0]), float(t[-1]), offset - float(t[0]))
         if len(s.flight_ids) > 1:
             ax.axvline(offset, color="0.7", lw=0.5)
             ax.text(
@@ -68,6 +71,30 @@ def _time_plot(result: ResidualResult, path: Path) -> Path:
     fig.savefig(path, dpi=110)
     plt.close(fig)
     return path
+
+
+def _mark_windows(
+    ax: Axes, result: ResidualResult, first_s: float, last_s: float, shift_s: float
+) -> None:
+    """Shade each selected effect's time window (flight clock + ``shift_s``), labelled."""
+    for k, sel in enumerate(result.selected):
+        params = sel.effect.params
+        if "at_s" not in params or (params["at_s"] is None and params.get("until_s") is None):
+            continue
+        lo = first_s if params["at_s"] is None else max(first_s, params["at_s"])
+        hi = last_s if params.get("until_s") is None else min(last_s, params["until_s"])
+        if hi <= lo:
+            continue
+        ax.axvspan(lo + shift_s, hi + shift_s, color=f"C{k + 2}", alpha=0.12, lw=0)
+        ax.text(
+            lo + shift_s,
+            0.98 - 0.06 * k,
+            f" {describe(sel.effect)}",
+            transform=ax.get_xaxis_transform(),
+            fontsize=7,
+            va="top",
+            color=f"C{k + 2}",
+        )
 
 
 def _binned(x: FloatArray, y: FloatArray, bins: int = 20) -> tuple[FloatArray, FloatArray]:
@@ -146,7 +173,9 @@ def _markdown(result: ResidualResult, title: str, files: list[Path]) -> str:
         f"| before | {s['rmse_before_w']:.2f} | {s['mape_before_pct']:.2f} |",
         f"| after | {s['rmse_after_w']:.2f} | {s['mape_after_pct']:.2f} |",
         "",
-        f"Noise floor (successive differences): {s['noise_floor_w']:.2f} W.",
+        f"Noise floor (successive differences): {s['noise_floor_w']:.2f} W; held-out RMSE after "
+        f"= {s['rmse_to_floor']:.1f} × the floor, {100 * s['unexplained_share']:.0f} % of the "
+        "remaining variance above it.",
         "",
         f"**{s['attribution']['verdict']}**",
         "",
@@ -155,7 +184,7 @@ def _markdown(result: ResidualResult, title: str, files: list[Path]) -> str:
     ]
     if s["effects"]:
         lines += [
-            "| order | effect | parameters | ±1σ over folds | RMSE after (W) | z "
+            "| order | effect (values, when) | parameters | ±1σ over folds | RMSE after (W) | z "
             "| as good held out (RMSE W, z) |",
             "|---|---|---|---|---|---|---|",
         ]
@@ -163,7 +192,7 @@ def _markdown(result: ResidualResult, title: str, files: list[Path]) -> str:
             params = ", ".join(f"{k} = {v}" for k, v in e["params"].items())
             spread = ", ".join(f"{k} {v}" for k, v in e["params_fold_sd"].items())
             lines.append(
-                f"| {i} | {e['name']} | {params} | {spread} | {e['rmse_after_w']:.2f} | "
+                f"| {i} | {e['description']} | {params} | {spread} | {e['rmse_after_w']:.2f} | "
                 f"{e['z']:.1f} | "
                 + ", ".join(
                     f"{t['candidate']} ({t['rmse_w']:.2f}, {t['z']:.1f})"

@@ -79,9 +79,11 @@ def write_truth_csv(run: SimRun, path: str | Path, stride: int = TRUTH_CSV_STRID
 
 
 def hidden_effects_summary(effects: Sequence[Effect]) -> str:
-    """One line naming the hidden effects and their parameters, for logs and the CLI."""
+    """One line naming the hidden effects and their parameters (open time-window ends left
+    out), for logs and the CLI."""
     if not effects:
         return "none"
     return "; ".join(
-        f"{e.name}(" + ", ".join(f"{k}={v}" for k, v in e.params.items()) + ")" for e in effects
+        f"{e.name}(" + ", ".join(f"{k}={v}" for k, v in e.params.items() if v is not None) + ")"
+        for e in effects
     )

@@ -15,6 +15,9 @@ MAVLink 1 frames parse too). Messages become :mod:`estimator.telemetry.samples` 
 - the battery comes from BATTERY_STATUS (our ``battery_id``) once :data:`BATTERY_STATUS_CONFIRM`
   of them arrived, each within :data:`BATTERY_STATUS_TIMEOUT_S` of the last, else from
   SYS_STATUS — also again when BATTERY_STATUS stops for that long;
+- the autopilot's wind estimate (ArduPilot WIND, id 168, outside the common dialect: its
+  payload is read by hand; PX4 WIND_COV) becomes a :class:`WindSample`, implausible values
+  (non-finite, faster than ``MAX_WIND_MPS``) are counted and skipped;
 - only the selected autopilot is decoded (default: the first autopilot HEARTBEAT);
   our own component's messages and everyone else's are counted and skipped.
 
@@ -24,6 +27,7 @@ Every skip is counted in :attr:`TelemetryDecoder.counts` (see :data:`SKIP_COUNTE
 from __future__ import annotations
 
 import math
+import struct
 from collections import Counter
 from collections.abc import Iterable
 
@@ -42,6 +46,7 @@ from estimator.telemetry.samples import (
     BatterySample,
     Sample,
     VelocitySample,
+    WindSample,
 )
 
 UINT16_MAX = 65535
@@ -57,6 +62,7 @@ SKIP_COUNTERS = (
     "voltage_implausible",
     "current_implausible",
     "consumed_implausible",
+    "wind_implausible",
     "time_jump",
 )
 #: Message types the decoder uses; every other type is skipped (and may be skipped unparsed).
@@ -68,8 +74,16 @@ USED_MESSAGE_IDS = frozenset(
         mavlink.MAVLINK_MSG_ID_GLOBAL_POSITION_INT,
         mavlink.MAVLINK_MSG_ID_LOCAL_POSITION_NED,
         mavlink.MAVLINK_MSG_ID_ATTITUDE,
+        mavlink.MAVLINK_MSG_ID_WIND_COV,
+        168,  # ArduPilot WIND (ardupilotmega dialect)
     }
 )
+#: ArduPilot's WIND message: id, payload layout (direction the wind comes from in degrees,
+#: speed m/s, vertical speed m/s; float32 little-endian).
+ARDUPILOT_WIND_ID = 168
+_ARDUPILOT_WIND = struct.Struct("<fff")
+#: A wind estimate above this (m/s) is not plausible and is skipped.
+MAX_WIND_MPS = 60.0
 #: The velocity message types by id (the decoder uses the one of the first believed frame).
 _VELOCITY_TYPES = {
     mavlink.MAVLINK_MSG_ID_GLOBAL_POSITION_INT: "GLOBAL_POSITION_INT",
@@ -183,6 +197,8 @@ class TelemetryDecoder:
     def decode(self, msg: mavlink.MAVLink_message) -> list[Sample]:
         """Decode one message into zero or more samples."""
         source = (msg.get_srcSystem(), msg.get_srcComponent())
+        if isinstance(msg, mavlink.MAVLink_unknown):  # pymavlink leaves its header unset
+            source = _frame_source(bytes(msg.get_msgbuf()))
         if source == self.own:
             self.counts["own"] += 1
             return []
@@ -196,6 +212,8 @@ class TelemetryDecoder:
         if source != self.target:
             self.counts["other_source"] += 1
             return []
+        if kind == f"UNKNOWN_{ARDUPILOT_WIND_ID}":
+            kind = "WIND"
         handler = _HANDLERS.get(kind)
         if handler is None:
             self.counts["unused"] += 1
@@ -332,6 +350,32 @@ class TelemetryDecoder:
             return []
         return self._time.clocked(sample)
 
+    def _ardupilot_wind(self, msg: mavlink.MAVLink_message) -> list[Sample]:
+        if hasattr(msg, "direction"):  # decoded by a dialect that knows WIND
+            direction_deg, speed_mps = float(msg.direction), float(msg.speed)
+        else:
+            payload = _payload(bytes(msg.get_msgbuf()))
+            direction_deg, speed_mps, _ = _ARDUPILOT_WIND.unpack(
+                payload[: _ARDUPILOT_WIND.size].ljust(_ARDUPILOT_WIND.size, b"\0")
+            )
+        rad = math.radians(direction_deg)
+        return self._wind(-speed_mps * math.cos(rad), -speed_mps * math.sin(rad))
+
+    def _wind_cov(self, msg: mavlink.MAVLink_message) -> list[Sample]:
+        # time_usec may be boot or Unix time: the latest autopilot clock stamps it
+        return self._wind(float(msg.wind_x), float(msg.wind_y))
+
+    def _wind(self, wind_n_mps: float, wind_e_mps: float) -> list[Sample]:
+        clock_s = self._clock_s()
+        if clock_s is None:
+            self.counts["wind_before_clock"] += 1
+            return []
+        finite = math.isfinite(wind_n_mps) and math.isfinite(wind_e_mps)
+        if not finite or math.hypot(wind_n_mps, wind_e_mps) > MAX_WIND_MPS:
+            self.counts["wind_implausible"] += 1
+            return []
+        return self._time.clocked(WindSample(clock_s, wind_n_mps, wind_e_mps))
+
     def _battery(
         self,
         voltage_v: float,
@@ -357,6 +401,18 @@ def _is_autopilot(msg: mavlink.MAVLink_message) -> bool:
     return bool(msg.autopilot != mavlink.MAV_AUTOPILOT_INVALID and msg.type not in _NOT_AUTOPILOTS)
 
 
+def _frame_source(frame: bytes) -> tuple[int, int]:
+    """(system, component) from a raw MAVLink 1 or 2 frame's header."""
+    at = 5 if frame[0] == 0xFD else 3
+    return frame[at], frame[at + 1]
+
+
+def _payload(frame: bytes) -> bytes:
+    """The payload of a raw MAVLink 1 or 2 frame (MAVLink 2 trims trailing zeros)."""
+    header = 10 if frame[0] == 0xFD else 6
+    return frame[header : header + frame[1]]
+
+
 def _current_a(centiamps: int) -> float | None:
     return None if centiamps == -1 else centiamps / 100.0
 
@@ -372,4 +428,6 @@ _HANDLERS = {
     "LOCAL_POSITION_NED": TelemetryDecoder._local_position,
     "SYS_STATUS": TelemetryDecoder._sys_status,
     "BATTERY_STATUS": TelemetryDecoder._battery_status,
+    "WIND": TelemetryDecoder._ardupilot_wind,
+    "WIND_COV": TelemetryDecoder._wind_cov,
 }

@@ -53,4 +53,14 @@ class RebootSample:
     time_s: float
 
 
-Sample = VelocitySample | BatterySample | ArmedSample | RebootSample
+@dataclass(frozen=True, slots=True)
+class WindSample:
+    """The autopilot's own wind estimate: air-mass velocity over ground, NED, m/s (the
+    direction the wind blows towards; ArduPilot WIND, PX4 WIND_COV)."""
+
+    time_s: float
+    wind_n_mps: float
+    wind_e_mps: float
+
+
+Sample = VelocitySample | BatterySample | ArmedSample | RebootSample | WindSample
