@@ -15,6 +15,7 @@ import math
 import tomllib
 from dataclasses import dataclass, field
 from importlib import resources
+from itertools import pairwise
 from pathlib import Path
 from typing import Any
 
@@ -25,14 +26,22 @@ from estimator.physics.model import COEFFICIENT_NAMES, PowerModel
 from estimator.telemetry.plausibility import InputLimits
 from estimator.toml_files import read_toml
 
+#: Resting cell voltages of a pack curve: one per state of charge 0, 0.05, …, 1.
+OCV_TABLE_POINTS = 21
+#: A cell voltage outside this range (V) is no lithium cell at rest.
+OCV_RANGE_V = (2.0, 4.5)
+
 
 @dataclass(frozen=True)
 class BatterySpec:
-    """Pack as configured: rated capacity (Ah), series cells, and the reserve not to be used."""
+    """Pack as configured: rated capacity (Ah), series cells, the reserve not to be used, and
+    the pack's resting cell voltage (V) at state of charge 0, 0.05, …, 1 (``cell_ocv_v``;
+    None: the built-in LiPo curve of :mod:`estimator.physics.battery`)."""
 
     capacity_ah: float
     cells: int
     reserve_fraction: float = 0.2
+    cell_ocv_v: tuple[float, ...] | None = None
 
 
 @dataclass(frozen=True)
@@ -59,6 +68,11 @@ class Vehicle:
                 "capacity_ah": self.battery.capacity_ah,
                 "cells": self.battery.cells,
                 "reserve_fraction": self.battery.reserve_fraction,
+                **(
+                    {"cell_ocv_v": list(self.battery.cell_ocv_v)}
+                    if self.battery.cell_ocv_v is not None
+                    else {}
+                ),
             },
         }
         if self.effects:
@@ -97,6 +111,7 @@ def vehicle_from_toml(doc: dict[str, Any], where: str = "vehicle file") -> Vehic
         capacity_ah=_number(battery, "capacity_ah", f"{where} [battery]", positive=True),
         cells=int(_number(battery, "cells", f"{where} [battery]", positive=True)),
         reserve_fraction=_number(battery, "reserve_fraction", f"{where} [battery]"),
+        cell_ocv_v=_ocv_table(battery.get("cell_ocv_v"), f"{where} [battery] cell_ocv_v"),
     )
     if not 0.0 <= spec.reserve_fraction < 1.0:
         raise UserError(f"{where} [battery] reserve_fraction must be in [0, 1)")
@@ -129,6 +144,25 @@ def _number(table: dict[str, Any], key: str, where: str, positive: bool = False)
     if positive and value <= 0:
         raise UserError(f"{where} '{key}' must be > 0, got {value!r}")
     return float(value)
+
+
+def _ocv_table(value: Any, where: str) -> tuple[float, ...] | None:
+    """A pack curve from a vehicle file: None, or :data:`OCV_TABLE_POINTS` cell voltages
+    rising with the state of charge, each within :data:`OCV_RANGE_V`."""
+    if value is None:
+        return None
+    lo, hi = OCV_RANGE_V
+    numbers = isinstance(value, list) and all(
+        isinstance(v, int | float) and not isinstance(v, bool) for v in value
+    )
+    if not numbers or len(value) != OCV_TABLE_POINTS:
+        raise UserError(f"{where} must be a list of {OCV_TABLE_POINTS} cell voltages (V)")
+    table = tuple(float(v) for v in value)
+    if not all(lo <= v <= hi for v in table):
+        raise UserError(f"{where} must hold cell voltages between {lo:g} and {hi:g} V")
+    if any(b <= a for a, b in pairwise(table)):
+        raise UserError(f"{where} must rise with the state of charge (SoC 0 first)")
+    return table
 
 
 def default_vehicle() -> Vehicle:

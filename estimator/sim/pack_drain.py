@@ -9,25 +9,22 @@ import math
 
 import numpy as np
 
-from estimator.physics.battery import CELL_OCV_POINTS_V, SOC_POINTS, PackModel
+from estimator.physics.battery import SOC_POINTS, PackModel
 from estimator.physics.model import FloatArray
 from estimator.sim.run import DT_S
 
 _SOC_LIST = [float(s) for s in SOC_POINTS]
 
 
-_OCV_LIST = [float(v) for v in CELL_OCV_POINTS_V]
-
-
-def _cell_ocv_v(soc: float) -> float:
-    """Scalar, fast version of PackModel.ocv_v per cell (same table)."""
+def _cell_ocv_v(ocv_list: list[float], soc: float) -> float:
+    """Scalar, fast version of PackModel.ocv_v per cell (``ocv_list``: the pack's table)."""
     if soc <= 0.0:
-        return _OCV_LIST[0]
+        return ocv_list[0]
     if soc >= 1.0:
-        return _OCV_LIST[-1]
+        return ocv_list[-1]
     i = bisect.bisect_right(_SOC_LIST, soc) - 1
     f = (soc - _SOC_LIST[i]) / (_SOC_LIST[i + 1] - _SOC_LIST[i])
-    return _OCV_LIST[i] + f * (_OCV_LIST[i + 1] - _OCV_LIST[i])
+    return ocv_list[i] + f * (ocv_list[i + 1] - ocv_list[i])
 
 
 def drain_pack(
@@ -42,9 +39,10 @@ def drain_pack(
     volts, amps, socs = np.empty(n), np.empty(n), np.empty(n)
     cells, r = pack.spec.cells, pack.internal_resistance_ohm
     per_step = DT_S / (3600.0 * pack.spec.capacity_ah)
+    ocv_list = [float(v) for v in pack.cell_ocv_v]
     soc = soc0
     for i in range(n):
-        ocv = cells * _cell_ocv_v(soc)
+        ocv = cells * _cell_ocv_v(ocv_list, soc)
         p = float(power_w[i])
         if r > 0:
             disc = ocv * ocv - 4.0 * r * p
