@@ -101,7 +101,7 @@ class ResidualOptions:
     block_s: float = 5.0
     guard_s: float = 5.0
     z_threshold: float = 3.0
-    min_gain_fraction: float = 0.05
+    min_gain_fraction: float = 0.10
     smooth_s: float = 0.5
     min_alt_m: float = 1.0
     min_power_w: float = 1.0
