@@ -10,16 +10,10 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from estimator.analysis.residuals import (
-    ResidualOptions,
-    ResidualResult,
-    Samples,
-    _block_gain_z,
-    analyze,
-    best_window,
-    candidates_for,
-    prepare,
-)
+from estimator.analysis.residual_candidates import candidates_for
+from estimator.analysis.residual_fit import best_window
+from estimator.analysis.residual_samples import ResidualOptions, Samples, prepare
+from estimator.analysis.residuals import ResidualResult, _block_gain_z, analyze
 from estimator.logs import FlightSeries, load_flights
 from estimator.physics.effects import (
     EFFECT_TYPES,

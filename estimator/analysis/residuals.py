@@ -1,8 +1,13 @@
 """Residual analysis: what the power model lacks, found on data it was not fitted on.
 
 The residual is r = measured electrical power − model power (the vehicle file's model and
-effects through :func:`estimator.physics.effects.predict_power_w`) at every airborne sample of every
-flight, all phases included (take-off, climbs, turns, accelerations, landing).
+effects through :func:`estimator.physics.effects.predict_power_w`) at every sample of level
+flight, from the first after take-off to the last before landing.
+
+This module holds the selection and its result; the steps below live in
+:mod:`~estimator.analysis.residual_samples` (1–2), :mod:`~estimator.analysis.residual_candidates`
+(3), :mod:`~estimator.analysis.residual_fit` (fitting, window search) and
+:mod:`~estimator.analysis.residual_attribution` (5).
 
 Method
 ------
@@ -52,636 +57,26 @@ from __future__ import annotations
 
 import math
 from collections.abc import Callable, Sequence
-from dataclasses import dataclass, field, replace
+from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
-from numpy.typing import NDArray
-from scipy.optimize import least_squares
 from scipy.stats import rankdata
-from sklearn.neighbors import KNeighborsRegressor
 
+from estimator.analysis.residual_attribution import ChannelScore, attribute
+from estimator.analysis.residual_candidates import Candidate, candidates_for
+from estimator.analysis.residual_fit import FitProblem, Term, fit_design
+from estimator.analysis.residual_samples import ResidualOptions, Samples, prepare
 from estimator.errors import UserError
-from estimator.estimation.online_effects import wind_from_vector
 from estimator.logs import FlightSeries
 from estimator.physics.effects import (
-    EFFECT_TYPES,
-    Acceleration,
-    AirDensity,
     Avionics,
-    Climb,
     Effect,
-    FlightState,
     Mass,
-    Turn,
-    Voltage,
     Wind,
-    effects_from_tables,
-    predict_power_w,
 )
-from estimator.physics.kinematics import centripetal_accel_mps2, tangential_accel_mps2
-from estimator.physics.model import SEA_LEVEL_DENSITY_KGPM3
+from estimator.physics.model import FloatArray
 from estimator.physics.vehicle import Vehicle
-
-FloatArray = NDArray[np.float64]
-IntArray = NDArray[np.int64]
-#: Fully charged LiPo cell under light load, V: the voltage effect's reference.
-FULL_CELL_V = 4.2
-#: Extras of a log that are not physical channels.
-_NOT_CHANNELS = ("armed",)
-
-
-@dataclass(frozen=True)
-class ResidualOptions:
-    """Settings of the analysis (SI units); see the module docstring."""
-
-    folds: int = 5
-    #: Length of the held-out chunks (s), assigned to the folds in turn.
-    chunk_s: float = 20.0
-    block_s: float = 5.0
-    guard_s: float = 5.0
-    z_threshold: float = 3.0
-    min_gain_fraction: float = 0.10
-    smooth_s: float = 0.5
-    min_alt_m: float = 1.0
-    min_power_w: float = 1.0
-    #: Rows below this fraction of the flight's median power are not airborne (touch-down).
-    min_power_fraction: float = 0.25
-    max_gap_s: float = 2.0
-    #: Take-off transient: at least this long (s) after the first airborne row, and until the
-    #: vertical speed first falls to ``level_mps`` (m/s); the final descent from the last row
-    #: at or below it is dropped too.
-    settle_s: float = 5.0
-    level_mps: float = 0.3
-    min_flight_s: float = 30.0
-    candidates: tuple[str, ...] = tuple(EFFECT_TYPES)
-    #: Channels with a held-out R² below this do not count as predicting the residual.
-    min_r2: float = 0.05
-    #: A residual whose held-out RMSE exceeds this many noise floors is not noise.
-    noise_ratio: float = 2.0
-    #: At most this many effects are selected.
-    max_effects: int = 6
-    #: A load (W) above this that is as good held out as a mass is named as the mass.
-    max_load_w: float = 50.0
-
-
-# -- samples ----------------------------------------------------------------------------------
-
-
-@dataclass
-class Samples:
-    """Airborne rows of all flights, concatenated (NED frame, flight clock per flight).
-
-    ``chunk``: held-out chunk of each row (unique over flights, one unused id between
-    flights); ``fold``: the fold that holds it out; ``block``: evaluation block id (unique over
-    flights);
-    ``channels``: per-row telemetry for structure plots and attribution (``*_deg`` circular).
-    """
-
-    flight_ids: list[str]
-    flight: IntArray
-    state: FlightState
-    power_w: FloatArray
-    fold: IntArray
-    chunk: IntArray
-    block: IntArray
-    channels: dict[str, FloatArray]
-    skipped_flights: list[str] = field(default_factory=list)
-
-    def __len__(self) -> int:
-        return len(self.power_w)
-
-    def state_at(self, rows: NDArray[np.bool_]) -> FlightState:
-        s = self.state
-        return FlightState(
-            s.time_s[rows],
-            s.vn_mps[rows],
-            s.ve_mps[rows],
-            s.vd_mps[rows],
-            s.an_mps2[rows],
-            s.ae_mps2[rows],
-            s.alt_m[rows],
-            s.voltage_v[rows],
-        )
-
-    def train_rows(self, fold: int, guard_s: float) -> NDArray[np.bool_]:
-        """Rows outside the chunks of ``fold`` and further than ``guard_s`` from them (chunks
-        are longer than two guards, so only the neighbouring chunks matter)."""
-        t = self.state.time_s
-        n_chunks = int(self.chunk.max()) + 1
-        start, end = np.full(n_chunks, np.inf), np.full(n_chunks, -np.inf)
-        np.minimum.at(start, self.chunk, t)
-        np.maximum.at(end, self.chunk, t)
-        held = np.zeros(n_chunks + 1, dtype=bool)  # the extra one: "no neighbour"
-        held[self.chunk[self.fold == fold]] = True
-        prev = np.where(self.chunk > 0, self.chunk - 1, n_chunks)
-        nxt = np.minimum(self.chunk + 1, n_chunks)
-        near_prev = held[prev] & (t - end[np.minimum(prev, n_chunks - 1)] <= guard_s)
-        near_next = held[nxt] & (start[np.minimum(nxt, n_chunks - 1)] - t <= guard_s)
-        return ~held[self.chunk] & ~near_prev & ~near_next
-
-    @property
-    def has_voltage(self) -> bool:
-        return bool(np.mean(np.isfinite(self.state.voltage_v)) > 0.5)
-
-
-def prepare(flights: Sequence[FlightSeries], options: ResidualOptions | None = None) -> Samples:
-    """Airborne samples of ``flights`` with smoothed kinematics, folds, blocks and channels."""
-    opt = options or ResidualOptions()
-    parts: list[dict[str, FloatArray]] = []
-    ids: list[str] = []
-    skipped: list[str] = []
-    block_base = 0
-    chunk_base = 0
-    for flight in flights:
-        part = _flight_rows(flight, opt)
-        if part is None:
-            skipped.append(flight.flight_id)
-            continue
-        part["flight"] = np.full(len(part["time_s"]), float(len(ids)))
-        part["block"] = part["block"] + block_base
-        block_base = int(part["block"].max()) + 1
-        part["chunk"] = part["chunk"] + chunk_base
-        chunk_base = int(part["chunk"].max()) + 2
-        ids.append(flight.flight_id)
-        parts.append(part)
-    if not parts:
-        raise UserError(
-            f"no flight has {opt.min_flight_s:.0f} s of airborne samples with power and velocity"
-        )
-    common = set.intersection(*(set(p) for p in parts))
-    cols = {k: np.concatenate([p[k] for p in parts]) for k in common}
-    state = FlightState(
-        cols["time_s"],
-        cols["vn_mps"],
-        cols["ve_mps"],
-        cols["vd_mps"],
-        cols["an_mps2"],
-        cols["ae_mps2"],
-        cols["alt_m"],
-        cols["voltage_v"],
-    )
-    channels = {
-        "time_s": cols["time_s"],
-        "speed_mps": np.hypot(cols["vn_mps"], cols["ve_mps"]),
-        "heading_deg": np.degrees(np.arctan2(cols["ve_mps"], cols["vn_mps"])) % 360.0,
-        "accel_centripetal_mps2": centripetal_accel_mps2(
-            cols["vn_mps"], cols["ve_mps"], cols["an_mps2"], cols["ae_mps2"]
-        ),
-        "accel_tangential_mps2": tangential_accel_mps2(
-            cols["vn_mps"], cols["ve_mps"], cols["an_mps2"], cols["ae_mps2"]
-        ),
-        "climb_mps": -cols["vd_mps"],
-        "alt_m": cols["alt_m"],
-        "voltage_v": cols["voltage_v"],
-        "energy_used_wh": cols["energy_used_wh"],
-    }
-    for key in sorted(common - set(_PART_KEYS)):
-        channels[key] = cols[key]
-    channels = {k: v for k, v in channels.items() if _informative(v)}
-    samples = Samples(
-        flight_ids=ids,
-        flight=cols["flight"].astype(np.int64),
-        state=state,
-        power_w=cols["power_w"],
-        fold=cols["fold"].astype(np.int64),
-        chunk=cols["chunk"].astype(np.int64),
-        block=cols["block"].astype(np.int64),
-        channels=channels,
-        skipped_flights=skipped,
-    )
-    n_blocks = len(np.unique(samples.block))
-    if n_blocks < 2 * opt.folds:
-        raise UserError(
-            f"only {n_blocks} blocks of {opt.block_s:.0f} s of airborne data; need at least "
-            f"{2 * opt.folds} (a few minutes of flight) for a held-out test"
-        )
-    return samples
-
-
-_PART_KEYS = (
-    *("time_s", "vn_mps", "ve_mps", "vd_mps", "an_mps2", "ae_mps2", "alt_m", "voltage_v"),
-    *("power_w", "energy_used_wh", "fold", "chunk", "block", "flight"),
-)
-
-
-def _informative(x: FloatArray) -> bool:
-    finite = x[np.isfinite(x)]
-    return len(finite) > 0.5 * len(x) and float(np.ptp(finite)) > 0
-
-
-def _level_between(
-    t: FloatArray, vd_mps: FloatArray, rows: IntArray, opt: ResidualOptions
-) -> IntArray:
-    """``rows`` from the first level flight after take-off to the last before landing: the
-    take-off transient (spool-up, ground effect, the climb away; at least ``settle_s``) and
-    the final descent are not the level flight the model and its effects describe. Climbs
-    in between stay. Rows without a vertical speed count as level."""
-    if len(rows) == 0:
-        return rows
-    level = ~(np.abs(vd_mps[rows]) > opt.level_mps)
-    settled = level & (t[rows] >= t[rows[0]] + opt.settle_s)
-    if not settled.any():
-        return rows[:0]
-    first = int(np.argmax(settled))
-    last = len(rows) - 1 - int(np.argmax(level[::-1]))
-    return rows[first : last + 1]
-
-
-def _flight_rows(f: FlightSeries, opt: ResidualOptions) -> dict[str, FloatArray] | None:
-    t = f.time_s
-    ok = np.isfinite(t) & np.isfinite(f.power_w) & np.isfinite(f.vn_mps) & np.isfinite(f.ve_mps)
-    ok &= np.r_[True, np.diff(t) > 0]
-    armed = f.extras.get("armed")
-    if armed is not None:
-        ok &= ~(armed == 0.0)
-    ok &= ~(f.alt_m < opt.min_alt_m)
-    ok &= f.power_w >= opt.min_power_w
-    if ok.any():
-        ok &= f.power_w >= opt.min_power_fraction * float(np.median(f.power_w[ok]))
-    rows = _level_between(t, f.vd_mps, np.flatnonzero(ok), opt)
-    if len(rows) < 10 or t[rows[-1]] - t[rows[0]] < opt.min_flight_s:
-        return None
-    t = t[rows]
-    seg = np.r_[0, np.cumsum(np.diff(t) > opt.max_gap_s)]
-    vn = _smooth(t, f.vn_mps[rows], seg, opt.smooth_s)
-    ve = _smooth(t, f.ve_mps[rows], seg, opt.smooth_s)
-    vd = np.nan_to_num(f.vd_mps[rows])
-    an, ae = _gradient(vn, t, seg), _gradient(ve, t, seg)
-    power = f.power_w[rows]
-    dt = np.diff(t, prepend=t[0])
-    dt[np.r_[True, seg[1:] != seg[:-1]]] = 0.0
-    chunk = np.floor((t - t[0]) / opt.chunk_s)
-    part: dict[str, FloatArray] = {
-        "time_s": t,
-        "vn_mps": vn,
-        "ve_mps": ve,
-        "vd_mps": vd,
-        "an_mps2": an,
-        "ae_mps2": ae,
-        "alt_m": f.alt_m[rows],
-        "voltage_v": f.voltage_v[rows],
-        "power_w": power,
-        "energy_used_wh": np.cumsum(power * dt) / 3600.0,
-        "fold": chunk % opt.folds,
-        "chunk": chunk,
-        "block": np.floor((t - t[0]) / opt.block_s),
-    }
-    for key, values in f.extras.items():
-        if key not in _NOT_CHANNELS and len(values) == len(f.time_s):
-            part[key] = np.asarray(values, dtype=float)[rows]
-    return part
-
-
-def _smooth(t: FloatArray, x: FloatArray, seg: IntArray, sigma_s: float) -> FloatArray:
-    """Gaussian kernel smoothing (1σ ``sigma_s``) on irregular times, within segments."""
-    x = np.nan_to_num(x)
-    if sigma_s <= 0:
-        return x
-    num, den = np.zeros(len(x)), np.zeros(len(x))
-    reach = max(1, int(np.ceil(3 * sigma_s / max(float(np.median(np.diff(t))), 1e-3))))
-    for k in range(-reach, reach + 1):
-        j = np.clip(np.arange(len(x)) + k, 0, len(x) - 1)
-        w = np.exp(-0.5 * ((t[j] - t) / sigma_s) ** 2) * (seg[j] == seg)
-        w[(np.arange(len(x)) + k < 0) | (np.arange(len(x)) + k >= len(x))] = 0.0
-        num += w * x[j]
-        den += w
-    return num / den
-
-
-def _gradient(x: FloatArray, t: FloatArray, seg: IntArray) -> FloatArray:
-    out = np.zeros(len(x))
-    for s in np.unique(seg):
-        rows = seg == s
-        if rows.sum() >= 2:
-            out[rows] = np.gradient(x[rows], t[rows])
-    return out
-
-
-# -- candidates -------------------------------------------------------------------------------
-
-
-@dataclass(frozen=True)
-class Candidate:
-    """A candidate effect: fitted parameters x ↔ :class:`Effect`.
-
-    ``windowed``: the effect acts in a time window ``[at_s, until_s)`` searched on the training
-    data (a wind that starts or stops, a payload picked up or released, a load switched on or
-    off); either end may be open (the flight's start or end).
-    ``null``: x at which the effect does nothing (None when it always acts, like ``climb``).
-    """
-
-    name: str
-    x0: tuple[float, ...]
-    lower: tuple[float, ...]
-    upper: tuple[float, ...]
-    build: Callable[[FloatArray, float | None, float | None], Effect]
-    null: tuple[float, ...] | None = None
-    windowed: bool = False
-    starts: tuple[tuple[float, ...], ...] = ()
-
-    @property
-    def label(self) -> str:
-        return f"{self.name} (window)" if self.windowed else self.name
-
-
-def _wind(x: FloatArray, at_s: float | None, until_s: float | None) -> Effect:
-    """x = air-mass velocity over ground (north, east), m/s."""
-    wind = wind_from_vector(float(x[0]), float(x[1]))
-    return replace(wind, at_s=at_s, until_s=until_s)
-
-
-def _constant_and_windowed(candidate: Candidate) -> tuple[Candidate, Candidate]:
-    """The candidate acting all flight, and the same in a time window searched in the data."""
-    return candidate, replace(candidate, windowed=True)
-
-
-def candidates_for(vehicle: Vehicle, samples: Samples, names: Sequence[str]) -> list[Candidate]:
-    """The candidates to try: ``names`` minus effects the vehicle file already has."""
-    mass_lo = max(Mass.bounds["delta_kg"][0], -0.7 * vehicle.mass_kg)
-    mass_hi = Mass.bounds["delta_kg"][1]
-    ref_v = vehicle.battery.cells * FULL_CELL_V
-    rho_lo, rho_hi = AirDensity.bounds["rho_kgpm3"]
-    avi_lo, avi_hi = Avionics.bounds["power_w"]
-    turn_lo, turn_hi = Turn.bounds["power_w_per_g2"]
-    wind_max = Wind.bounds["speed_mps"][1]
-    all_candidates = [
-        *_constant_and_windowed(
-            Candidate(
-                "wind",
-                (0.0, 0.0),
-                (-wind_max, -wind_max),
-                (wind_max, wind_max),
-                _wind,
-                null=(0.0, 0.0),
-                starts=tuple(
-                    (4.0 * math.cos(a), 4.0 * math.sin(a)) for a in np.radians([0, 120, 240])
-                ),
-            )
-        ),
-        *_constant_and_windowed(
-            Candidate(
-                "mass",
-                (0.0,),
-                (mass_lo,),
-                (mass_hi,),
-                lambda x, at, until: Mass(float(x[0]), at, until),
-                (0.0,),
-            )
-        ),
-        Candidate(
-            "air_density",
-            (SEA_LEVEL_DENSITY_KGPM3,),
-            (rho_lo,),
-            (rho_hi,),
-            lambda x, _at, _until: AirDensity(float(x[0])),
-            (SEA_LEVEL_DENSITY_KGPM3,),
-        ),
-        Candidate("climb", (0.6,), (0.2,), (1.0,), lambda x, _at, _until: Climb(float(x[0]))),
-        *_constant_and_windowed(
-            Candidate(
-                "avionics",
-                (0.0,),
-                (avi_lo,),
-                (avi_hi,),
-                lambda x, at, until: Avionics(float(x[0]), at, until),
-                (0.0,),
-            )
-        ),
-        Candidate(
-            "voltage",
-            (0.0,),
-            (0.0,),
-            (Voltage.bounds["resistance_ohm"][1],),
-            lambda x, _at, _until: Voltage(float(x[0]), ref_v),
-            (0.0,),
-        ),
-        Candidate(
-            "acceleration",
-            (0.95, 0.95),
-            (0.2, 0.0),
-            (1.0, 1.0),
-            lambda x, _at, _until: Acceleration(float(x[0]), float(x[1])),
-            (1.0, 1.0),
-        ),
-        Candidate(
-            "turn",
-            (0.0,),
-            (turn_lo,),
-            (turn_hi,),
-            lambda x, _at, _until: Turn(float(x[0])),
-            (0.0,),
-        ),
-    ]
-    declared = set(vehicle.effects)
-    # a window is on each flight's own clock: shared by several flights it would mean "every
-    # flight changed at the same time"; several flights are analysed per flight (--flight)
-    one_flight = len(samples.flight_ids) == 1
-    out = []
-    for cand in all_candidates:
-        if cand.name not in names or cand.name in declared or (cand.windowed and not one_flight):
-            continue
-        if cand.name == "voltage" and not samples.has_voltage:
-            continue
-        out.append(cand)
-    return out
-
-
-# -- fitting ----------------------------------------------------------------------------------
-
-
-@dataclass
-class Term:
-    """A candidate with fitted parameters (and, when windowed, its time window, s)."""
-
-    candidate: Candidate
-    x: FloatArray
-    at_s: float | None = None
-    until_s: float | None = None
-
-    def effect(self) -> Effect:
-        return self.candidate.build(self.x, self.at_s, self.until_s)
-
-
-class _Problem:
-    """Predictions for a set of rows with the vehicle's model and base effects.
-
-    ``first_s``/``last_s``: the flight clock's first and last airborne time over all samples
-    (a window reaching them is open on that side).
-    """
-
-    def __init__(self, vehicle: Vehicle, samples: Samples, rows: NDArray[np.bool_]) -> None:
-        self.vehicle = vehicle
-        self.state = samples.state_at(rows)
-        self.power_w = samples.power_w[rows]
-        self.base = effects_from_tables(vehicle.effects)
-        self.first_s = float(samples.state.time_s.min())
-        self.last_s = float(samples.state.time_s.max())
-
-    def predict(self, effects: Sequence[Effect]) -> FloatArray:
-        return predict_power_w(
-            self.vehicle.model, self.vehicle.mass_kg, self.state, [*self.base, *effects]
-        )
-
-
-def _fit_terms(
-    problem: _Problem,
-    terms: list[Term],
-    f_scale_w: float,
-    warm: frozenset[int] = frozenset(),
-    fixed: Sequence[Effect] = (),
-) -> list[Term]:
-    """Joint least squares of all terms' x (windows held) on top of the ``fixed`` effects;
-    multi-start where given, except for terms whose index is in ``warm`` (their x is already
-    a good start)."""
-    if not terms:
-        return terms
-    sizes = [len(t.x) for t in terms]
-    lower = np.concatenate([t.candidate.lower for t in terms])
-    upper = np.concatenate([t.candidate.upper for t in terms])
-
-    def unpack(x: FloatArray) -> list[Term]:
-        out, k = [], 0
-        for term, n in zip(terms, sizes, strict=True):
-            out.append(Term(term.candidate, x[k : k + n].copy(), term.at_s, term.until_s))
-            k += n
-        return out
-
-    def resid(x: FloatArray) -> FloatArray:
-        return problem.predict([*fixed, *(t.effect() for t in unpack(x))]) - problem.power_w
-
-    starts = [np.concatenate([t.x for t in terms])]
-    for i, term in enumerate(terms):
-        if i in warm:
-            continue
-        for s in term.candidate.starts:
-            x = starts[0].copy()
-            k = sum(sizes[:i])
-            x[k : k + sizes[i]] = s
-            starts.append(x)
-    best = None
-    for x0 in starts:
-        # strictly inside the bounds: least_squares stalls when started on one
-        x0 = np.clip(x0, lower + 1e-3 * (upper - lower), upper - 1e-3 * (upper - lower))
-        sol = least_squares(
-            resid, x0, bounds=(lower, upper), loss="soft_l1", f_scale=f_scale_w, x_scale="jac"
-        )
-        if best is None or sol.cost < best.cost:
-            best = sol
-    assert best is not None
-    return unpack(best.x)
-
-
-def best_window(time_s: FloatArray, gain: FloatArray) -> tuple[int, int, float]:
-    """The time window where an effect helps most: first and last index (into the rows sorted
-    by time) and the summed ``gain`` (per-row loss without the effect minus with it) of the
-    contiguous run with the largest sum. Prefix sums: O(n log n) for the sort, O(n) after."""
-    order = np.argsort(time_s, kind="stable")
-    prefix = np.concatenate([[0.0], np.cumsum(gain[order])])
-    low = np.minimum.accumulate(prefix[:-1])
-    sums = prefix[1:] - low
-    last = int(np.argmax(sums))
-    first = int(np.argmin(prefix[: last + 1]))
-    return first, last, float(sums[last])
-
-
-#: Window ends this close (s) to the flight's first/last airborne sample are open.
-_OPEN_END_S = 10.0
-
-
-def _search_window(
-    problem: _Problem, others: list[Term], term: Term, f_scale_w: float, warm: bool
-) -> Term:
-    """Fit ``term``'s parameters and time window on top of ``others``.
-
-    Starts: the parameters fitted over the whole flight, and over its first and second half
-    (an effect present in one half only, or a different one in each, as a wind that turns).
-    From each, alternately the window with the largest robust gain for these parameters
-    (:func:`best_window`, linear in the samples) and the parameters for that window; the
-    start with the lowest robust loss wins.
-    """
-    fixed = [t.effect() for t in others]
-    loss_cap = (3.0 * f_scale_w) ** 2
-    loss_without = np.minimum((problem.power_w - problem.predict(fixed)) ** 2, loss_cap)
-    t = problem.state.time_s
-    ts = np.sort(t)
-    middle = float(np.median(ts))
-    first_fit = frozenset({0} if warm else ())
-    best: tuple[float, Term] | None = None
-    starts: list[tuple[float | None, float | None]] = [(None, None), (None, middle), (middle, None)]
-    for window in starts:
-        start = Term(term.candidate, term.x, *window)
-        current = _fit_terms(problem, [start], f_scale_w, first_fit, fixed)[0]
-        found: tuple[float | None, float | None] | None = None
-        for _ in range(4):
-            always = Term(current.candidate, current.x)
-            loss_with = np.minimum(
-                (problem.power_w - problem.predict([*fixed, always.effect()])) ** 2, loss_cap
-            )
-            lo, hi, _gain = best_window(t, loss_without - loss_with)
-            window = (
-                None
-                if lo == 0 or ts[lo] - problem.first_s < _OPEN_END_S
-                # any time between two training rows splits them alike (a held-out gap)
-                else 0.5 * float(ts[lo - 1] + ts[lo]),
-                None
-                if hi == len(ts) - 1 or problem.last_s - ts[hi] < _OPEN_END_S
-                else 0.5 * float(ts[hi] + ts[hi + 1]),
-            )
-            if window == found:
-                break
-            found = window
-            current = Term(current.candidate, current.x, *window)
-            current = _fit_terms(problem, [current], f_scale_w, frozenset({0}), fixed)[0]
-        loss = float(
-            np.sum(
-                np.minimum(
-                    (problem.power_w - problem.predict([*fixed, current.effect()])) ** 2,
-                    loss_cap,
-                )
-            )
-        )
-        if best is None or loss < best[0]:
-            best = (loss, current)
-    assert best is not None
-    return best[1]
-
-
-def fit_design(
-    problem: _Problem,
-    candidates: Sequence[Candidate],
-    f_scale_w: float,
-    warm: Sequence[FloatArray | None] = (),
-) -> list[Term]:
-    """Fit ``candidates`` together: constant ones first, then each window, then all.
-
-    ``warm``: starting x per candidate position (e.g. from the previous selection step).
-    """
-    warm = [*warm, *([None] * (len(candidates) - len(warm)))]
-    terms = [
-        Term(c, np.asarray(c.x0 if w is None else w, dtype=float))
-        for c, w in zip(candidates, warm, strict=True)
-    ]
-    known = frozenset(i for i, w in enumerate(warm) if w is not None)
-    steady = [i for i, t in enumerate(terms) if not t.candidate.windowed]
-    fitted = _fit_terms(
-        problem,
-        [terms[i] for i in steady],
-        f_scale_w,
-        frozenset(k for k, i in enumerate(steady) if i in known),
-    )
-    for i, term in zip(steady, fitted, strict=True):
-        terms[i] = term
-    resolved = list(steady)
-    for i, term in enumerate(terms):
-        if term.candidate.windowed:
-            others = [terms[k] for k in resolved]
-            terms[i] = _search_window(problem, others, term, f_scale_w, i in known)
-            resolved.append(i)
-    return _fit_terms(problem, terms, f_scale_w, frozenset(range(len(terms))))
-
-
-# -- selection --------------------------------------------------------------------------------
 
 
 @dataclass
@@ -734,12 +129,6 @@ class Selected:
                 "z": round(self.runner_up[2], 2),
             },
         }
-
-
-@dataclass
-class ChannelScore:
-    channel: str
-    r2: float
 
 
 @dataclass
@@ -927,8 +316,8 @@ def _held_out(
         if not test.any():
             continue
         train = samples.train_rows(j, opt.guard_s)
-        terms = fit_design(_Problem(vehicle, samples, train), candidates, f_scale_w, warm)
-        predicted[test] = _Problem(vehicle, samples, test).predict([t.effect() for t in terms])
+        terms = fit_design(FitProblem(vehicle, samples, train), candidates, f_scale_w, warm)
+        predicted[test] = FitProblem(vehicle, samples, test).predict([t.effect() for t in terms])
         per_fold.append(terms)
     return predicted, per_fold
 
@@ -968,7 +357,7 @@ def analyze(
         )
     samples = prepare(flights, opt)
     everything = np.ones(len(samples), dtype=bool)
-    before = _Problem(vehicle, samples, everything).predict([])
+    before = FitProblem(vehicle, samples, everything).predict([])
     f_scale_w = _robust_scale_w(samples.power_w - before)
     remaining = candidates_for(vehicle, samples, opt.candidates)
     chosen: list[Candidate] = []
@@ -1014,7 +403,7 @@ def analyze(
         ]
         chosen.append(cand)
         current = predicted
-        final = fit_design(_Problem(vehicle, samples, everything), chosen, f_scale_w, warm)
+        final = fit_design(FitProblem(vehicle, samples, everything), chosen, f_scale_w, warm)
         warm = [t.x for t in final]
         fold_effects = [terms[-1].effect() for terms in folds]
         selected.append(
@@ -1055,7 +444,7 @@ def analyze(
         attribution=attribution,
         attribution_before=attribution_before,
         noise_floor_w=_noise_floor_w(samples, after_resid),
-        predicted_final_w=_Problem(vehicle, samples, everything).predict(
+        predicted_final_w=FitProblem(vehicle, samples, everything).predict(
             [s.effect for s in selected]
         ),
     )
@@ -1105,62 +494,3 @@ def _noise_floor_w(samples: Samples, resid: FloatArray) -> float:
     same = samples.flight[1:] == samples.flight[:-1]
     d = np.diff(resid)[same]
     return float(np.sqrt(np.mean(d**2) / 2.0)) if len(d) else math.nan
-
-
-# -- attribution ------------------------------------------------------------------------------
-
-
-def _features(values: FloatArray, circular: bool) -> FloatArray:
-    if circular:
-        rad = np.radians(values)
-        return np.column_stack([np.cos(rad), np.sin(rad)])
-    sd = float(np.nanstd(values)) or 1.0
-    return (values / sd).reshape(-1, 1)
-
-
-_MAX_DISCRETE_VALUES = 16
-
-
-def _group_means(x_train: FloatArray, y_train: FloatArray, x_test: FloatArray) -> FloatArray:
-    """Mean of ``y_train`` per distinct ``x_train`` value, at ``x_test`` (NaN if unseen)."""
-    keys, inverse = np.unique(x_train, return_inverse=True)
-    means = np.bincount(inverse, weights=y_train) / np.bincount(inverse)
-    idx = np.clip(np.searchsorted(keys, x_test), 0, len(keys) - 1)
-    return np.where(keys[idx] == x_test, means[idx], np.nan)
-
-
-def attribute(samples: Samples, resid: FloatArray, opt: ResidualOptions) -> list[ChannelScore]:
-    """Held-out R² of ``resid`` predicted from each channel alone, best first: k-NN
-    regression (sklearn), or the mean per value for channels with few distinct values."""
-    scores = []
-    for name, values in samples.channels.items():
-        finite = np.isfinite(values)
-        x = _features(np.where(finite, values, 0.0), name.endswith("_deg"))
-        # a few distinct values (payload, flight regime): k-NN would break the many exact
-        # ties by sample order; the mean residual per value is the nonparametric answer
-        discrete = len(np.unique(values[finite])) <= _MAX_DISCRETE_VALUES
-        predicted = np.full(len(resid), np.nan)
-        baseline = np.full(len(resid), np.nan)
-        for j in range(opt.folds):
-            test = (samples.fold == j) & finite
-            train = samples.train_rows(j, opt.guard_s) & finite
-            if test.sum() == 0 or train.sum() < 20:
-                continue
-            baseline[test] = float(np.mean(resid[train]))
-            if discrete:
-                predicted[test] = _group_means(values[train], resid[train], values[test])
-                predicted[test] = np.where(
-                    np.isnan(predicted[test]), baseline[test], predicted[test]
-                )
-                continue
-            k = int(np.clip(round(math.sqrt(train.sum())), 10, 200))
-            k = min(k, int(train.sum()))
-            knn = KNeighborsRegressor(n_neighbors=k).fit(x[train], resid[train])
-            predicted[test] = knn.predict(x[test])
-        ok = np.isfinite(predicted)
-        if ok.sum() < 20:
-            continue
-        sse = float(np.sum((resid[ok] - predicted[ok]) ** 2))
-        sst = float(np.sum((resid[ok] - baseline[ok]) ** 2))
-        scores.append(ChannelScore(name, 1.0 - sse / sst if sst > 0 else 0.0))
-    return sorted(scores, key=lambda c: -c.r2)

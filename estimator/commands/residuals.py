@@ -19,7 +19,8 @@ from typing import Any
 import numpy as np
 from rich.console import Console
 
-from estimator.analysis.residuals import ResidualOptions, ResidualResult, analyze
+from estimator.analysis.residual_samples import ResidualOptions
+from estimator.analysis.residuals import ResidualResult, analyze
 from estimator.errors import UserError
 from estimator.estimation.online_effects import OnlineEffects, track_series
 from estimator.logs import FORMATS, FlightSeries, load_flights

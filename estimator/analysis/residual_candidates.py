@@ -1,0 +1,154 @@
+"""Candidate effects of a residual analysis: fitted parameters ↔ an effect of
+:mod:`estimator.physics.effects`, their bounds and starting points, all flight or in a time
+window.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass, replace
+
+import numpy as np
+
+from estimator.analysis.residual_samples import FULL_CELL_V, Samples
+from estimator.estimation.online_effects import wind_from_vector
+from estimator.physics.effects import (
+    Acceleration,
+    AirDensity,
+    Avionics,
+    Climb,
+    Effect,
+    Mass,
+    Turn,
+    Voltage,
+    Wind,
+)
+from estimator.physics.model import SEA_LEVEL_DENSITY_KGPM3, FloatArray
+from estimator.physics.vehicle import Vehicle
+
+
+@dataclass(frozen=True)
+class Candidate:
+    """A candidate effect: fitted parameters x ↔ :class:`Effect`.
+
+    ``windowed``: the effect acts in a time window ``[at_s, until_s)`` searched on the training
+    data (a wind that starts or stops, a payload picked up or released, a load switched on or
+    off); either end may be open (the flight's start or end).
+    ``null``: x at which the effect does nothing (None when it always acts, like ``climb``).
+    """
+
+    name: str
+    x0: tuple[float, ...]
+    lower: tuple[float, ...]
+    upper: tuple[float, ...]
+    build: Callable[[FloatArray, float | None, float | None], Effect]
+    null: tuple[float, ...] | None = None
+    windowed: bool = False
+    starts: tuple[tuple[float, ...], ...] = ()
+
+    @property
+    def label(self) -> str:
+        return f"{self.name} (window)" if self.windowed else self.name
+
+
+def _wind(x: FloatArray, at_s: float | None, until_s: float | None) -> Effect:
+    """x = air-mass velocity over ground (north, east), m/s."""
+    wind = wind_from_vector(float(x[0]), float(x[1]))
+    return replace(wind, at_s=at_s, until_s=until_s)
+
+
+def _constant_and_windowed(candidate: Candidate) -> tuple[Candidate, Candidate]:
+    """The candidate acting all flight, and the same in a time window searched in the data."""
+    return candidate, replace(candidate, windowed=True)
+
+
+def candidates_for(vehicle: Vehicle, samples: Samples, names: Sequence[str]) -> list[Candidate]:
+    """The candidates to try: ``names`` minus effects the vehicle file already has."""
+    mass_lo = max(Mass.bounds["delta_kg"][0], -0.7 * vehicle.mass_kg)
+    mass_hi = Mass.bounds["delta_kg"][1]
+    ref_v = vehicle.battery.cells * FULL_CELL_V
+    rho_lo, rho_hi = AirDensity.bounds["rho_kgpm3"]
+    avi_lo, avi_hi = Avionics.bounds["power_w"]
+    turn_lo, turn_hi = Turn.bounds["power_w_per_g2"]
+    wind_max = Wind.bounds["speed_mps"][1]
+    all_candidates = [
+        *_constant_and_windowed(
+            Candidate(
+                "wind",
+                (0.0, 0.0),
+                (-wind_max, -wind_max),
+                (wind_max, wind_max),
+                _wind,
+                null=(0.0, 0.0),
+                starts=tuple(
+                    (4.0 * math.cos(a), 4.0 * math.sin(a)) for a in np.radians([0, 120, 240])
+                ),
+            )
+        ),
+        *_constant_and_windowed(
+            Candidate(
+                "mass",
+                (0.0,),
+                (mass_lo,),
+                (mass_hi,),
+                lambda x, at, until: Mass(float(x[0]), at, until),
+                (0.0,),
+            )
+        ),
+        Candidate(
+            "air_density",
+            (SEA_LEVEL_DENSITY_KGPM3,),
+            (rho_lo,),
+            (rho_hi,),
+            lambda x, _at, _until: AirDensity(float(x[0])),
+            (SEA_LEVEL_DENSITY_KGPM3,),
+        ),
+        Candidate("climb", (0.6,), (0.2,), (1.0,), lambda x, _at, _until: Climb(float(x[0]))),
+        *_constant_and_windowed(
+            Candidate(
+                "avionics",
+                (0.0,),
+                (avi_lo,),
+                (avi_hi,),
+                lambda x, at, until: Avionics(float(x[0]), at, until),
+                (0.0,),
+            )
+        ),
+        Candidate(
+            "voltage",
+            (0.0,),
+            (0.0,),
+            (Voltage.bounds["resistance_ohm"][1],),
+            lambda x, _at, _until: Voltage(float(x[0]), ref_v),
+            (0.0,),
+        ),
+        Candidate(
+            "acceleration",
+            (0.95, 0.95),
+            (0.2, 0.0),
+            (1.0, 1.0),
+            lambda x, _at, _until: Acceleration(float(x[0]), float(x[1])),
+            (1.0, 1.0),
+        ),
+        Candidate(
+            "turn",
+            (0.0,),
+            (turn_lo,),
+            (turn_hi,),
+            lambda x, _at, _until: Turn(float(x[0])),
+            (0.0,),
+        ),
+    ]
+    declared = set(vehicle.effects)
+    # a window is on each flight's own clock: shared by several flights it would mean "every
+    # flight changed at the same time"; several flights are analysed per flight (--flight)
+    one_flight = len(samples.flight_ids) == 1
+    out = []
+    for cand in all_candidates:
+        if cand.name not in names or cand.name in declared or (cand.windowed and not one_flight):
+            continue
+        if cand.name == "voltage" and not samples.has_voltage:
+            continue
+        out.append(cand)
+    return out
