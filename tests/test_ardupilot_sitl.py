@@ -46,6 +46,7 @@ from estimator.sitl.launch import (
     running_sitl,
     serial_port,
     sitl_binary,
+    stop_process,
     wait_listening,
 )
 from estimator.sitl.pilot import Pilot
@@ -261,11 +262,7 @@ def live_daemon(
         try:
             yield LiveDaemon(opts.instance, sitl, opts.workdir / "sitl.log", daemon, gcs, out, log)
         finally:
-            daemon.terminate()
-            try:
-                daemon.wait(timeout=20)
-            except subprocess.TimeoutExpired:
-                daemon.kill()
+            stop_process(daemon, timeout_s=20.0)
             gcs.close()
 
 
