@@ -8,8 +8,8 @@ would have published. No wall clock is read here: pacing (``--speed``) and timin
 the caller.
 
 Power error is measured where the model is meant to hold: at each battery sample with a
-current reading while the vehicle is *airborne* (armed, more than :data:`AIRBORNE_ALT_M`
-above home and drawing more than idle power, the online tracker's 30 % of the model's hover
+current reading while the vehicle is *airborne* (armed, more than
+:data:`~estimator.estimation.airborne.AIRBORNE_ALT_M` above home and drawing more than idle power, the online tracker's 30 % of the model's hover
 power; a log without arming state or altitude is judged on the rest): the measured
 V·I against the model power in force when that reading arrived
 (:class:`~estimator.estimation.pipeline.PowerReading`) — a prediction, never informed by the
@@ -29,14 +29,13 @@ from pathlib import Path
 import numpy as np
 from numpy.typing import NDArray
 
+from estimator.estimation.airborne import AIRBORNE_ALT_M
 from estimator.estimation.online_effects import OnlineSettings
 from estimator.estimation.pipeline import Estimate, Pipeline, PipelineSettings, PowerReading
 from estimator.logs import SampleStream, iter_samples
 from estimator.physics.vehicle import Vehicle
 from estimator.telemetry.samples import Sample
 
-#: Above this height over home (m) an armed vehicle counts as airborne.
-AIRBORNE_ALT_M = 1.0
 #: Below this measured power (W) a MAPE term is not formed (a pack on the bench).
 MAPE_FLOOR_W = 1.0
 #: Intervals between power points longer than this (s) are not integrated (link dropouts).
@@ -71,8 +70,9 @@ class PowerTrace:
             self.alt_m.append(math.nan if r.alt_m is None else r.alt_m)
 
     def airborne(self) -> NDArray[np.bool_]:
-        """Armed, above :data:`AIRBORNE_ALT_M` and drawing more than ``idle_below_w`` (a
-        barometer drifting on the ground while the motors spin up at arming is not flight).
+        """Armed, above :data:`~estimator.estimation.airborne.AIRBORNE_ALT_M` and drawing more
+        than ``idle_below_w`` (a barometer drifting on the ground while the motors spin up at
+        arming is not flight).
         A log that never gives the armed state (or the altitude) is judged on the rest."""
         armed = np.asarray(self.armed, dtype=float)
         alt = np.asarray(self.alt_m, dtype=float)

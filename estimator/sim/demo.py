@@ -44,8 +44,9 @@ from rich.live import Live
 from rich.table import Table
 from rich.text import Text
 
-from estimator.analysis.replay import AIRBORNE_ALT_M, replay_stream, summarize
+from estimator.analysis.replay import replay_stream, summarize
 from estimator.errors import UserError
+from estimator.estimation.airborne import AIRBORNE_ALT_M
 from estimator.logs import iter_samples
 from estimator.mavlink.config import ServiceConfig, validate
 from estimator.mavlink.link import MavlinkLink, open_link
