@@ -13,9 +13,9 @@ current reading while the vehicle is *airborne* (armed, more than
 power, the online tracker's 30 % of the model's hover power; a log without arming state or
 altitude is judged on the rest): the measured V·I against the model power in force when that
 reading arrived (:class:`~estimator.estimation.pipeline.PowerReading`) — a prediction, never
-informed by the reading it is scored on (the pipeline fuses readings and tracks wind and mass only after). Energies
-integrate both powers over the same airborne intervals (gaps longer than :data:`MAX_GAP_S`
-are not integrated).
+informed by the reading it is scored on (the pipeline fuses readings and tracks wind and mass
+only after). Energies integrate both powers over the same airborne intervals (gaps longer than
+:data:`MAX_GAP_S` are not integrated).
 """
 
 from __future__ import annotations
