@@ -16,7 +16,7 @@ import pytest
 
 from estimator.analysis.residuals import analyze
 from estimator.logs import load_flights
-from estimator.physics.vehicle import load_vehicle
+from estimator.physics.vehicle import Vehicle, load_vehicle
 from estimator.sitl.truth_check import FlightScore, FlightTruth, score_summary
 
 REPO = Path(__file__).resolve().parent.parent
@@ -36,8 +36,13 @@ SCENARIOS = sorted(p.name for p in RECORDINGS.iterdir() if p.is_dir() and p.name
 
 
 @cache
+def sitl_vehicle() -> Vehicle:
+    return load_vehicle(VEHICLE)
+
+
+@cache
 def scored(scenario: str) -> FlightScore:
-    vehicle = load_vehicle(VEHICLE)
+    vehicle = sitl_vehicle()
     folder = RECORDINGS / scenario
     truth = FlightTruth.load(folder / "truth.json", vehicle.mass_kg)
     result = analyze(load_flights([folder / "flight.tlog"]), vehicle)

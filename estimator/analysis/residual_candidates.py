@@ -11,7 +11,7 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
-from estimator.analysis.residual_samples import FULL_CELL_V, Samples
+from estimator.analysis.residual_samples import Samples
 from estimator.estimation.online_effects import wind_from_vector
 from estimator.physics.effects import (
     Acceleration,
@@ -26,6 +26,9 @@ from estimator.physics.effects import (
 )
 from estimator.physics.model import SEA_LEVEL_DENSITY_KGPM3, FloatArray
 from estimator.physics.vehicle import Vehicle
+
+#: Fully charged LiPo cell under light load, V: the voltage effect's reference.
+FULL_CELL_V = 4.2
 
 
 @dataclass(frozen=True)

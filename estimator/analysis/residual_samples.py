@@ -23,10 +23,6 @@ from estimator.physics.model import FloatArray
 IntArray = NDArray[np.int64]
 
 
-#: Fully charged LiPo cell under light load, V: the voltage effect's reference.
-FULL_CELL_V = 4.2
-
-
 #: Extras of a log that are not physical channels.
 _NOT_CHANNELS = ("armed",)
 
