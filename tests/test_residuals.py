@@ -11,7 +11,7 @@ import numpy as np
 import pytest
 
 from estimator.analysis.residual_candidates import candidates_for
-from estimator.analysis.residual_fit import best_window
+from estimator.analysis.residual_fit import best_switch, best_window
 from estimator.analysis.residual_samples import ResidualOptions, Samples, prepare
 from estimator.analysis.residuals import ResidualResult, _block_gain_z, analyze
 from estimator.logs import FlightSeries, load_flights
@@ -76,9 +76,9 @@ def test_hidden_wind_is_named_first_and_recovered(
     result = analyze(flights, VEHICLE)
     first = result.selected[0]
     assert first.name == "wind"
-    assert isinstance(first.effect, Wind)
-    assert abs(first.effect.speed_mps - wind.speed_mps) < 1.0
-    assert angle_diff_deg(first.effect.from_deg, wind.from_deg) < 20.0
+    assert isinstance(first.effects[0], Wind)
+    assert abs(first.effects[0].speed_mps - wind.speed_mps) < 1.0
+    assert angle_diff_deg(first.effects[0].from_deg, wind.from_deg) < 20.0
     assert result.rmse_w(True) < 1.15 * noise_rmse_w(flights, (wind,)) + 0.5
     assert result.rmse_w(True) < 0.3 * result.rmse_w(False)
 
@@ -92,9 +92,9 @@ def test_hidden_constant_mass_is_named_first_and_recovered(
     result = analyze(flights, VEHICLE)
     first = result.selected[0]
     assert first.name == "mass"
-    assert isinstance(first.effect, Mass)
-    assert abs(first.effect.delta_kg - delta_kg) < 0.1
-    assert first.effect.at_s is None
+    assert isinstance(first.effects[0], Mass)
+    assert abs(first.effects[0].delta_kg - delta_kg) < 0.1
+    assert first.effects[0].at_s is None
     assert result.rmse_w(True) < 1.15 * noise_rmse_w(flights, (mass,)) + 0.5
 
 
@@ -104,9 +104,9 @@ def test_payload_picked_up_mid_flight_is_a_mass_step(tmp_path: Path) -> None:
     result = analyze(flights, VEHICLE)
     first = result.selected[0]
     assert first.name == "mass"
-    assert isinstance(first.effect, Mass)
-    assert abs(first.effect.delta_kg - 0.6) < 0.1
-    assert first.effect.at_s is not None and abs(first.effect.at_s - 250.0) < 5.0
+    assert isinstance(first.effects[0], Mass)
+    assert abs(first.effects[0].delta_kg - 0.6) < 0.1
+    assert first.effects[0].at_s is not None and abs(first.effects[0].at_s - 250.0) < 5.0
     # held out, the chunk holding the step cannot know when it happened and keeps some error;
     # the final fit on all data is at the noise level
     assert result.rmse_w(True) < 0.5 * result.rmse_w(False)
@@ -136,7 +136,7 @@ def test_other_hidden_effects_are_named_first(
     first = result.selected[0]
     assert first.name == name
     for key, true_value in effect.params.items():
-        got = first.effect.params[key]
+        got = first.effects[0].params[key]
         if true_value is None:
             assert got is None
         else:
@@ -266,7 +266,7 @@ def test_effect_that_changes_in_flight_is_named_first_with_its_values_and_times(
     result = analyze(flights_of(tmp_path, "mixed", 7, hidden), VEHICLE)
     first = result.selected[0]
     assert first.label.endswith("(window)")
-    assert _close(first.effect, hidden[0]), (case, first.effect)
+    assert _close(first.effects[0], hidden[0]), (case, first.effects[0])
     # the change time is known to a held-out chunk (30 s) only: the error there is the
     # step's size over the seconds between the training rows either side
     assert result.rmse_w(True) < 3.0 * result.noise_floor_w
@@ -277,7 +277,7 @@ def test_effect_that_changes_in_flight_is_named_first_with_its_values_and_times(
 def test_payload_released_and_wind_onset_together_are_both_named(tmp_path: Path) -> None:
     payload, wind = Mass(0.6, None, until_s=350.0), Wind(5.0, 300.0, at_s=200.0)
     result = analyze(flights_of(tmp_path, "mixed", 7, (payload, wind)), VEHICLE)
-    named = [s.effect for s in result.selected]
+    named = result.effects
     assert _close(named[0], payload), named
     assert any(_close(e, wind) for e in named[1:]), named
     assert result.rmse_w(True) < 2.0 * result.noise_floor_w
@@ -286,7 +286,7 @@ def test_payload_released_and_wind_onset_together_are_both_named(tmp_path: Path)
 def test_a_large_load_as_good_as_a_mass_is_named_as_the_mass(tmp_path: Path) -> None:
     payload = Mass(0.6, None, until_s=350.0)
     result = analyze(flights_of(tmp_path, "mixed", 7, (payload,)), VEHICLE)
-    assert isinstance(result.selected[0].effect, Mass)
+    assert isinstance(result.selected[0].effects[0], Mass)
 
 
 def test_best_window_is_the_run_with_the_largest_summed_gain() -> None:
@@ -295,6 +295,33 @@ def test_best_window_is_the_run_with_the_largest_summed_gain() -> None:
     first, last, total = best_window(t, gain)
     assert (first, last) == (30, 69) and total == pytest.approx(40.0)
     assert best_window(t, np.full(100, -1.0))[2] == pytest.approx(-1.0)
+
+
+def test_best_switch_is_where_the_second_parameter_set_starts_to_win() -> None:
+    t = np.arange(100.0)[::-1].copy()  # any order: the rows are sorted by time
+    first_minus_second = np.where(t < 40, -1.0, 1.0)
+    assert best_switch(t, first_minus_second) == pytest.approx(39.5)
+    # never at an end: at least one row on each side
+    assert best_switch(t, np.ones(100)) == pytest.approx(0.5)
+
+
+def test_a_wind_that_turns_is_named_as_a_change_with_both_winds_and_the_time(
+    tmp_path: Path,
+) -> None:
+    before, after = Wind(6.0, 90.0, until_s=250.0), Wind(6.0, 180.0, at_s=250.0)
+    result = analyze(flights_of(tmp_path, "mixed", 7, (before, after)), VEHICLE)
+    assert result.selected[0].label == "wind (change)"
+    named = result.selected[0].effects
+    assert _close(named[0], before) and _close(named[1], after), named
+    assert [d["params"]["until_s"] for d in result.summary()["effects"][:2]][1] is None
+
+
+def test_a_wind_that_stops_is_a_window_not_a_change_to_a_breeze(tmp_path: Path) -> None:
+    """The simplest form of an effect unless a richer one cuts the held-out error by 10 %."""
+    wind = Wind(6.0, 200.0, until_s=250.0)
+    result = analyze(flights_of(tmp_path, "mixed", 7, (wind,)), VEHICLE)
+    assert result.selected[0].label == "wind (window)"
+    assert _close(result.selected[0].effects[0], wind)
 
 
 def test_verdict_never_says_noise_when_the_residual_is_far_above_the_floor(

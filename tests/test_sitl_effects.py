@@ -27,10 +27,6 @@ NOT_SCORED = {"battery_reserve"}
 KNOWN_WRONG = {
     "heavy_quad": "SITL scales the whole hover current with mass; the model's mass law scales "
     "the induced part only, so +1 kg reads as +1.64 kg",
-    "wind_onset_circles": "the all-flight wind explains more of the circles than the windowed "
-    "one: named all flight, not from 109 s",
-    "wind_turn": "in hover a wind's speed matters, not its direction: one window spreads over "
-    "both winds and its compromise direction helps nowhere; a two-wind candidate is missing",
 }
 SCENARIOS = sorted(p.name for p in RECORDINGS.iterdir() if p.is_dir() and p.name not in NOT_SCORED)
 

@@ -38,7 +38,10 @@ class Candidate:
     ``windowed``: the effect acts in a time window ``[at_s, until_s)`` searched on the training
     data (a wind that starts or stops, a payload picked up or released, a load switched on or
     off); either end may be open (the flight's start or end).
-    ``null``: x at which the effect does nothing (None when it always acts, like ``climb``).
+    ``switch``: x holds two parameter sets of the effect, the first acting until a switch time
+    searched on the training data and the second from it (a wind that turns or changes speed:
+    in hover a wind's speed shows and its direction does not, so one window spreading over
+    both winds helps nowhere).
     """
 
     name: str
@@ -46,13 +49,25 @@ class Candidate:
     lower: tuple[float, ...]
     upper: tuple[float, ...]
     build: Callable[[FloatArray, float | None, float | None], Effect]
-    null: tuple[float, ...] | None = None
     windowed: bool = False
     starts: tuple[tuple[float, ...], ...] = ()
+    switch: bool = False
 
     @property
     def label(self) -> str:
+        if self.switch:
+            return f"{self.name} (change)"
         return f"{self.name} (window)" if self.windowed else self.name
+
+    def effects(
+        self, x: FloatArray, at_s: float | None, until_s: float | None
+    ) -> tuple[Effect, ...]:
+        """The effects for parameters ``x`` in the window (for a switch: ``at_s`` is the
+        switch time)."""
+        if not self.switch:
+            return (self.build(x, at_s, until_s),)
+        half = len(x) // 2
+        return self.build(x[:half], None, at_s), self.build(x[half:], at_s, None)
 
 
 def _wind(x: FloatArray, at_s: float | None, until_s: float | None) -> Effect:
@@ -66,6 +81,19 @@ def _constant_and_windowed(candidate: Candidate) -> tuple[Candidate, Candidate]:
     return candidate, replace(candidate, windowed=True)
 
 
+def _switched(candidate: Candidate) -> Candidate:
+    """The candidate with one set of parameters until a switch time and another after it."""
+    return replace(
+        candidate,
+        x0=candidate.x0 * 2,
+        lower=candidate.lower * 2,
+        upper=candidate.upper * 2,
+        windowed=True,
+        switch=True,
+        starts=tuple(a + b for a in candidate.starts for b in candidate.starts),
+    )
+
+
 def candidates_for(vehicle: Vehicle, samples: Samples, names: Sequence[str]) -> list[Candidate]:
     """The candidates to try: ``names`` minus effects the vehicle file already has."""
     mass_lo = max(Mass.bounds["delta_kg"][0], -0.7 * vehicle.mass_kg)
@@ -75,20 +103,17 @@ def candidates_for(vehicle: Vehicle, samples: Samples, names: Sequence[str]) -> 
     avi_lo, avi_hi = Avionics.bounds["power_w"]
     turn_lo, turn_hi = Turn.bounds["power_w_per_g2"]
     wind_max = Wind.bounds["speed_mps"][1]
+    wind = Candidate(
+        "wind",
+        (0.0, 0.0),
+        (-wind_max, -wind_max),
+        (wind_max, wind_max),
+        _wind,
+        starts=tuple((4.0 * math.cos(a), 4.0 * math.sin(a)) for a in np.radians([0, 120, 240])),
+    )
     all_candidates = [
-        *_constant_and_windowed(
-            Candidate(
-                "wind",
-                (0.0, 0.0),
-                (-wind_max, -wind_max),
-                (wind_max, wind_max),
-                _wind,
-                null=(0.0, 0.0),
-                starts=tuple(
-                    (4.0 * math.cos(a), 4.0 * math.sin(a)) for a in np.radians([0, 120, 240])
-                ),
-            )
-        ),
+        *_constant_and_windowed(wind),
+        _switched(wind),
         *_constant_and_windowed(
             Candidate(
                 "mass",
@@ -96,7 +121,6 @@ def candidates_for(vehicle: Vehicle, samples: Samples, names: Sequence[str]) -> 
                 (mass_lo,),
                 (mass_hi,),
                 lambda x, at, until: Mass(float(x[0]), at, until),
-                (0.0,),
             )
         ),
         Candidate(
@@ -105,7 +129,6 @@ def candidates_for(vehicle: Vehicle, samples: Samples, names: Sequence[str]) -> 
             (rho_lo,),
             (rho_hi,),
             lambda x, _at, _until: AirDensity(float(x[0])),
-            (SEA_LEVEL_DENSITY_KGPM3,),
         ),
         Candidate("climb", (0.6,), (0.2,), (1.0,), lambda x, _at, _until: Climb(float(x[0]))),
         *_constant_and_windowed(
@@ -115,7 +138,6 @@ def candidates_for(vehicle: Vehicle, samples: Samples, names: Sequence[str]) -> 
                 (avi_lo,),
                 (avi_hi,),
                 lambda x, at, until: Avionics(float(x[0]), at, until),
-                (0.0,),
             )
         ),
         Candidate(
@@ -124,7 +146,6 @@ def candidates_for(vehicle: Vehicle, samples: Samples, names: Sequence[str]) -> 
             (0.0,),
             (Voltage.bounds["resistance_ohm"][1],),
             lambda x, _at, _until: Voltage(float(x[0]), ref_v),
-            (0.0,),
         ),
         Candidate(
             "acceleration",
@@ -132,7 +153,6 @@ def candidates_for(vehicle: Vehicle, samples: Samples, names: Sequence[str]) -> 
             (0.2, 0.0),
             (1.0, 1.0),
             lambda x, _at, _until: Acceleration(float(x[0]), float(x[1])),
-            (1.0, 1.0),
         ),
         Candidate(
             "turn",
@@ -140,7 +160,6 @@ def candidates_for(vehicle: Vehicle, samples: Samples, names: Sequence[str]) -> 
             (turn_lo,),
             (turn_hi,),
             lambda x, _at, _until: Turn(float(x[0])),
-            (0.0,),
         ),
     ]
     declared = set(vehicle.effects)

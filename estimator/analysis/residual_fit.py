@@ -4,6 +4,7 @@
 
 from __future__ import annotations
 
+import math
 from collections.abc import Sequence
 from dataclasses import dataclass
 
@@ -24,15 +25,16 @@ from estimator.physics.vehicle import Vehicle
 
 @dataclass
 class Term:
-    """A candidate with fitted parameters (and, when windowed, its time window, s)."""
+    """A candidate with fitted parameters (and, when windowed, its time window, s; for a
+    switch, ``at_s`` is the switch time)."""
 
     candidate: Candidate
     x: FloatArray
     at_s: float | None = None
     until_s: float | None = None
 
-    def effect(self) -> Effect:
-        return self.candidate.build(self.x, self.at_s, self.until_s)
+    def effects(self) -> tuple[Effect, ...]:
+        return self.candidate.effects(self.x, self.at_s, self.until_s)
 
 
 class FitProblem:
@@ -80,7 +82,10 @@ def _fit_terms(
         return out
 
     def resid(x: FloatArray) -> FloatArray:
-        return problem.predict([*fixed, *(t.effect() for t in unpack(x))]) - problem.power_w
+        return (
+            problem.predict([*fixed, *(e for t in unpack(x) for e in t.effects())])
+            - problem.power_w
+        )
 
     starts = [np.concatenate([t.x for t in terms])]
     for i, term in enumerate(terms):
@@ -117,64 +122,99 @@ def best_window(time_s: FloatArray, gain: FloatArray) -> tuple[int, int, float]:
     return first, last, float(sums[last])
 
 
+def best_switch(time_s: FloatArray, loss_diff: FloatArray) -> float:
+    """The switch time (s) from one parameter set to another: ``loss_diff`` is the per-row
+    loss with the first set minus with the second; the split of the rows sorted by time with
+    the lowest total (the first set before it, the second after), at least one row on each
+    side, placed midway between the two rows around it. Prefix sums: linear after the sort."""
+    order = np.argsort(time_s, kind="stable")
+    ts = time_s[order]
+    if len(ts) < 2:
+        return float(np.median(time_s))
+    k = int(np.argmin(np.cumsum(loss_diff[order])[:-1]))
+    return 0.5 * float(ts[k] + ts[k + 1])
+
+
 #: Window ends this close (s) to the flight's first/last airborne sample are open.
 _OPEN_END_S = 10.0
+
+
+def _window_times(
+    problem: FitProblem, t: FloatArray, ts: FloatArray, gain: FloatArray, cost: float
+) -> tuple[float | None, float | None]:
+    """The window (at_s, until_s) with the largest summed ``gain`` per row (rows at times
+    ``t``, sorted ``ts``); an end near the flight's first/last sample is open, and so is an
+    end whose closing gains less than ``cost`` (a change point's price, in loss units), or
+    where the effect helps at least half of the rows outside it: a window must not end on a
+    dip of the model's own error (a manoeuvre the model gets wrong)."""
+    lo, hi, _sum = best_window(t, gain)
+    by_time = gain[np.argsort(t, kind="stable")]
+    before, after = by_time[:lo], by_time[hi + 1 :]
+    if lo > 0 and (before.sum() > -cost or np.median(before) >= 0.0):
+        lo = 0
+    if hi < len(ts) - 1 and (after.sum() > -cost or np.median(after) >= 0.0):
+        hi = len(ts) - 1
+    return (
+        None
+        if lo == 0 or ts[lo] - problem.first_s < _OPEN_END_S
+        # any time between two training rows splits them alike (a held-out gap)
+        else 0.5 * float(ts[lo - 1] + ts[lo]),
+        None
+        if hi == len(ts) - 1 or problem.last_s - ts[hi] < _OPEN_END_S
+        else 0.5 * float(ts[hi] + ts[hi + 1]),
+    )
 
 
 def _search_window(
     problem: FitProblem, others: list[Term], term: Term, f_scale_w: float, warm: bool
 ) -> Term:
-    """Fit ``term``'s parameters and time window on top of ``others``.
+    """Fit ``term``'s parameters and time window (or switch time) on top of ``others``.
 
     Starts: the parameters fitted over the whole flight, and over its first and second half
-    (an effect present in one half only, or a different one in each, as a wind that turns).
-    From each, alternately the window with the largest robust gain for these parameters
-    (:func:`best_window`, linear in the samples) and the parameters for that window; the
-    start with the lowest robust loss wins.
+    (an effect present in one half only); a switch starts at the middle. From each,
+    alternately the window with the largest robust gain for these parameters
+    (:func:`best_window`) or the best switch time (:func:`best_switch`), both linear in the
+    samples, and the parameters for that window; the start with the lowest robust loss wins.
     """
-    fixed = [t.effect() for t in others]
+    fixed = [e for t in others for e in t.effects()]
     loss_cap = (3.0 * f_scale_w) ** 2
-    loss_without = np.minimum((problem.power_w - problem.predict(fixed)) ** 2, loss_cap)
+    # a change point costs log(n) robust variances (f_scale is 3 σ), as in BIC
+    change_cost = math.log(max(len(problem.power_w), 2)) * (f_scale_w / 3.0) ** 2
+
+    def loss(effects: Sequence[Effect]) -> FloatArray:
+        return np.minimum((problem.power_w - problem.predict([*fixed, *effects])) ** 2, loss_cap)
+
+    loss_without = loss([])
     t = problem.state.time_s
     ts = np.sort(t)
     middle = float(np.median(ts))
     first_fit = frozenset({0} if warm else ())
+    cand = term.candidate
+    starts: list[tuple[float | None, float | None]] = (
+        [(middle, None)] if cand.switch else [(None, None), (None, middle), (middle, None)]
+    )
     best: tuple[float, Term] | None = None
-    starts: list[tuple[float | None, float | None]] = [(None, None), (None, middle), (middle, None)]
     for window in starts:
-        start = Term(term.candidate, term.x, *window)
+        start = Term(cand, term.x, *window)
         current = _fit_terms(problem, [start], f_scale_w, first_fit, fixed)[0]
         found: tuple[float | None, float | None] | None = None
         for _ in range(4):
-            always = Term(current.candidate, current.x)
-            loss_with = np.minimum(
-                (problem.power_w - problem.predict([*fixed, always.effect()])) ** 2, loss_cap
-            )
-            lo, hi, _gain = best_window(t, loss_without - loss_with)
-            window = (
-                None
-                if lo == 0 or ts[lo] - problem.first_s < _OPEN_END_S
-                # any time between two training rows splits them alike (a held-out gap)
-                else 0.5 * float(ts[lo - 1] + ts[lo]),
-                None
-                if hi == len(ts) - 1 or problem.last_s - ts[hi] < _OPEN_END_S
-                else 0.5 * float(ts[hi] + ts[hi + 1]),
-            )
+            if cand.switch:
+                half = len(current.x) // 2
+                before = loss([cand.build(current.x[:half], None, None)])
+                after = loss([cand.build(current.x[half:], None, None)])
+                window = (best_switch(t, before - after), None)
+            else:
+                always = loss(Term(cand, current.x).effects())
+                window = _window_times(problem, t, ts, loss_without - always, change_cost)
             if window == found:
                 break
             found = window
-            current = Term(current.candidate, current.x, *window)
+            current = Term(cand, current.x, *window)
             current = _fit_terms(problem, [current], f_scale_w, frozenset({0}), fixed)[0]
-        loss = float(
-            np.sum(
-                np.minimum(
-                    (problem.power_w - problem.predict([*fixed, current.effect()])) ** 2,
-                    loss_cap,
-                )
-            )
-        )
-        if best is None or loss < best[0]:
-            best = (loss, current)
+        total = float(np.sum(loss(current.effects())))
+        if best is None or total < best[0]:
+            best = (total, current)
     assert best is not None
     return best[1]
 

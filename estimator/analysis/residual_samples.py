@@ -45,8 +45,8 @@ class ResidualOptions:
     min_power_fraction: float = 0.25
     max_gap_s: float = 2.0
     #: Take-off transient: at least this long (s) after the first airborne row, and until the
-    #: vertical speed first falls to ``level_mps`` (m/s); the final descent from the last row
-    #: at or below it is dropped too.
+    #: vertical speed first falls to ``level_mps`` (m/s); the final descent after the last
+    #: level stretch at least this long is dropped too (a touch-down slows below it).
     settle_s: float = 5.0
     level_mps: float = 0.3
     min_flight_s: float = 30.0
@@ -217,7 +217,11 @@ def _level_between(
     if not settled.any():
         return rows[:0]
     first = int(np.argmax(settled))
-    last = len(rows) - 1 - int(np.argmax(level[::-1]))
+    # stretches of consecutive level rows: their first and last index
+    edges = np.diff(np.r_[0, level.astype(np.int8), 0])
+    starts, ends = np.flatnonzero(edges == 1), np.flatnonzero(edges == -1) - 1
+    steady = ends[t[rows[ends]] - t[rows[starts]] >= opt.settle_s]
+    last = int(steady[-1]) if len(steady) else len(rows) - 1 - int(np.argmax(level[::-1]))
     return rows[first : last + 1]
 
 

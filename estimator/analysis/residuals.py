@@ -28,9 +28,10 @@ Method
 3. **Candidates**: one :class:`Candidate` per effect of :mod:`estimator.physics.effects` not
 already in
    the vehicle file, each with one or two parameters fitted by ``scipy.optimize.least_squares``
-   (soft-L1 loss, bounds from the effect's ``bounds``). ``mass`` and ``avionics`` come twice:
-   constant (``at_s`` null) and stepped, the step time searched on the training data by a
-   linearised scan over the sample times, then all parameters refitted together.
+   (soft-L1 loss, bounds from the effect's ``bounds``). ``wind``, ``mass`` and ``avionics``
+   also come in a time window searched on the training data (prefix sums), and ``wind`` as a
+   change (two winds, one switch time); the simplest form wins unless a richer one cuts the
+   held-out RMSE by ``min_gain_fraction``.
 4. **Greedy forward selection**: at each step every remaining candidate is added to the
    selected set and scored by its held-out predictions. The held-out squared errors of the
    current and the extended model are summed per evaluation block of ``block_s`` seconds and
@@ -94,13 +95,16 @@ class CandidateScore:
 
 @dataclass
 class Selected:
-    """An effect chosen by the selection: final parameters (all data) and held-out RMSE after."""
+    """An effect chosen by the selection: final parameters (all data) and held-out RMSE after.
+    ``effects``: one, or two for a change (the first until the switch time, the second
+    after)."""
 
     name: str
-    effect: Effect
+    effects: tuple[Effect, ...]
     rmse_after_w: float
     z: float
-    params_fold_sd: dict[str, float]
+    #: Spread over the folds of each effect's parameters (one dict per effect).
+    params_fold_sd: list[dict[str, float]]
     #: Qualifying candidates as good on held-out data (label, RMSE W, z of chosen vs it).
     ties: list[tuple[str, float, float]] = field(default_factory=list)
     #: The best other candidate of that step (label, RMSE W, z of chosen vs it), if any.
@@ -108,15 +112,22 @@ class Selected:
     #: The candidate's label ("mass (window)" for one in a time window).
     label: str = ""
 
-    def as_dict(self) -> dict[str, Any]:
+    def as_dicts(self) -> list[dict[str, Any]]:
+        """One JSON object per effect (a change gives two, in time order)."""
+        return [
+            self._as_dict(effect, sd)
+            for effect, sd in zip(self.effects, self.params_fold_sd, strict=True)
+        ]
+
+    def _as_dict(self, effect: Effect, fold_sd: dict[str, float]) -> dict[str, Any]:
         return {
             "name": self.name,
             "label": self.label or self.name,
-            "description": describe(self.effect),
-            "params": _round_params(self.effect.params),
+            "description": describe(effect),
+            "params": _round_params(effect.params),
             "rmse_after_w": round(self.rmse_after_w, 3),
             "z": round(self.z, 2),
-            "params_fold_sd": {k: round(v, 4) for k, v in self.params_fold_sd.items()},
+            "params_fold_sd": {k: round(v, 4) for k, v in fold_sd.items()},
             "indistinguishable_from": [
                 {"candidate": label, "rmse_w": round(r, 3), "z": round(z, 2)}
                 for label, r, z in self.ties
@@ -149,7 +160,7 @@ class ResidualResult:
 
     @property
     def effects(self) -> list[Effect]:
-        return [s.effect for s in self.selected]
+        return [e for s in self.selected for e in s.effects]
 
     def residual_before_w(self) -> FloatArray:
         return self.samples.power_w - self.predicted_before_w
@@ -194,7 +205,7 @@ class ResidualResult:
             f"{self.noise_floor_w:.1f} W"
         )
         added = "; ".join(
-            describe(s.effect)
+            " then ".join(describe(e) for e in s.effects)
             + (f" (as good held out: {', '.join(t[0] for t in s.ties)})" if s.ties else "")
             for s in self.selected
         )
@@ -225,7 +236,7 @@ class ResidualResult:
             "rmse_after_w": round(self.rmse_w(True), 3),
             "mape_before_pct": round(self.mape_pct(False), 3),
             "mape_after_pct": round(self.mape_pct(True), 3),
-            "effects": [s.as_dict() for s in self.selected],
+            "effects": [d for s in self.selected for d in s.as_dicts()],
             "attribution": {
                 "verdict": self.verdict(),
                 "best_channel": self.attribution[0].channel if self.attribution else None,
@@ -317,7 +328,9 @@ def _held_out(
             continue
         train = samples.train_rows(j, opt.guard_s)
         terms = fit_design(FitProblem(vehicle, samples, train), candidates, f_scale_w, warm)
-        predicted[test] = FitProblem(vehicle, samples, test).predict([t.effect() for t in terms])
+        predicted[test] = FitProblem(vehicle, samples, test).predict(
+            [e for t in terms for e in t.effects()]
+        )
         per_fold.append(terms)
     return predicted, per_fold
 
@@ -378,7 +391,7 @@ def analyze(
             gain = 1.0 - rmse / rmse_now if rmse_now > 0 else 0.0
             z = _block_gain_z(samples, samples.power_w - current, samples.power_w - predicted)
             ok = z > opt.z_threshold and gain >= opt.min_gain_fraction
-            median_params = folds[len(folds) // 2][-1].effect().params
+            median_params = folds[len(folds) // 2][-1].effects()[0].params
             table.append(CandidateScore(step, cand.label, rmse, gain, z, ok, median_params))
             trials.append((rmse, z, ok, cand, predicted, folds))
         good = [t for t in trials if t[2]]
@@ -396,20 +409,23 @@ def analyze(
             )
             for t in others
         ]
+        # a richer form of the chosen effect (a change for a window) nests it: no rival
         ties = [
             rival
             for rival, t in zip(rivals, others, strict=True)
-            if t[2] and rival[2] < opt.z_threshold
+            if t[2]
+            and rival[2] < opt.z_threshold
+            and not (t[3].name == cand.name and _parameter_count(t[3]) > _parameter_count(cand))
         ]
         chosen.append(cand)
         current = predicted
         final = fit_design(FitProblem(vehicle, samples, everything), chosen, f_scale_w, warm)
         warm = [t.x for t in final]
-        fold_effects = [terms[-1].effect() for terms in folds]
+        fold_effects = [terms[-1].effects() for terms in folds]
         selected.append(
             Selected(
                 cand.name,
-                final[-1].effect(),
+                final[-1].effects(),
                 rmse,
                 z,
                 _fold_sd(fold_effects, final[-1]),
@@ -420,14 +436,14 @@ def analyze(
         )
         # earlier effects are refitted jointly with the new one
         for i, term in enumerate(final[:-1]):
-            selected[i].effect = term.effect()
+            selected[i].effects = term.effects()
         # a windowed effect may come again (a wind that turns, a second payload): only its
         # all-flight form leaves; an all-flight effect is final
         remaining = [
             c
             for c in remaining
             if c.name != cand.name
-            or (cand.windowed and c.windowed and len(chosen) < opt.max_effects)
+            or (cand.windowed and c.windowed and not cand.switch and len(chosen) < opt.max_effects)
         ]
     if progress is not None:
         progress("attribution")
@@ -445,17 +461,33 @@ def analyze(
         attribution_before=attribution_before,
         noise_floor_w=_noise_floor_w(samples, after_resid),
         predicted_final_w=FitProblem(vehicle, samples, everything).predict(
-            [s.effect for s in selected]
+            [e for s in selected for e in s.effects]
         ),
     )
 
 
 def _pick(samples: Samples, good: list[Any], opt: ResidualOptions) -> Any:
     """The qualifying trial (rmse, z, ok, candidate, predicted, folds) with the lowest held-out
-    RMSE; but a constant load above ``max_load_w`` that held-out data cannot tell from a mass
-    (a payload draws power in every flight state alike when current is linear in thrust) is
-    named as that mass: loads that large are payloads, not electronics."""
-    best = min(good, key=lambda t: t[0])
+    RMSE; among the forms of that effect (all flight, in a window, changing), a form with
+    more fitted numbers only when it cuts the simpler one's held-out RMSE by
+    ``min_gain_fraction``, as an added effect must (a wind that stops rather than one that
+    changes to a light breeze). A constant load above
+    ``max_load_w`` that held-out data cannot tell from a mass (a payload draws power in every
+    flight state alike when current is linear in thrust) is named as that mass: loads that
+    large are payloads, not electronics."""
+
+    def indistinguishable(trial: Any, best: Any) -> bool:
+        z = _block_gain_z(samples, samples.power_w - trial[4], samples.power_w - best[4])
+        return z < opt.z_threshold
+
+    lowest = min(good, key=lambda t: t[0])
+    forms = sorted(
+        (t for t in good if t[3].name == lowest[3].name), key=lambda t: _parameter_count(t[3])
+    )
+    best = forms[0]
+    for trial in forms[1:]:
+        if trial[0] <= (1.0 - opt.min_gain_fraction) * best[0]:
+            best = trial
     cand, folds = best[3], best[5]
     if cand.name != "avionics":
         return best
@@ -464,26 +496,32 @@ def _pick(samples: Samples, good: list[Any], opt: ResidualOptions) -> Any:
         return best
     for trial in good:
         same_kind = trial[3].name == "mass" and trial[3].windowed == cand.windowed
-        if same_kind:
-            z = _block_gain_z(samples, samples.power_w - trial[4], samples.power_w - best[4])
-            if z < opt.z_threshold:
-                return trial
+        if same_kind and indistinguishable(trial, best):
+            return trial
     return best
 
 
-def _fold_sd(fold_effects: list[Effect], final: Term) -> dict[str, float]:
-    """Spread (1σ) of each numeric parameter over the folds (angles wrapped to the final)."""
-    out: dict[str, float] = {}
-    ref = final.effect().params
-    for key, value in ref.items():
-        values = [e.params[key] for e in fold_effects]
-        if value is None or any(v is None for v in values):
-            continue
-        diffs = np.asarray(values, dtype=float) - float(value)
-        if key.endswith("_deg"):
-            diffs = (diffs + 180.0) % 360.0 - 180.0
-        out[key] = float(np.sqrt(np.mean(diffs**2)))
-    return out
+def _parameter_count(candidate: Candidate) -> int:
+    """Fitted numbers of a candidate: its parameters and its change time(s)."""
+    return len(candidate.x0) + (1 if candidate.windowed else 0)
+
+
+def _fold_sd(fold_effects: list[tuple[Effect, ...]], final: Term) -> list[dict[str, float]]:
+    """Spread (1σ) of each numeric parameter of each of the term's effects over the folds
+    (angles wrapped to the final)."""
+    spreads = []
+    for k, effect in enumerate(final.effects()):
+        out: dict[str, float] = {}
+        for key, value in effect.params.items():
+            values = [effects[k].params[key] for effects in fold_effects]
+            if value is None or any(v is None for v in values):
+                continue
+            diffs = np.asarray(values, dtype=float) - float(value)
+            if key.endswith("_deg"):
+                diffs = (diffs + 180.0) % 360.0 - 180.0
+            out[key] = float(np.sqrt(np.mean(diffs**2)))
+        spreads.append(out)
+    return spreads
 
 
 def _noise_floor_w(samples: Samples, resid: FloatArray) -> float:

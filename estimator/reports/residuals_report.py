@@ -77,8 +77,8 @@ def _mark_windows(
     ax: Axes, result: ResidualResult, first_s: float, last_s: float, shift_s: float
 ) -> None:
     """Shade each selected effect's time window (flight clock + ``shift_s``), labelled."""
-    for k, sel in enumerate(result.selected):
-        params = sel.effect.params
+    for k, effect in enumerate(result.effects):
+        params = effect.params
         if "at_s" not in params or (params["at_s"] is None and params.get("until_s") is None):
             continue
         lo = first_s if params["at_s"] is None else max(first_s, params["at_s"])
@@ -89,7 +89,7 @@ def _mark_windows(
         ax.text(
             lo + shift_s,
             0.98 - 0.06 * k,
-            f" {describe(sel.effect)}",
+            f" {describe(effect)}",
             transform=ax.get_xaxis_transform(),
             fontsize=7,
             va="top",
