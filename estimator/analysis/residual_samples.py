@@ -45,10 +45,12 @@ class ResidualOptions:
     min_power_fraction: float = 0.25
     max_gap_s: float = 2.0
     #: Take-off transient: at least this long (s) after the first airborne row, and until the
-    #: vertical speed first falls to ``level_mps`` (m/s); the final descent after the last
-    #: level stretch at least this long is dropped too (a touch-down slows below it).
+    #: vertical speed first falls to ``level_mps`` (m/s).
     settle_s: float = 5.0
     level_mps: float = 0.3
+    #: The final descent, dropped, starts after the last stretch of level rows at least this
+    #: long (s): a touch-down slows below ``level_mps`` for a moment.
+    level_stretch_s: float = 1.0
     min_flight_s: float = 30.0
     candidates: tuple[str, ...] = tuple(EFFECT_TYPES)
     #: Channels with a held-out R² below this do not count as predicting the residual.
@@ -220,7 +222,7 @@ def _level_between(
     # stretches of consecutive level rows: their first and last index
     edges = np.diff(np.r_[0, level.astype(np.int8), 0])
     starts, ends = np.flatnonzero(edges == 1), np.flatnonzero(edges == -1) - 1
-    steady = ends[t[rows[ends]] - t[rows[starts]] >= opt.settle_s]
+    steady = ends[t[rows[ends]] - t[rows[starts]] >= opt.level_stretch_s]
     last = int(steady[-1]) if len(steady) else len(rows) - 1 - int(np.argmax(level[::-1]))
     return rows[first : last + 1]
 
