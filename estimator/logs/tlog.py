@@ -5,14 +5,11 @@ followed by one MAVLink 1 (STX 0xFE) or MAVLink 2 (STX 0xFD) frame. The receive 
 used: sample times come from the autopilot's ``time_boot_ms`` (:class:`TelemetryDecoder`), as
 in the daemon, so a replay gives the same samples as a live run.
 
-Speed: the records are found in one numpy pass over the file (a Python walk follows them only
-where the file is damaged); frames the decoder would not use (by message id, and once it knows
-the autopilot by source, see :meth:`TelemetryDecoder.discards`) are skipped without being
-parsed, and the used ones are checked and unpacked together per message type
-(:mod:`estimator.logs.frame_batch`) into the messages pymavlink would give.
-A record without a frame start, or a frame whose checksum fails, is corrupt: it is counted,
-and the reader re-synchronises on the next plausible record. A file that ends inside a record
-is read up to the damage and flagged ``truncated``.
+Speed: the frame header is read here and frames the decoder would not use (by message id, and
+once it knows the autopilot by source, see :meth:`TelemetryDecoder.discards`) are skipped
+without being parsed. A record without a frame start is corrupt: it is counted and the
+reader re-synchronises on the next plausible record. A file that ends inside a record is read
+up to the damage and flagged ``truncated``.
 """
 
 from __future__ import annotations
@@ -21,12 +18,9 @@ import struct
 from collections.abc import Iterator
 from pathlib import Path
 
-import numpy as np
-
 from estimator.errors import UserError
 from estimator.logs import SampleStream
-from estimator.logs.frame_batch import FrameBatch, IntArray
-from estimator.telemetry.decode import USED_MESSAGE_IDS, TelemetryDecoder
+from estimator.telemetry.decode import USED_MESSAGE_IDS, FrameParser, TelemetryDecoder
 from estimator.telemetry.plausibility import InputLimits
 from estimator.telemetry.samples import Sample
 
@@ -83,17 +77,33 @@ def frame_source(data: bytes, start: int) -> tuple[int, int]:
 
 
 def _records(data: bytes, stream: SampleStream, decoder: TelemetryDecoder) -> Iterator[Sample]:
-    starts, lengths = _walk(data, stream)
-    frames = FrameBatch(data, starts + STAMP_BYTES, lengths)
-    used = np.isin(frames.msgid, list(USED_MESSAGE_IDS))
-    stream.skipped += int(np.count_nonzero(~used))
-    msgids, systems = frames.msgid.tolist(), frames.system.tolist()
-    components = frames.component.tolist()
-    for i in np.flatnonzero(used).tolist():
-        if decoder.discards(msgids[i], systems[i], components[i]):
-            stream.skipped += 1
+    parser = FrameParser()
+    end = len(data)
+    pos = 0
+    last_good: int | None = None  # offset of the last good record (its stamp anchors resync)
+    used = USED_MESSAGE_IDS
+    while pos < end:
+        if pos + STAMP_BYTES >= end:
+            stream.truncated = True
+            break
+        header = frame_length(data, pos + STAMP_BYTES)
+        if header is None:
+            stream.bad_frames += 1
+            last_stamp_us = None if last_good is None else _stamp_us(data, last_good)
+            pos = _resync(data, pos + 1, last_stamp_us)
             continue
-        msg = frames.message(i)
+        length, msgid = header
+        frame_end = pos + STAMP_BYTES + length
+        if frame_end > end:
+            stream.truncated = True
+            break
+        last_good = pos
+        if msgid not in used or decoder.discards(msgid, *frame_source(data, pos + STAMP_BYTES)):
+            stream.skipped += 1
+            pos = frame_end
+            continue
+        msg = parser.decode_frame(data[pos + STAMP_BYTES : frame_end])
+        pos = frame_end
         if msg is None:
             stream.bad_frames += 1
             continue
@@ -102,57 +112,6 @@ def _records(data: bytes, stream: SampleStream, decoder: TelemetryDecoder) -> It
     stream.count_checks(decoder.counts)
     if decoder.velocity_type is not None:
         stream.velocity_source = f"{decoder.velocity_type}.vz"
-
-
-def _walk(data: bytes, stream: SampleStream) -> tuple[IntArray, IntArray]:
-    """(record offsets, frame lengths) of the whole records of ``data``, in order; records
-    without a frame start are counted in ``stream.bad_frames`` (the walk re-synchronises), a
-    record cut by the end of the file sets ``stream.truncated``."""
-    next_record = _next_records(data)
-    starts: list[int] = []
-    ends: list[int] = []
-    end = len(data)
-    pos = 0
-    while pos < end:
-        frame_end = next_record.get(pos)
-        if frame_end is None:  # no whole frame here: the rules of frame_length, one by one
-            if pos + STAMP_BYTES >= end:
-                stream.truncated = True
-                break
-            header = frame_length(data, pos + STAMP_BYTES)
-            if header is None:
-                stream.bad_frames += 1
-                last_stamp_us = _stamp_us(data, starts[-1]) if starts else None
-                pos = _resync(data, pos + 1, last_stamp_us)
-                continue
-            frame_end = pos + STAMP_BYTES + header[0]
-            if frame_end > end:
-                stream.truncated = True
-                break
-        starts.append(pos)
-        ends.append(frame_end)
-        pos = frame_end
-    first = np.array(starts, dtype=np.int64)
-    return first, np.array(ends, dtype=np.int64) - first - STAMP_BYTES
-
-
-def _next_records(data: bytes) -> dict[int, int]:
-    """For every offset where a record with a whole frame could start (an STX after the
-    stamp, the frame inside the file): the offset after that record. One numpy pass."""
-    raw = np.frombuffer(data, dtype=np.uint8)
-    end = len(raw)
-    stx = raw[STAMP_BYTES:]
-    record = np.flatnonzero((stx == _STX_V1) | (stx == _STX_V2))
-    frame = record + STAMP_BYTES
-    v1 = raw[frame] == _STX_V1
-    header_end = frame + np.where(v1, 6, 10)
-    inside = header_end <= end
-    record, frame, v1 = record[inside], frame[inside], v1[inside]
-    length = raw[frame + 1].astype(np.int64) + np.where(v1, _V1_OVERHEAD, _V2_OVERHEAD)
-    signed = ~v1 & (raw[np.minimum(frame + 2, end - 1)] & _SIGNED_FLAG != 0)
-    frame_end = frame + length + np.where(signed, _V2_SIGNATURE, 0)
-    whole = frame_end <= end
-    return dict(zip(record[whole].tolist(), frame_end[whole].tolist(), strict=True))
 
 
 def _stamp_us(data: bytes, record: int) -> int:
