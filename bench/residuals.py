@@ -5,7 +5,8 @@ vehicle with a hidden 5 m/s wind, each with its own seed: 1, 4 and 16 of them. P
 time of the analysis (``analyze``: candidate fits, held-out scoring, the k-NN attribution) and
 of the attribution alone, per size, and the ratio to the 1× time: linear in the data means
 about 4 and 16. CPU time (not wall) because the analysis is single-threaded and the machine may
-be shared. Run: ``python -m bench.residuals``.
+be shared. An untimed 1× run first takes the first-call costs (lazy imports, caches).
+Run: ``python -m bench.residuals``.
 """
 
 from __future__ import annotations
@@ -55,6 +56,7 @@ def main() -> int:
     base: float | None = None
     with tempfile.TemporaryDirectory() as tmp:
         everything = simulated_flights(max(SIZES), tmp)
+        analyze(everything[:1], default_vehicle())  # warm-up: first-call costs are not size
         for size in SIZES:
             flights = everything[:size]
             spent[0] = 0.0
