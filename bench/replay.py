@@ -24,7 +24,9 @@ Run: ``python -m bench.replay`` (``make bench`` runs every bench).
 
 from __future__ import annotations
 
+import contextlib
 import gc
+import io
 import subprocess
 import sys
 import tempfile
@@ -104,16 +106,15 @@ def best_of(fn: Callable[[], int], repeats: int = REPEATS) -> tuple[float, int]:
 
 
 def run_script(script: str, path: Path) -> int:
-    """Run a baseline script in this process (what it prints is its count)."""
-    namespace = {"__name__": "__bench__"}
+    """Run a baseline script in this process; its count is the last line it prints."""
+    out = io.StringIO()
     argv, sys.argv = sys.argv, ["baseline", str(path)]
     try:
-        out: list[str] = []
-        namespace["print"] = lambda *a: out.append(" ".join(map(str, a)))
-        exec(script, namespace)
+        with contextlib.redirect_stdout(out):
+            exec(script, {"__name__": "__baseline__"})
     finally:
         sys.argv = argv
-    return int(out[-1])
+    return int(out.getvalue().split()[-1])
 
 
 def process_seconds(argv: list[str], repeats: int = REPEATS) -> float:
