@@ -7,7 +7,7 @@ theory, cubic polynomial and the 3 × 10 network, then the final fits) — and t
 ``uav-energy fit … --json`` process (interpreter start and imports included). The network's
 held-out RMSE is printed at its mini-batch size (1/16 of the points) and, with ``--batch-200``,
 also at scikit-learn's default of 200 (the reference the batch size was chosen against; that
-run alone takes ~30 s). Skips with a message when ``../shared`` is absent.
+run alone takes ~10 s of CPU). Skips with a message when ``../shared`` is absent.
 Run: ``python -m bench.fit [--batch-200]``.
 """
 
