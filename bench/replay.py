@@ -1,44 +1,98 @@
-"""Replay throughput, measured against pymavlink in the same run.
+"""Replay throughput against the usual Python way of reading the same log, in one run.
 
-1. The largest IRIS+ telemetry log in ``../shared/data/iris_quadcopter_logs`` (symlinked to a
-   ``.tlog`` name, which pymavlink needs) decoded by pymavlink's
-   ``mavutil.mavlink_connection(path).recv_match()`` loop — the baseline — against our reader
-   alone (``estimator.logs.iter_samples``: only the message types the pipeline uses are
-   parsed) and against a whole replay (reader + the daemon's pipeline, with the vehicle file
-   fitted on those flights). Printed as ratios.
-2. Per-format throughput in samples/s: that tlog, a 10-minute synthetic flight written as an
-   ArduPilot DataFlash .bin and as a PX4 .ulg (the test fixtures' writers), and the CMU CSV
-   cruise file.
+Every bench log is read three ways, each timed as the best of a few runs:
 
-Skips with a message when ``../shared`` is absent. Run: ``python -m bench.replay``.
+- **baseline**: the library a user would reach for, asked for the same messages our reader
+  uses — pymavlink's ``mavutil.mavlink_connection(path).recv_match(type=[…])`` loop for
+  MAVLink tlogs and DataFlash .bin, pyulog's ``ULog(path, message_name_filter_list=[…])`` for
+  PX4 .ulg (pymavlink does not read ULog). The CMU CSV has no such library: throughput only.
+- **reader**: ``estimator.logs.iter_samples`` — the same messages decoded into samples, with
+  the plausibility and time checks;
+- **replay**: the reader plus the daemon's whole pipeline (``replay_log``): estimates, the
+  power trace, the online wind/mass tracker.
+
+Both "reader only" (in this process) and "whole process" (``uav-energy replay LOG --vehicle F
+--json`` against ``python -c <baseline loop>``, interpreter start and imports included) are
+printed as ratios baseline / ours: above 1 we are faster.
+
+Logs: the largest IRIS+ tlog (real, 8 % of its frames used), the ArduCopter SITL tlog in
+``../shared``, a 10-minute flight of our simulator as a tlog (dense: every other frame used),
+a 10-minute synthetic flight as DataFlash .bin and as PX4 .ulg (the test fixtures' writers), and
+the CMU CSV cruise file. Skips with a message when ``../shared`` is absent.
+Run: ``python -m bench.replay`` (``make bench`` runs every bench).
 """
 
 from __future__ import annotations
 
+import contextlib
 import gc
+import io
+import subprocess
 import sys
 import tempfile
 import time
 from collections.abc import Callable
-from functools import partial
+from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
-from pymavlink import mavutil
 
 from estimator.analysis.replay import replay_log
 from estimator.logs import iter_samples
+from estimator.logs.ulog import TOPICS
 from estimator.physics.vehicle import Vehicle, default_vehicle, load_vehicle
 
 REPO = Path(__file__).resolve().parent.parent
 DATA = REPO.parent / "shared" / "data"
 IRIS = DATA / "iris_quadcopter_logs"
+SITL_TLOG = DATA / "ardupilot_sitl" / "run1_default_quad.tlog"
 CMU_CRUISE = DATA / "cmu_m100_subset" / "flights_validation_data_clean_cruise.csv"
-#: The vehicle files fitted on those flights (the synthetic flights use the built-in vehicle).
+#: The vehicle files fitted on those flights (the simulated flights use the built-in vehicle).
 IRIS_VEHICLE = REPO / "config" / "vehicles" / "iris_plus_2016_06_08.toml"
 CMU_VEHICLE = REPO / "config" / "vehicles" / "dji_m100_cmu.toml"
+UAV_ENERGY = Path(sys.executable).parent / "uav-energy"
 REPEATS = 3
 SYNTHETIC_REPEATS = 10  # copies of the 60 s fixture flight
+SIMULATED_S = 600.0
+#: The messages our readers use (estimator.telemetry.decode.USED_MESSAGE_IDS by name;
+#: estimator.logs.dataflash), asked of pymavlink by type.
+TLOG_TYPES = [
+    "HEARTBEAT",
+    "SYS_STATUS",
+    "BATTERY_STATUS",
+    "GLOBAL_POSITION_INT",
+    "LOCAL_POSITION_NED",
+    "ATTITUDE",
+    "WIND_COV",
+    "WIND",
+]
+DATAFLASH_TYPES = ["XKF1", "NKF1", "GPS", "BAT", "CURR", "ARM", "EV"]
+
+#: The baselines as scripts (argv[1] = the log), so the whole-process run times them too.
+PYMAVLINK_LOOP = """
+import sys
+from pymavlink import mavutil
+conn = mavutil.mavlink_connection(sys.argv[1])
+n = 0
+while conn.recv_match(type={types!r}) is not None:
+    n += 1
+print(n)
+"""
+PYULOG_READ = """
+import sys
+from pyulog import ULog
+ulog = ULog(sys.argv[1], message_name_filter_list={topics!r})
+print(sum(len(d.data["timestamp"]) for d in ulog.data_list))
+"""
+
+
+@dataclass
+class BenchLog:
+    name: str
+    path: Path
+    vehicle: Vehicle
+    vehicle_file: Path | None
+    baseline: str | None  # a script of the baselines above, None: no baseline library
 
 
 def best_of(fn: Callable[[], int], repeats: int = REPEATS) -> tuple[float, int]:
@@ -51,22 +105,26 @@ def best_of(fn: Callable[[], int], repeats: int = REPEATS) -> tuple[float, int]:
     return best, count
 
 
-def pymavlink_messages(path: Path) -> int:
-    """Messages decoded by pymavlink's usual loop."""
-    conn = mavutil.mavlink_connection(str(path))
-    n = 0
-    while conn.recv_match() is not None:
-        n += 1
-    conn.close()
-    return n
+def run_script(script: str, path: Path) -> int:
+    """Run a baseline script in this process; its count is the last line it prints."""
+    out = io.StringIO()
+    argv, sys.argv = sys.argv, ["baseline", str(path)]
+    try:
+        with contextlib.redirect_stdout(out):
+            exec(script, {"__name__": "__baseline__"})
+    finally:
+        sys.argv = argv
+    return int(out.getvalue().split()[-1])
 
 
-def decoded_samples(path: Path) -> int:
-    return sum(1 for _ in iter_samples(path))
-
-
-def replayed_samples(path: Path, vehicle: Vehicle) -> int:
-    return replay_log(path, vehicle).samples
+def process_seconds(argv: list[str], repeats: int = REPEATS) -> float:
+    """Fastest wall time (s) of a whole process."""
+    best = float("inf")
+    for _ in range(repeats):
+        start = time.perf_counter()
+        subprocess.run(argv, check=True, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+        best = min(best, time.perf_counter() - start)
+    return best
 
 
 def synthetic_logs(directory: Path) -> dict[str, Path]:
@@ -90,9 +148,98 @@ def synthetic_logs(directory: Path) -> dict[str, Path]:
         ),
     )
     return {
-        "dataflash .bin": write_bin(directory / "synthetic.bin", long),
-        "ulog .ulg": write_ulg(directory / "synthetic.ulg", long),
+        "synthetic .bin": write_bin(directory / "synthetic.bin", long),
+        "synthetic .ulg": write_ulg(directory / "synthetic.ulg", long),
     }
+
+
+def simulated_tlog(directory: Path) -> Path:
+    """A 10-minute mixed flight of our simulator, as the tlog it streams."""
+    from estimator.sim.files import write_tlog
+    from estimator.sim.run import SimConfig
+    from estimator.sim.simulator import simulate
+
+    run = simulate(SimConfig(plan="mixed", duration_s=SIMULATED_S, seed=7))
+    return write_tlog(run, directory / "simulated.tlog", truth_csv=False)
+
+
+def bench_logs(directory: Path) -> list[BenchLog]:
+    largest = max(IRIS.rglob("*.log"), key=lambda p: p.stat().st_size)
+    iris_tlog = directory / f"iris_{largest.stem}.tlog"  # pymavlink knows a tlog by its name
+    iris_tlog.symlink_to(largest)
+    tlog_loop = PYMAVLINK_LOOP.format(types=TLOG_TYPES)
+    builtin = default_vehicle()
+    logs = [
+        BenchLog(
+            f"IRIS+ {largest.relative_to(IRIS)}",
+            iris_tlog,
+            load_vehicle(IRIS_VEHICLE),
+            IRIS_VEHICLE,
+            tlog_loop,
+        )
+    ]
+    if SITL_TLOG.is_file():
+        logs.append(BenchLog("ArduCopter SITL tlog", SITL_TLOG, builtin, None, tlog_loop))
+    logs.append(BenchLog("simulated tlog", simulated_tlog(directory), builtin, None, tlog_loop))
+    synthetic = synthetic_logs(directory)
+    logs.append(
+        BenchLog(
+            "synthetic .bin",
+            synthetic["synthetic .bin"],
+            builtin,
+            None,
+            PYMAVLINK_LOOP.format(types=DATAFLASH_TYPES),
+        )
+    )
+    logs.append(
+        BenchLog(
+            "synthetic .ulg",
+            synthetic["synthetic .ulg"],
+            builtin,
+            None,
+            PYULOG_READ.format(topics=list(TOPICS)),
+        )
+    )
+    if CMU_CRUISE.is_file():
+        logs.append(
+            BenchLog("CMU csv (cruise)", CMU_CRUISE, load_vehicle(CMU_VEHICLE), CMU_VEHICLE, None)
+        )
+    return logs
+
+
+def ratio(baseline_s: float | None, ours_s: float) -> str:
+    return "—" if baseline_s is None else f"{baseline_s / ours_s:6.1f}×"
+
+
+def bench_one(log: BenchLog) -> None:
+    size_mb = log.path.stat().st_size / 1e6
+    t_base = n_base = None
+    if log.baseline is not None:
+        script = log.baseline
+        t_base, n_base = best_of(lambda: run_script(script, log.path))
+    t_read, n_samples = best_of(lambda: sum(1 for _ in iter_samples(log.path)))
+    t_replay, _ = best_of(lambda: replay_log(log.path, log.vehicle).samples)
+    vehicle_args = [] if log.vehicle_file is None else ["--vehicle", str(log.vehicle_file)]
+    p_ours = process_seconds([str(UAV_ENERGY), "replay", str(log.path), *vehicle_args, "--json"])
+    p_base = None
+    if log.baseline is not None:
+        p_base = process_seconds([sys.executable, "-c", log.baseline, str(log.path)])
+    base = "" if t_base is None else f", baseline {n_base} messages {t_base:.2f} s"
+    print(f"  {log.name} ({size_mb:.1f} MB, {n_samples} samples{base})")
+    print(
+        f"    reader  {t_read:6.3f} s  {n_samples / t_read:8.0f} samples/s   "
+        f"baseline/reader {ratio(t_base, t_read)}"
+    )
+    print(
+        f"    replay  {t_replay:6.3f} s  {n_samples / t_replay:8.0f} samples/s   "
+        f"baseline/replay {ratio(t_base, t_replay)}"
+    )
+    shown = "—" if p_base is None else f"{p_base:.2f} s"
+    print(
+        f"    whole process: uav-energy replay {p_ours:.2f} s, baseline {shown}   "
+        f"ratio {ratio(p_base, p_ours)}",
+        flush=True,
+    )
 
 
 def main() -> int:
@@ -100,39 +247,10 @@ def main() -> int:
         print(f"bench replay: skipped: {IRIS} is absent (needs ../shared next to the repo)")
         return 0
     gc.freeze()  # what `uav-energy replay` does after its imports; the baseline gains alike
-    largest = max(IRIS.rglob("*.log"), key=lambda p: p.stat().st_size)
+    print(f"bench replay: best of {REPEATS}; ratios are baseline time / ours (> 1: faster)")
     with tempfile.TemporaryDirectory() as tmp:
-        tlog = Path(tmp) / f"{largest.stem}.tlog"
-        tlog.symlink_to(largest)
-        size_mb = largest.stat().st_size / 1e6
-        print(f"bench replay: {largest.relative_to(IRIS)} ({size_mb:.1f} MB), best of {REPEATS}")
-        t_pymavlink, n_messages = best_of(lambda: pymavlink_messages(tlog))
-        t_decode, n_samples = best_of(lambda: decoded_samples(tlog))
-        iris = load_vehicle(IRIS_VEHICLE)
-        t_replay, _ = best_of(lambda: replayed_samples(tlog, iris))
-        print(f"  pymavlink recv_match loop : {t_pymavlink:6.2f} s  ({n_messages} messages)")
-        print(
-            f"  uav-energy reader         : {t_decode:6.2f} s  ({n_samples} samples)"
-            f"  ratio pymavlink/reader = {t_pymavlink / t_decode:.1f}"
-        )
-        print(
-            f"  uav-energy replay (reader + pipeline): {t_replay:6.2f} s"
-            f"  ratio pymavlink/replay = {t_pymavlink / t_replay:.1f}"
-        )
-        logs = {"tlog (IRIS+)": (tlog, iris)}
-        logs |= {
-            name: (path, default_vehicle()) for name, path in synthetic_logs(Path(tmp)).items()
-        }
-        if CMU_CRUISE.is_file():
-            logs["CMU csv (cruise)"] = (CMU_CRUISE, load_vehicle(CMU_VEHICLE))
-        print("  per format (samples/s, best of 3): reader alone | full replay")
-        for name, (path, vehicle) in logs.items():
-            t_read, n = best_of(partial(decoded_samples, path))
-            t_full, _ = best_of(partial(replayed_samples, path, vehicle))
-            print(
-                f"    {name:18s} {n:7d} samples  {n / t_read:10.0f} | {n / t_full:8.0f}"
-                f"   ({path.stat().st_size / 1e6:.1f} MB)"
-            )
+        for log in bench_logs(Path(tmp)):
+            bench_one(log)
     return 0
 
 

@@ -15,7 +15,7 @@ from tlog_builder import flight_frames, write_tlog
 from estimator.cli import main as cli_main
 from estimator.errors import UserError
 from estimator.logs import detect_format, iter_samples, load_flights
-from estimator.logs.cmu import REQUIRED_COLUMNS
+from estimator.logs.cmu import REQUIRED_COLUMNS, rotate
 from estimator.logs.sanity import flight_warnings
 from estimator.telemetry.decode import FrameParser, TelemetryDecoder
 from estimator.telemetry.plausibility import InputLimits
@@ -192,6 +192,16 @@ def _cmu_row(t: float, yaw_enu_rad: float, flight: int = 268, forward_mps: float
         flight,
     ]
     return ",".join(str(v) for v in values)
+
+
+def test_cmu_orientation_rotates_body_velocity_as_scipy_does() -> None:
+    from scipy.spatial.transform import Rotation
+
+    rng = np.random.default_rng(4)
+    quat = rng.normal(size=(500, 4)) * 2.0  # not normalised: the reader normalises
+    body = rng.normal(size=(500, 3)) * 10.0
+    expected = Rotation.from_quat(quat).apply(body)
+    assert np.allclose(rotate(quat, body), expected, rtol=0.0, atol=1e-12)
 
 
 def _cmu_csv(path: Path, rows: list[str], header: str = CMU_HEADER) -> Path:

@@ -10,6 +10,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from estimator.analysis.residual_attribution import MAX_KNN_TRAIN_ROWS, attribute
 from estimator.analysis.residual_candidates import candidates_for
 from estimator.analysis.residual_fit import best_switch, best_window
 from estimator.analysis.residual_samples import ResidualOptions, Samples, prepare
@@ -22,6 +23,7 @@ from estimator.physics.effects import (
     Avionics,
     Climb,
     Effect,
+    FlightState,
     Mass,
     Turn,
     Voltage,
@@ -411,3 +413,29 @@ def test_block_test_is_not_swayed_by_one_huge_block() -> None:
     better = err * 0.8
     better[:20] += 60.0
     assert _block_gain_z(samples, err, better) > 3.0
+
+
+def test_attribution_of_a_long_flight_learns_from_a_sample_and_still_names_the_channel() -> None:
+    n = 4 * MAX_KNN_TRAIN_ROWS  # 8 h at 2 Hz: more training rows than the k-NN learns from
+    rng = np.random.default_rng(8)
+    t = np.arange(n) * 0.5
+    zeros = np.zeros(n)
+    opt = ResidualOptions()
+    chunk = (t // opt.chunk_s).astype(int)
+    heading = rng.uniform(0.0, 360.0, n)
+    speed = rng.uniform(0.0, 10.0, n)
+    samples = Samples(
+        flight_ids=["long"],
+        flight=np.zeros(n, dtype=int),
+        state=FlightState(t, zeros, zeros, zeros, zeros, zeros, zeros, zeros),
+        power_w=zeros,
+        fold=chunk % opt.folds,
+        chunk=chunk,
+        block=chunk,
+        channels={"speed_mps": speed, "heading_deg": heading},
+    )
+    resid = 10.0 * np.cos(np.radians(heading - 60.0)) + rng.normal(0.0, 1.0, n)
+    scores = attribute(samples, resid, opt)
+    assert scores[0].channel == "heading_deg"
+    assert scores[0].r2 > 0.95
+    assert abs(scores[1].r2) < 0.05

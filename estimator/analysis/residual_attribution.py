@@ -1,5 +1,9 @@
 """Attribution of what is left: how well each telemetry channel alone predicts the held-out
 residual (k-nearest neighbours, or the mean per value for discrete channels; held-out R²).
+
+Cost: the k-NN learns from at most :data:`MAX_KNN_TRAIN_ROWS` training rows (evenly spaced in
+the data's order beyond that), so k stays bounded and the attribution is linear in the number
+of rows; smaller sets are used whole.
 """
 
 from __future__ import annotations
@@ -8,6 +12,7 @@ import math
 from dataclasses import dataclass
 
 import numpy as np
+from numpy.typing import NDArray
 from sklearn.neighbors import KNeighborsRegressor
 
 from estimator.analysis.residual_samples import ResidualOptions, Samples
@@ -29,6 +34,15 @@ def _features(values: FloatArray, circular: bool) -> FloatArray:
 
 
 _MAX_DISCRETE_VALUES = 16
+#: The k-NN of one fold learns from at most this many training rows (see the module docstring).
+MAX_KNN_TRAIN_ROWS = 4096
+
+
+def _spread(rows: NDArray[np.intp], at_most: int) -> NDArray[np.intp]:
+    """``rows``, or ``at_most`` of them evenly spaced when there are more."""
+    if len(rows) <= at_most:
+        return rows
+    return rows[np.linspace(0, len(rows) - 1, at_most).round().astype(np.intp)]
 
 
 def _group_means(x_train: FloatArray, y_train: FloatArray, x_test: FloatArray) -> FloatArray:
@@ -63,9 +77,10 @@ def attribute(samples: Samples, resid: FloatArray, opt: ResidualOptions) -> list
                     np.isnan(predicted[test]), baseline[test], predicted[test]
                 )
                 continue
-            k = int(np.clip(round(math.sqrt(train.sum())), 10, 200))
-            k = min(k, int(train.sum()))
-            knn = KNeighborsRegressor(n_neighbors=k).fit(x[train], resid[train])
+            learn = _spread(np.flatnonzero(train), MAX_KNN_TRAIN_ROWS)
+            k = int(np.clip(round(math.sqrt(len(learn))), 10, 200))
+            k = min(k, len(learn))
+            knn = KNeighborsRegressor(n_neighbors=k).fit(x[learn], resid[learn])
             predicted[test] = knn.predict(x[test])
         ok = np.isfinite(predicted)
         if ok.sum() < 20:

@@ -21,7 +21,6 @@ from collections.abc import Iterator, Sequence
 from pathlib import Path
 
 import numpy as np
-from scipy.spatial.transform import Rotation
 
 from estimator.errors import UserError
 from estimator.logs import FlightSeries, FloatArray, SampleStream
@@ -93,12 +92,22 @@ def _samples(flights: list[FlightSeries]) -> Iterator[Sample]:
             yield BatterySample(t, NOMINAL_VOLTAGE_V, power / NOMINAL_VOLTAGE_V)
 
 
+def rotate(quat_xyzw: FloatArray, vectors: FloatArray) -> FloatArray:
+    """Each row of ``vectors`` (n × 3) rotated by the unit quaternion in the same row of
+    ``quat_xyzw`` (n × 4, scalar last, normalised here): body frame → ENU for the CMU
+    orientation. numpy only (scipy's Rotation costs a second of import at start-up)."""
+    q = quat_xyzw / np.linalg.norm(quat_xyzw, axis=1, keepdims=True)
+    axis, w = q[:, :3], q[:, 3:]
+    twice = 2.0 * np.cross(axis, vectors)
+    return np.asarray(vectors + w * twice + np.cross(axis, twice), dtype=float)
+
+
 def _series(flight_id: str, c: dict[str, FloatArray]) -> FlightSeries:
     quat = np.column_stack(
         [c["orientation_x"], c["orientation_y"], c["orientation_z"], c["orientation_w"]]
     )
     body = np.column_stack([c["twist_linear_x"], c["twist_linear_y"], c["twist_linear_z"]])
-    enu = Rotation.from_quat(quat).apply(body)
+    enu = rotate(quat, body)
     nan = np.full(len(c["time"]), np.nan)
     extras = {"regime": c["regime"]}
     if "payload" in c:
