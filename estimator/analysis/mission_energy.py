@@ -43,6 +43,7 @@ from estimator.physics.route_energy import (
     landing_energy,
     leg_energy,
     optimal_speed,
+    reachable_ground_speed_mps,
     steady_power_w,
     sum_energies,
     vertical_energy,
@@ -60,12 +61,15 @@ class FlightSettings:
     cruise_mps: WPNAV_SPEED (horizontal ground speed without DO_CHANGE_SPEED).
     climb_mps / descent_mps: WPNAV_SPEED_UP / WPNAV_SPEED_DN. land_mps: LAND_SPEED, below
     land_slow_m (LAND_ALT_LOW). rtl_alt_m: RTL_ALT. rtl_loiter_s: RTL_LOIT_TIME.
-    circle_rate_dps: CIRCLE_RATE. touchdown_s: time on the ground, motors running, before
-    they stop. max_speed_mps: the highest ground speed recommended (WPNAV_SPEED's maximum).
+    circle_rate_dps: CIRCLE_RATE. rtl_pause_s: RTL's start in place before it turns home
+    (measured in SITL). touchdown_s: time on the ground, motors running, before they stop.
+    max_speed_mps: the highest ground speed recommended (WPNAV_SPEED's maximum).
     accel_mps2, jerk_mps3, vertical_accel_mps2: WPNAV_ACCEL, WPNAV_JERK, WPNAV_ACCEL_Z.
     corner_speed_mps: the speed a waypoint turn of 90° is rounded at (measured in SITL; other
     angles θ scale it by sqrt(cot(θ/2)), 0 for a reversal). spool_s: motors spinning up at
     take-off before the climb. max_airspeed_mps: the vehicle's (None: its file's, else 20).
+    airspeed_along_track: the limit holds for the airspeed along the track (the vehicle
+    faces its track; :func:`~estimator.physics.route_energy.reachable_ground_speed_mps`).
     """
 
     cruise_mps: float = 10.0
@@ -75,6 +79,7 @@ class FlightSettings:
     land_slow_m: float = 10.0
     rtl_alt_m: float = 15.0
     rtl_loiter_s: float = 5.0
+    rtl_pause_s: float = 2.0
     circle_rate_dps: float = 20.0
     touchdown_s: float = 0.0
     max_speed_mps: float = 20.0
@@ -84,6 +89,7 @@ class FlightSettings:
     corner_speed_mps: float = 3.0
     spool_s: float = 2.0
     max_airspeed_mps: float | None = None
+    airspeed_along_track: bool = True
 
     @property
     def kinematics(self) -> Kinematics:
@@ -129,11 +135,13 @@ class Px4Style:
 @dataclass(frozen=True)
 class MissionEnergy:
     """A mission's legs, totals and feasibility. usable_wh: the pack's energy above its reserve
-    at the start (Wh); margin_wh = usable − total (Wh; its σ is the total's)."""
+    at the start (Wh); reserve_wh: the reserve's energy (Wh); margin_wh = usable − total (Wh;
+    its σ is the total's)."""
 
     legs: tuple[LegResult, ...]
     total: RouteEnergy
     usable_wh: float
+    reserve_wh: float
     px4: Px4Style
     conditions: Conditions
     settings: FlightSettings
@@ -192,6 +200,7 @@ def mission_energy(
         legs=tuple(results),
         total=total,
         usable_wh=float(pack.usable_energy_wh(start_soc)),
+        reserve_wh=float(pack.energy_wh(vehicle.battery.reserve_fraction)),
         px4=_px4_style(rv, flown, settings),
         conditions=conditions,
         settings=settings,
@@ -232,10 +241,13 @@ def _leg(
     energy = replace(sum_energies(_pieces(rv, c, leg, s, track, speed, ends)), kind=leg.kind)
     recommended, recommended_wh = None, None
     if distance > 0:
-        energy = replace(energy, ground_speed_mps=speed)
+        flown = reachable_ground_speed_mps(
+            c, track, s.max_airspeed_mps or 20.0, s.airspeed_along_track
+        )
+        energy = replace(energy, ground_speed_mps=min(speed, flown))
         recommended = optimal_speed(
             rv, c, track, max_ground_speed_mps=s.max_speed_mps,
-            max_airspeed_mps=s.max_airspeed_mps or 20.0,
+            max_airspeed_mps=s.max_airspeed_mps or 20.0, along_track=s.airspeed_along_track,
         )  # fmt: skip
         best = _pieces(rv, c, leg, s, track, recommended.ground_speed_mps, ends)
         recommended_wh = sum_energies(best).energy_wh
@@ -267,6 +279,7 @@ def _pieces(
             rv, c, distance_m=dist_m, track_deg=track_deg, climb_m=climb_m,
             ground_speed_mps=speed_mps, climb_rate_mps=climb_mps, descent_rate_mps=descent_mps,
             max_airspeed_mps=s.max_airspeed_mps or 20.0, kinematics=kin,
+            along_track=s.airspeed_along_track,
             start_speed_mps=ends[0], end_speed_mps=ends[1],
         )  # fmt: skip
 
@@ -287,7 +300,7 @@ def _pieces(
         return [horizontal(max(distance - leg.radius_m, 0.0), d0 - d1), *_circle(rv, c, leg, s)]
     if leg.kind == "land":
         return [horizontal(distance), land(-d0)]
-    height, pieces = -d0, []  # rtl
+    height, pieces = -d0, [hover_energy(rv, c, s.rtl_pause_s)]  # rtl
     if height < s.rtl_alt_m:
         pieces.append(vertical(s.rtl_alt_m - height, climb_mps))
         height = s.rtl_alt_m
@@ -297,18 +310,27 @@ def _pieces(
 def _circle(
     rv: RouteVehicle, c: Conditions, leg: MissionLeg, s: FlightSettings
 ) -> list[RouteEnergy]:
-    """Loiter turns: ``leg.turns`` circles of ``leg.radius_m`` at the lesser of the mission's
-    speed and radius × CIRCLE_RATE, split into :data:`CIRCLE_PIECES` headings."""
+    """Loiter turns: ``leg.turns`` circles of ``leg.radius_m`` split into
+    :data:`CIRCLE_PIECES` headings, at the least of the mission's speed, radius × CIRCLE_RATE
+    and sqrt(½ a r) (ArduCopter keeps half its acceleration for the turn), speeding up in the
+    first piece and stopping in the last."""
     if leg.turns <= 0:
         return []
     if leg.radius_m <= 0:  # turning in place
         return [hover_energy(rv, c, leg.turns * 360.0 / s.circle_rate_dps)]
-    speed = min(leg.speed_mps or s.cruise_mps, leg.radius_m * math.radians(s.circle_rate_dps))
+    speed = min(
+        leg.speed_mps or s.cruise_mps,
+        leg.radius_m * math.radians(s.circle_rate_dps),
+        math.sqrt(0.5 * s.accel_mps2 * leg.radius_m),
+    )
     piece_m = 2 * math.pi * leg.radius_m * leg.turns / CIRCLE_PIECES
+    last = CIRCLE_PIECES - 1
     return [
         leg_energy(
             rv, c, distance_m=piece_m, track_deg=360.0 * k / CIRCLE_PIECES, ground_speed_mps=speed,
-            max_airspeed_mps=s.max_airspeed_mps or 20.0,
+            max_airspeed_mps=s.max_airspeed_mps or 20.0, along_track=s.airspeed_along_track,
+            kinematics=s.kinematics, start_speed_mps=0.0 if k == 0 else speed,
+            end_speed_mps=0.0 if k == last else speed,
         )
         for k in range(CIRCLE_PIECES)
     ]  # fmt: skip

@@ -342,6 +342,8 @@ def _mission(
 
 def _check_item(item: MissionItem) -> None:
     name = COMMAND_NAMES[item.command]
+    if item.command == NAV_RETURN_TO_LAUNCH:  # no position: any frame
+        return
     if item.frame in FRAME_TERRAIN:
         raise UserError(
             f"{item.where}: {name} has a terrain-relative altitude (frame {item.frame}); "
@@ -352,7 +354,7 @@ def _check_item(item: MissionItem) -> None:
     if item.command == NAV_TAKEOFF:  # climbs where it is: only the altitude counts
         if not math.isfinite(item.alt_m):
             raise UserError(f"{item.where}: {name} has no altitude")
-    elif item.command != NAV_RETURN_TO_LAUNCH:
+    else:
         _check_position(item, name)
     if item.command == NAV_LOITER_TURNS and not math.isfinite(item.params[0]):
         raise UserError(f"{item.where}: NAV_LOITER_TURNS needs a number of turns (param1)")

@@ -310,25 +310,31 @@ def optimal_speed(
     *,
     max_ground_speed_mps: float = DEFAULT_MAX_GROUND_SPEED_MPS,
     max_airspeed_mps: float = DEFAULT_MAX_AIRSPEED_MPS,
+    along_track: bool = False,
 ) -> SpeedChoice:
     """The ground speed along ``track_deg`` with the least energy per metre over ground, with
     ground speed in [:data:`MIN_GROUND_SPEED_MPS`, max_ground_speed_mps] and airspeed at most
-    ``max_airspeed_mps``; in still air this is the model's V_mr. InfeasibleTrack when no
-    ground speed in range keeps the airspeed within its limit."""
+    ``max_airspeed_mps`` (its component along the track when ``along_track``, see
+    :func:`reachable_ground_speed_mps`); in still air this is the model's V_mr.
+    InfeasibleTrack when no ground speed in range keeps the airspeed within its limit."""
     wn, we = conditions.wind_ne_mps()
     un, ue = math.cos(math.radians(track_deg)), math.sin(math.radians(track_deg))
 
     def airspeed(vg: FloatArray) -> FloatArray:
         return np.asarray(np.hypot(vg * un - wn, vg * ue - we), dtype=float)
 
+    def within(vg: FloatArray) -> FloatArray:
+        limited = vg - (wn * un + we * ue) if along_track else airspeed(vg)
+        return np.asarray(limited <= max_airspeed_mps)
+
     def cost(vg: FloatArray) -> FloatArray:
         vn, ve = _velocity_ne(track_deg, vg)
         per_m = steady_power_w(vehicle, conditions, vn, ve) / vg
-        return np.asarray(np.where(airspeed(vg) <= max_airspeed_mps, per_m, _OUT_OF_RANGE))
+        return np.asarray(np.where(within(vg), per_m, _OUT_OF_RANGE))
 
     lo, hi = MIN_GROUND_SPEED_MPS, max(max_ground_speed_mps, MIN_GROUND_SPEED_MPS)
     grid = np.linspace(lo, hi, 601)
-    if not np.any(airspeed(grid) <= max_airspeed_mps):
+    if not np.any(within(grid)):
         raise InfeasibleTrack(
             f"a {conditions.wind_speed_mps:g} m/s wind from {conditions.wind_from_deg:g}° allows "
             f"no ground speed along {track_deg:.0f}° within {max_airspeed_mps:g} m/s airspeed"
@@ -342,13 +348,17 @@ def optimal_speed(
 
 
 def reachable_ground_speed_mps(
-    conditions: Conditions, track_deg: float, max_airspeed_mps: float
+    conditions: Conditions, track_deg: float, max_airspeed_mps: float, along_track: bool = False
 ) -> float:
     """The fastest ground speed along ``track_deg`` at ``max_airspeed_mps`` in the wind (m/s;
-    0 when the wind allows no headway)."""
+    0 when the wind allows no headway). ``along_track``: the limit holds for the airspeed's
+    component along the track only (a multicopter facing its track whose limit is forward
+    drag, as ArduCopter SITL's quad), so a crosswind costs no ground speed."""
     wn, we = conditions.wind_ne_mps()
     un, ue = math.cos(math.radians(track_deg)), math.sin(math.radians(track_deg))
     along, across = wn * un + we * ue, -wn * ue + we * un
+    if along_track:
+        return max(along + max_airspeed_mps, 0.0)
     if abs(across) >= max_airspeed_mps:
         return 0.0
     return max(along + math.sqrt(max_airspeed_mps**2 - across**2), 0.0)
@@ -394,6 +404,7 @@ def leg_energy(
     kinematics: Kinematics | None = None,
     start_speed_mps: float = 0.0,
     end_speed_mps: float = 0.0,
+    along_track: bool = False,
 ) -> RouteEnergy:
     """A straight leg of ``distance_m`` over ground along ``track_deg`` while changing height by
     ``climb_m`` (m, + up), at ``ground_speed_mps`` (None: :func:`optimal_speed`), never faster
@@ -405,6 +416,7 @@ def leg_energy(
     ``kinematics`` the whole leg is flown at one speed; with it the leg speeds up from
     ``start_speed_mps`` and slows to ``end_speed_mps`` (m/s: 0 to stop at its end, more to
     round a corner), the cruise speed lowered when the leg is too short to reach it.
+    ``along_track``: the airspeed limit holds along the track (:func:`reachable_ground_speed_mps`).
     """
     if distance_m < 0 or not math.isfinite(distance_m):
         raise ValueError("distance must be finite and ≥ 0")
@@ -415,6 +427,7 @@ def leg_energy(
             track_deg,
             max_ground_speed_mps=max_ground_speed_mps,
             max_airspeed_mps=max_airspeed_mps,
+            along_track=along_track,
         ).ground_speed_mps
     if ground_speed_mps <= 0:
         raise ValueError("ground speed must be > 0")
@@ -422,7 +435,7 @@ def leg_energy(
     if rate_mps <= 0:
         raise ValueError("vertical rates must be > 0")
     if distance_m > 0:
-        reachable = reachable_ground_speed_mps(conditions, track_deg, max_airspeed_mps)
+        reachable = reachable_ground_speed_mps(conditions, track_deg, max_airspeed_mps, along_track)
         if reachable <= 0:
             raise InfeasibleTrack(
                 f"a {conditions.wind_speed_mps:g} m/s wind from {conditions.wind_from_deg:g}° "

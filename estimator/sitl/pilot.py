@@ -272,9 +272,19 @@ class Pilot:
             ]
         )
 
-    def upload_items(self, items: Sequence[MissionItem]) -> None:
+    def upload_items(self, items: Sequence[MissionItem], attempts: int = 10) -> None:
         """Upload mission items with the MISSION_ITEM_INT protocol (item 0 is home). NaN
-        params (a .plan's nulls) go as NaN, MAVLink's "unset"; a NaN position as 0, 0."""
+        params (a .plan's nulls) go as NaN, MAVLink's "unset"; a NaN position as 0, 0. An
+        autopilot still starting answers MAV_MISSION_NO_SPACE: retried every 2 s of its
+        clock."""
+        for _ in range(attempts):
+            if self._upload_once(items) != mavlink.MAV_MISSION_NO_SPACE:
+                return
+            self.hold(2.0)
+        raise UserError(f"SITL refused the mission (MISSION_ACK type {self.mission_ack})")
+
+    def _upload_once(self, items: Sequence[MissionItem]) -> int | None:
+        """One upload; the MISSION_ACK type when it is NO_SPACE, else UserError if refused."""
         self.mission_requests.clear()
         self.mission_ack = None
         self.conn.mav.mission_count_send(*AUTOPILOT, len(items), 0)
@@ -290,14 +300,21 @@ class Pilot:
                 sent.add(item.seq)
 
         self.wait_for(lambda: self.mission_ack is not None, 30.0, "mission upload", serve)
+        if self.mission_ack == mavlink.MAV_MISSION_NO_SPACE and not sent:
+            return self.mission_ack
         if self.mission_ack != mavlink.MAV_MISSION_ACCEPTED or len(sent) != len(items):
             raise UserError(f"SITL refused the mission (MISSION_ACK type {self.mission_ack})")
+        return self.mission_ack
 
     def land(self, timeout_s: float = 120.0) -> None:
         """LAND and wait until the autopilot disarms on the ground; after 5 s on the ground
         disarm it (ArduCopter's land detector may not see a landing in SITL's wind)."""
         self.set_mode("LAND")
         self.wait_for(lambda: self.state.alt_m < 0.3, timeout_s, "landing")
+        self.wait_disarmed()
+
+    def wait_disarmed(self) -> None:
+        """Wait until the autopilot, on the ground, disarms; force it after 5 s there."""
         on_ground_s = self.state.boot_s
 
         def force() -> None:

@@ -239,7 +239,13 @@ class Flight:
         self.truth.event("mission_start_s", self.now_s)
         p.wait_for(lambda: p.state.alt_m > AIRBORNE_M, 60.0, "mission take-off")
         self.landing = True
-        p.wait_for(lambda: not p.state.armed, MAX_FLIGHT_S, "mission to its landing")
+
+        def landed() -> bool:
+            return not p.state.armed or p.state.alt_m < 0.3
+
+        p.wait_for(landed, MAX_FLIGHT_S, "mission to its landing")
+        if p.state.armed:
+            p.wait_disarmed()
 
     def _wind(self, step: SetWind) -> None:
         p, t = self.pilot, self.truth
