@@ -34,6 +34,9 @@ from estimator.physics.route_energy import (
     vertical_energy,
 )
 from estimator.physics.vehicle import default_vehicle, load_vehicle
+from estimator.sitl.launch import sitl_binary
+from estimator.sitl.recorder import record
+from estimator.sitl.scenarios import mission_scenario
 
 REPO = Path(__file__).resolve().parent.parent
 SITL_VEHICLE = REPO / "config/vehicles/ardupilot_sitl_quad.toml"
@@ -294,6 +297,28 @@ def test_predicted_mission_energy_is_within_5_percent_of_sitl_in_the_median() ->
 def test_recorded_missions_stay_small() -> None:
     for directory in RECORDED:
         assert sum(f.stat().st_size for f in directory.iterdir()) <= 1.6 * 2**20
+
+
+@pytest.mark.skipif(sitl_binary() is None, reason="no ArduCopter SITL binary")
+def test_a_live_sitl_mission_from_a_plan_file_uses_the_predicted_energy(tmp_path: Path) -> None:
+    """A .plan uploaded with MISSION_ITEM_INT and flown in AUTO (take-off, a 45° corner, LAND)
+    in a 4 m/s wind: the battery energy from mission start to disarm is the plan's within 8 %."""
+    lat1, lon1 = _latlon(80, 0)
+    lat2, lon2 = _latlon(140, 60)
+    plan = _plan(
+        tmp_path / "live.plan",
+        [
+            _simple(22, 3, [0, 0, 0, None, 0, 0, 10]),
+            _simple(16, 3, [0, 0, 0, None, lat1, lon1, 10]),
+            _simple(16, 3, [0, 0, 0, None, lat2, lon2, 10]),
+            _simple(21, 3, [0, 0, 0, None, lat2, lon2, 0]),
+        ],
+    )
+    speedup = float(os.environ.get("ARDUPILOT_SITL_SPEEDUP", "10"))
+    record(mission_scenario(str(plan), wind=(4.0, 200.0)), tmp_path / "live", speedup)
+    assert (tmp_path / "live" / "mission.plan").read_text() == plan.read_text()
+    check = check_recording(tmp_path / "live", load_vehicle(SITL_VEHICLE))
+    assert abs(check.error_pct) <= 8.0, check
 
 
 # -- the command -----------------------------------------------------------------------------------
