@@ -236,6 +236,7 @@ def test_complex_items_terrain_frames_and_unknown_commands_are_refused(tmp_path:
         ([_simple(22, 3, [0, 0, 0, 0, 0, 0, 20]), survey], "item 2: ComplexItem 'survey'"),
         ([_simple(16, 10, [0, 0, 0, 0, *_latlon(10, 0), 20])], "terrain-relative"),
         ([_simple(17, 3, [0, 0, 0, 0, *_latlon(10, 0), 20])], "command 17 is not supported"),
+        ([_simple(177, 2, [1, 3, 0, 0, 0, 0, 0])], "DO_JUMP loops are not supported"),
         ([_simple(16, 3, [0, 0, 0, 0, 95.0, 0, 20])], "is not on Earth"),
         ([_simple(16, 3, [0, 0, 0])], "7 values"),
     ]

@@ -7,8 +7,8 @@ protocol), and :meth:`MissionFile.legs`, the route as local legs, NED metres fro
 Supported commands: NAV_WAYPOINT, NAV_TAKEOFF, NAV_LOITER_TIME, NAV_LOITER_TURNS, NAV_LAND,
 NAV_RETURN_TO_LAUNCH, DO_CHANGE_SPEED and DO_GRIPPER (release drops the payload). Other DO_ and
 CONDITION_ items do not move the vehicle and are ignored (listed in ``ignored``); any other
-navigation command, a QGroundControl ComplexItem (survey, corridor scan, structure scan) and
-terrain-relative altitudes are refused with one sentence naming the item. Altitude frames:
+navigation command, DO_JUMP, a QGroundControl ComplexItem (survey, corridor scan, structure
+scan) and terrain-relative altitudes are refused with one sentence naming the item. Altitude frames:
 MAV_FRAME_GLOBAL (above mean sea level, relative to home's) and MAV_FRAME_GLOBAL_RELATIVE_ALT
 (above home), and their _INT forms. Horizontal positions are projected on the plane tangent at
 home (equirectangular: within 0.1 % over 10 km).
@@ -39,6 +39,7 @@ NAV_LOITER_TIME = 19
 NAV_RETURN_TO_LAUNCH = 20
 NAV_LAND = 21
 NAV_TAKEOFF = 22
+DO_JUMP = 177
 DO_CHANGE_SPEED = 178
 DO_GRIPPER = 211
 #: Commands the route follows, by name (for messages).
@@ -330,6 +331,8 @@ def _mission(
             if item.command < 100:  # navigation: a position to check
                 _check_item(item)
             continue
+        if item.command == DO_JUMP:
+            raise UserError(f"{item.where}: DO_JUMP loops are not supported (unroll the loop)")
         if any(item.command in r for r in _NON_NAV):
             ignored.append(f"{item.where}: command {item.command}")
             continue

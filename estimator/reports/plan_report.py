@@ -96,20 +96,24 @@ def _plot_route(result: MissionEnergy, title: str) -> plt.Figure:
     c = result.conditions
     if c.wind_speed_mps > 0:
         wn, we = c.wind_ne_mps()
-        scale = 0.25 * span / c.wind_speed_mps
-        x0, y0 = float(points[:, 0].min()), float(points[:, 1].max()) + 0.1 * span
+        scale = 0.2 * span / c.wind_speed_mps
+        x0 = float(points[:, 0].min()) - 0.15 * span
+        y0 = float(points[:, 1].max()) + 0.15 * span
+        tip = (x0 + we * scale, y0 + wn * scale)
+        ax.plot([x0, tip[0]], [y0, tip[1]], alpha=0.0)  # keeps the arrow inside the axes
         ax.annotate(
             "",
-            xy=(x0 + we * scale, y0 + wn * scale),
+            xy=tip,
             xytext=(x0, y0),
-            arrowprops={"arrowstyle": "-|>", "lw": 2, "color": "tab:blue"},
+            arrowprops={"arrowstyle": "-|>", "lw": 2.5, "color": "tab:blue"},
         )
         ax.text(
             x0,
             y0,
-            f" wind {c.wind_speed_mps:g} m/s from {c.wind_from_deg:03.0f}°",
+            f"wind {c.wind_speed_mps:g} m/s\nfrom {c.wind_from_deg:03.0f}°  ",
             color="tab:blue",
-            va="bottom",
+            ha="right" if we >= 0 else "left",
+            va="center",
         )
     ax.set_aspect("equal", adjustable="datalim")
     ax.autoscale_view()
