@@ -33,6 +33,7 @@ from estimator.errors import UserError
 from estimator.logs.mission_files import MissionLeg
 from estimator.physics.battery import PackModel
 from estimator.physics.route_energy import (
+    DEFAULT_MAX_AIRSPEED_MPS,
     Conditions,
     InfeasibleTrack,
     Kinematics,
@@ -90,6 +91,11 @@ class FlightSettings:
     spool_s: float = 2.0
     max_airspeed_mps: float | None = None
     airspeed_along_track: bool = True
+
+    @property
+    def airspeed_limit_mps(self) -> float:
+        """The airspeed limit in force, m/s."""
+        return self.max_airspeed_mps or DEFAULT_MAX_AIRSPEED_MPS
 
     @property
     def kinematics(self) -> Kinematics:
@@ -179,12 +185,18 @@ def mission_energy(
     mission ends in the air. UserError when the wind allows no headway on a leg."""
     rv = RouteVehicle.from_vehicle(vehicle)
     if settings.max_airspeed_mps is None:
-        settings = replace(settings, max_airspeed_mps=vehicle.max_airspeed_mps or 20.0)
+        settings = replace(settings, max_airspeed_mps=vehicle.max_airspeed_mps)
     flown = list(legs)
     added = flown[-1].kind not in ("land", "rtl")
     if added:
         last = flown[-1]
-        flown.append(replace(last, kind="rtl", start_ned_m=last.end_ned_m, end_ned_m=(0, 0, 0)))
+        flown.append(
+            MissionLeg(
+                "rtl", last.seq, last.end_ned_m, (0.0, 0.0, 0.0), speed_mps=last.speed_mps,
+                climb_rate_mps=last.climb_rate_mps, descent_rate_mps=last.descent_rate_mps,
+                payload=last.payload,
+            )
+        )  # fmt: skip
     corners = _corner_speeds(flown, settings)
     results = []
     for i, leg in enumerate(flown):
@@ -241,13 +253,11 @@ def _leg(
     energy = replace(sum_energies(_pieces(rv, c, leg, s, track, speed, ends)), kind=leg.kind)
     recommended, recommended_wh = None, None
     if distance > 0:
-        flown = reachable_ground_speed_mps(
-            c, track, s.max_airspeed_mps or 20.0, s.airspeed_along_track
-        )
+        flown = reachable_ground_speed_mps(c, track, s.airspeed_limit_mps, s.airspeed_along_track)
         energy = replace(energy, ground_speed_mps=min(speed, flown))
         recommended = optimal_speed(
             rv, c, track, max_ground_speed_mps=s.max_speed_mps,
-            max_airspeed_mps=s.max_airspeed_mps or 20.0, along_track=s.airspeed_along_track,
+            max_airspeed_mps=s.airspeed_limit_mps, along_track=s.airspeed_along_track,
         )  # fmt: skip
         best = _pieces(rv, c, leg, s, track, recommended.ground_speed_mps, ends)
         recommended_wh = sum_energies(best).energy_wh
@@ -278,7 +288,7 @@ def _pieces(
         return leg_energy(
             rv, c, distance_m=dist_m, track_deg=track_deg, climb_m=climb_m,
             ground_speed_mps=speed_mps, climb_rate_mps=climb_mps, descent_rate_mps=descent_mps,
-            max_airspeed_mps=s.max_airspeed_mps or 20.0, kinematics=kin,
+            max_airspeed_mps=s.airspeed_limit_mps, kinematics=kin,
             along_track=s.airspeed_along_track,
             start_speed_mps=ends[0], end_speed_mps=ends[1],
         )  # fmt: skip
@@ -328,7 +338,7 @@ def _circle(
     return [
         leg_energy(
             rv, c, distance_m=piece_m, track_deg=360.0 * k / CIRCLE_PIECES, ground_speed_mps=speed,
-            max_airspeed_mps=s.max_airspeed_mps or 20.0, along_track=s.airspeed_along_track,
+            max_airspeed_mps=s.airspeed_limit_mps, along_track=s.airspeed_along_track,
             kinematics=s.kinematics, start_speed_mps=0.0 if k == 0 else speed,
             end_speed_mps=0.0 if k == last else speed,
         )

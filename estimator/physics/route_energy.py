@@ -2,8 +2,9 @@
 
 Pure functions of a :class:`RouteVehicle` (the vehicle file's power model, mass and effects) and
 :class:`Conditions` (wind, payload and their uncertainty). Power comes from the project's one
-prediction, :func:`~estimator.physics.effects.predict_power_w`, at a constant velocity (no
-acceleration): every segment is flown at one steady state.
+prediction, :func:`~estimator.physics.effects.predict_power_w`, piecewise: each phase of a
+segment at one velocity with its mean acceleration (steady, unless :class:`Kinematics` adds
+the speed changes).
 
 Conventions: positions and velocities NED (north, east, down), horizontal tracks in degrees
 clockwise from north; the wind follows :class:`~estimator.physics.effects.Wind`: ``speed_mps``
