@@ -13,8 +13,10 @@ Connection strings follow ArduPilot/mavutil usage:
 
 A link parses what it receives into pymavlink messages (bad frames are counted, never
 raised) and queues them for :meth:`MavlinkLink.recv`; a flood beyond ``max_pending``
-messages drops the oldest ones (counted). Outgoing messages are packed with the link's own
-system/component id and sequence (:attr:`MavlinkLink.mav` is that encoder)::
+messages drops the oldest ones (counted). A link opened with ``message_ids`` drops frames of
+other ids by their header, before parsing (``counts['skipped_frames']``). Outgoing messages
+are packed with the link's own system/component id and sequence (:attr:`MavlinkLink.mav` is
+that encoder)::
 
     link = await open_link("udpin:127.0.0.1:14550", source_system=1, source_component=191)
     link.send(link.mav.heartbeat_encode(18, 8, 0, 0, 4))
@@ -99,7 +101,7 @@ class MavlinkLink:
     """One MAVLink connection: received messages queue up for :meth:`recv`; :meth:`send`
     packs with our ids. Counters: ``counts['bad_frames']``, ``['dropped']`` (queue overflow),
     ``['rx_messages']``, ``['tx_messages']``, ``['tx_dropped']`` (no peer / not connected),
-    ``['reconnects']``."""
+    ``['reconnects']``, ``['skipped_frames']`` (ids outside ``message_ids``)."""
 
     def __init__(
         self,
@@ -107,8 +109,10 @@ class MavlinkLink:
         source_system: int,
         source_component: int,
         max_pending: int,
+        message_ids: frozenset[int] | None = None,
     ) -> None:
         self.address = address
+        self.message_ids = message_ids
         self.mav = mavlink.MAVLink(None, srcSystem=source_system, srcComponent=source_component)
         self.counts: Counter[str] = Counter()
         self._pending: deque[mavlink.MAVLink_message] = deque()
@@ -137,10 +141,18 @@ class MavlinkLink:
 
     # -- receiving --------------------------------------------------------------------------
 
-    def _deliver(self, messages: list[mavlink.MAVLink_message], bad_frames: int) -> None:
+    def parser(self, stream: bool) -> FrameParser:
+        """A frame parser for this link's transport (``stream``: TCP, serial)."""
+        return FrameParser(self.message_ids, stream)
+
+    def _deliver(
+        self, messages: list[mavlink.MAVLink_message], bad_frames: int, skipped_frames: int = 0
+    ) -> None:
         """Called by the transport with each parsed chunk."""
         if bad_frames:
             self.counts["bad_frames"] += bad_frames
+        if skipped_frames:
+            self.counts["skipped_frames"] += skipped_frames
         if not messages:
             return
         self.counts["rx_messages"] += len(messages)
@@ -204,14 +216,16 @@ async def open_link(
     source_system: int = 1,
     source_component: int = mavlink.MAV_COMP_ID_ONBOARD_COMPUTER,
     max_pending: int = 10_000,
+    message_ids: frozenset[int] | None = None,
 ) -> MavlinkLink:
-    """Open a link from a connection string (see the module docstring).
+    """Open a link from a connection string (see the module docstring). With
+    ``message_ids``, frames of other ids are dropped unparsed (:class:`FrameParser`).
 
     Failing to bind or open a device is a UserError; a ``tcp`` client that cannot connect yet
     keeps trying in the background (sends are dropped and counted meanwhile).
     """
     address = parse_url(url)
-    link = MavlinkLink(address, source_system, source_component, max_pending)
+    link = MavlinkLink(address, source_system, source_component, max_pending, message_ids)
     opener = {
         "udpin": _UdpTransport.open,
         "udpout": _UdpTransport.open,
@@ -246,7 +260,7 @@ class _StreamProtocol(asyncio.Protocol):
 
     def __init__(self, link: MavlinkLink, on_lost: Any = None) -> None:
         self.link = link
-        self.parser = FrameParser()
+        self.parser = link.parser(stream=True)
         self.transport: asyncio.Transport | None = None
         self.lost = asyncio.get_running_loop().create_future()
         self._on_lost = on_lost
@@ -256,9 +270,10 @@ class _StreamProtocol(asyncio.Protocol):
         self.transport = transport
 
     def data_received(self, data: bytes) -> None:
-        before = self.parser.bad_frames
-        messages = self.parser.feed(data)
-        self.link._deliver(messages, self.parser.bad_frames - before)
+        parser = self.parser
+        bad, skipped = parser.bad_frames, parser.skipped_frames
+        messages = parser.feed(data)
+        self.link._deliver(messages, parser.bad_frames - bad, parser.skipped_frames - skipped)
 
     def connection_lost(self, exc: Exception | None) -> None:
         self.transport = None
@@ -276,9 +291,9 @@ class _DatagramProtocol(asyncio.DatagramProtocol):
         self.peers = peers
 
     def datagram_received(self, data: bytes, addr: Any) -> None:
-        parser = FrameParser()
+        parser = self.link.parser(stream=False)
         messages = parser.feed(data)
-        self.link._deliver(messages, parser.bad_frames)
+        self.link._deliver(messages, parser.bad_frames, parser.skipped_frames)
         if self.peers is not None and messages:
             if addr in self.peers:
                 return
@@ -457,7 +472,7 @@ class _SerialTransport(_Transport):
     def __init__(self, link: MavlinkLink, fd: int) -> None:
         self.link = link
         self.fd: int | None = None
-        self.parser = FrameParser()
+        self.parser = link.parser(stream=True)
         self.out = bytearray()
         self.loop = asyncio.get_running_loop()
         self.reopen_task: asyncio.Task[None] | None = None
@@ -469,7 +484,7 @@ class _SerialTransport(_Transport):
 
     def _attach(self, fd: int) -> None:
         self.fd = fd
-        self.parser = FrameParser()
+        self.parser = self.link.parser(stream=True)
         self.loop.add_reader(fd, self._readable)
 
     def _detach(self, reason: str) -> None:
@@ -507,9 +522,10 @@ class _SerialTransport(_Transport):
         if not data:
             self._detach("hung up")
             return
-        before = self.parser.bad_frames
-        messages = self.parser.feed(data)
-        self.link._deliver(messages, self.parser.bad_frames - before)
+        parser = self.parser
+        bad, skipped = parser.bad_frames, parser.skipped_frames
+        messages = parser.feed(data)
+        self.link._deliver(messages, parser.bad_frames - bad, parser.skipped_frames - skipped)
 
     def write(self, data: bytes) -> bool:
         if self.fd is None:
