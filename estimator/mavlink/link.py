@@ -51,6 +51,9 @@ MAX_UDP_PEERS = 16
 #: Seconds between attempts to reconnect a TCP client or reopen a serial device.
 TCP_RECONNECT_S = 1.0
 UDP_RECEIVE_BUFFER_BYTES = 1 << 20
+#: Datagrams read at one wake-up of the loop at most, and the largest one read whole.
+UDP_DATAGRAMS_PER_WAKE = 64
+UDP_DATAGRAM_MAX_BYTES = 65_535
 DEFAULT_BAUD = 115200
 _BAUD_RATES = {
     int(name[1:]): getattr(termios, name)
@@ -283,66 +286,88 @@ class _StreamProtocol(asyncio.Protocol):
             self._on_lost(self)
 
 
-class _DatagramProtocol(asyncio.DatagramProtocol):
-    """Each datagram is parsed on its own, so a truncated frame never swallows the next one."""
+class _UdpTransport(_Transport):
+    """A non-blocking UDP socket read with ``loop.add_reader``: each wake-up reads every
+    datagram waiting (up to :data:`UDP_DATAGRAMS_PER_WAKE`), without asyncio's datagram
+    transport and protocol between the socket and the parser. Each datagram is parsed on its
+    own, so a truncated frame never swallows the next one. ``udpin`` answers the peers heard
+    from; ``udpout`` sends to its address from a connected socket."""
 
-    def __init__(self, link: MavlinkLink, peers: dict[Any, None] | None) -> None:
+    def __init__(
+        self, link: MavlinkLink, sock: socket.socket, peers: dict[Any, None] | None
+    ) -> None:
         self.link = link
+        self.sock = sock
         self.peers = peers
+        self.loop = asyncio.get_running_loop()
+        self.loop.add_reader(sock.fileno(), self._readable)
 
-    def datagram_received(self, data: bytes, addr: Any) -> None:
+    @classmethod
+    async def open(cls, link: MavlinkLink) -> _UdpTransport:
+        addr = link.address
+        loop = asyncio.get_running_loop()
+        infos = await loop.getaddrinfo(addr.host, addr.port, type=socket.SOCK_DGRAM)
+        if not infos:
+            raise OSError(f"cannot resolve {addr.host}")
+        family, _, _, _, sockaddr = infos[0]
+        sock = socket.socket(family, socket.SOCK_DGRAM)
+        try:
+            sock.setblocking(False)
+            if addr.kind == "udpin":
+                sock.bind(sockaddr)
+                # absorb bursts while the loop is busy (the kernel may cap it)
+                sock.setsockopt(socket.SOL_SOCKET, socket.SO_RCVBUF, UDP_RECEIVE_BUFFER_BYTES)
+            else:
+                sock.connect(sockaddr)
+        except OSError:
+            sock.close()
+            raise
+        return cls(link, sock, {} if addr.kind == "udpin" else None)
+
+    def _readable(self) -> None:
+        for _ in range(UDP_DATAGRAMS_PER_WAKE):  # then let the loop's other work run
+            try:
+                data, peer = self.sock.recvfrom(UDP_DATAGRAM_MAX_BYTES)
+            except (BlockingIOError, InterruptedError):
+                return
+            except OSError:  # ICMP port unreachable from a peer that went away: count, go on
+                self.link.counts["socket_errors"] += 1
+                return
+            self._received(data, peer)
+
+    def _received(self, data: bytes, peer: Any) -> None:
         parser = self.link.parser(stream=False)
         messages = parser.feed(data)
         self.link._deliver(messages, parser.bad_frames, parser.skipped_frames)
         if self.peers is not None and messages:
-            if addr in self.peers:
+            if peer in self.peers:
                 return
-            self.peers[addr] = None
+            self.peers[peer] = None
             if len(self.peers) > MAX_UDP_PEERS:
                 del self.peers[next(iter(self.peers))]
 
-    def error_received(self, exc: Exception) -> None:
-        # ICMP port unreachable from a peer that went away: count, keep going.
-        self.link.counts["socket_errors"] += 1
-
-
-class _UdpTransport(_Transport):
-    def __init__(self, transport: asyncio.DatagramTransport, peers: dict[Any, None] | None):
-        self.transport = transport
-        self.peers = peers
-
-    @classmethod
-    async def open(cls, link: MavlinkLink) -> _UdpTransport:
-        loop = asyncio.get_running_loop()
-        addr = link.address
-        peers: dict[Any, None] | None = {} if addr.kind == "udpin" else None
-        if addr.kind == "udpin":
-            transport, _ = await loop.create_datagram_endpoint(
-                lambda: _DatagramProtocol(link, peers), local_addr=(addr.host, addr.port)
-            )
-            sock = transport.get_extra_info("socket")
-            if sock is not None:  # absorb bursts while the loop is busy (kernel may cap it)
-                sock.setsockopt(socket.SOL_SOCKET, socket.SO_RCVBUF, UDP_RECEIVE_BUFFER_BYTES)
-        else:
-            transport, _ = await loop.create_datagram_endpoint(
-                lambda: _DatagramProtocol(link, None), remote_addr=(addr.host, addr.port)
-            )
-        return cls(transport, peers)
-
     def write(self, data: bytes) -> bool:
-        if self.peers is None:
-            self.transport.sendto(data)
-            return True
-        for peer in self.peers:
-            self.transport.sendto(data, peer)
-        return bool(self.peers)
+        if self.peers is not None and not self.peers:
+            return False
+        for peer in [None] if self.peers is None else list(self.peers):
+            try:
+                if peer is None:
+                    self.sock.send(data)
+                else:
+                    self.sock.sendto(data, peer)
+            except (BlockingIOError, InterruptedError):  # send buffer full: datagram lost
+                self.link.counts["tx_dropped"] += 1
+            except OSError:  # e.g. ICMP port unreachable reported on a connected socket
+                self.link.counts["socket_errors"] += 1
+        return True
 
     def local_address(self) -> tuple[str, int] | None:
-        host, port = self.transport.get_extra_info("sockname")[:2]
+        host, port = self.sock.getsockname()[:2]
         return str(host), int(port)
 
     async def close(self) -> None:
-        self.transport.close()
+        self.loop.remove_reader(self.sock.fileno())
+        self.sock.close()
 
 
 class _TcpClientTransport(_Transport):
