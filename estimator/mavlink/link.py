@@ -290,7 +290,8 @@ class _UdpTransport(_Transport):
     """A non-blocking UDP socket read with ``loop.add_reader``: each wake-up reads every
     datagram waiting (up to :data:`UDP_DATAGRAMS_PER_WAKE`), without asyncio's datagram
     transport and protocol between the socket and the parser. Each datagram is parsed on its
-    own, so a truncated frame never swallows the next one. ``udpin`` answers the peers heard
+    own, so a truncated frame never swallows the next one: a datagram that leaves part of a
+    frame in the parser gets a new parser for the next. ``udpin`` answers the peers heard
     from; ``udpout`` sends to its address from a connected socket."""
 
     def __init__(
@@ -299,6 +300,7 @@ class _UdpTransport(_Transport):
         self.link = link
         self.sock = sock
         self.peers = peers
+        self._parser = link.parser(stream=False)
         self.loop = asyncio.get_running_loop()
         self.loop.add_reader(sock.fileno(), self._readable)
 
@@ -336,9 +338,12 @@ class _UdpTransport(_Transport):
             self._received(data, peer)
 
     def _received(self, data: bytes, peer: Any) -> None:
-        parser = self.link.parser(stream=False)
+        parser = self._parser
+        bad, skipped = parser.bad_frames, parser.skipped_frames
         messages = parser.feed(data)
-        self.link._deliver(messages, parser.bad_frames, parser.skipped_frames)
+        self.link._deliver(messages, parser.bad_frames - bad, parser.skipped_frames - skipped)
+        if parser.holds_partial_frame:  # a truncated datagram: its bytes go with the parser
+            self._parser = self.link.parser(stream=False)
         if self.peers is not None and messages:
             if peer in self.peers:
                 return

@@ -139,6 +139,11 @@ class FrameParser:
                 good.append(msg)
         return good
 
+    @property
+    def holds_partial_frame(self) -> bool:
+        """Whether bytes of an unfinished frame wait for the next chunk."""
+        return bool(self._held) or self._codec.buf_len() > 0
+
     def _wanted_frames(self, data: bytes) -> bytes:
         """``data`` without the whole frames of unwanted ids at its start (see the class)."""
         assert self._message_ids is not None
