@@ -14,7 +14,8 @@ UDP port of this process.
    20 ms between datagrams nothing else is in flight) to receiving its JSON line (same
    monotonic clock). The baseline is a bare asyncio + pymavlink loop in its own process
    that parses every datagram and answers each with a JSON line: what the transport and
-   codec alone cost. Both latencies are over the same datagrams.
+   codec alone cost. Both latencies are over the same datagrams. For scale, the CPU of an
+   asyncio endpoint that does nothing with its datagrams (the event loop's wake-ups alone).
 3. Highest sustainable rate: TRIAL_S of the log at each rate, a fresh daemon each time
    (doubling from 2000 messages/s, then three halvings of the step between the last rate
    kept up with and the first not): sustainable when every estimate the same frames give in
@@ -75,6 +76,19 @@ class Bare(asyncio.DatagramProtocol):
 async def main():
     loop = asyncio.get_running_loop()
     await loop.create_datagram_endpoint(Bare, local_addr=("127.0.0.1", LISTEN))
+    await asyncio.Event().wait()
+asyncio.run(main())
+"""
+
+#: The floor of any asyncio daemon here: an endpoint that does nothing with its datagrams.
+EMPTY_ENDPOINT = r"""
+import asyncio, sys
+class Empty(asyncio.DatagramProtocol):
+    def datagram_received(self, data, addr):
+        pass
+async def main():
+    loop = asyncio.get_running_loop()
+    await loop.create_datagram_endpoint(Empty, local_addr=("127.0.0.1", int(sys.argv[1])))
     await asyncio.Event().wait()
 asyncio.run(main())
 """
@@ -290,8 +304,13 @@ async def bench(seconds: float) -> None:
         [sys.executable, "-c", BASELINE, str(listen), str(answer)], listen, answer, window
     )
     listen, answer = free_port(), free_port()
+    empty = await at_50_msg_s(
+        [sys.executable, "-c", EMPTY_ENDPOINT, str(listen)], listen, answer, window
+    )
+    listen, answer = free_port(), free_port()
     daemon = await at_50_msg_s(daemon_command(listen, answer), listen, answer, window)
-    for run, label in ((base, "bare pymavlink loop"), (daemon, "daemon")):
+    runs = ((empty, "empty asyncio sink"), (base, "bare pymavlink loop"), (daemon, "daemon"))
+    for run, label in runs:
         print(
             f"  {label:19s} CPU {100 * run.cpu_share:5.2f} % of one core  RSS idle "
             f"{run.idle_rss_mb:5.1f} MB, after the stream {run.rss_mb:5.1f} MB"
