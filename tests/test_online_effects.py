@@ -117,11 +117,11 @@ def test_a_covariance_that_lost_positive_definiteness_is_restarted_not_raised() 
     carries on (the daemon never dies on bad input)."""
     tracker = OnlineEffects.from_vehicle(VEHICLE)
     tracker.update(0.0, 5.0, 0.0, 0.0, 0.0, 0.0, 380.0)
-    tracker._ukf.P = np.diag([1.0, -1.0, 1.0])  # what a run of garbage readings can leave
+    tracker._p = np.diag([1.0, -1.0, 1.0])  # what a run of garbage readings can leave
     tracker.update(0.5, 5.0, 0.0, 0.0, 0.0, 0.0, 380.0)
     assert tracker.resets == 1
     assert math.isfinite(tracker.wind.speed_mps) and math.isfinite(tracker.mass_delta_kg)
-    assert np.all(np.linalg.eigvalsh(tracker._ukf.P) > 0)
+    assert np.all(np.linalg.eigvalsh(tracker._p) > 0)
 
 
 @dataclass(frozen=True)

@@ -1,6 +1,7 @@
 """Kalman fusion of the power model with the battery: remaining energy, model bias, endurance.
 
-Two filters (filterpy), both driven only by sample times:
+Two linear Kalman filters (:mod:`estimator.estimation.kalman`), both driven only by sample
+times:
 
 - :class:`EnergyFilter`, state ``[E, b]``: E is the usable chemical energy left above the
   reserve (Wh), b the scale between the model's power and the power actually drawn (1 = the
@@ -27,9 +28,9 @@ import math
 from dataclasses import dataclass
 
 import numpy as np
-from filterpy.kalman import KalmanFilter
 from numpy.typing import ArrayLike
 
+from estimator.estimation.kalman import LinearKalman
 from estimator.physics.battery import PackModel
 from estimator.physics.model import FloatArray
 from estimator.telemetry.samples import BatterySample
@@ -83,20 +84,20 @@ class FusionSettings:
 
 class ResistanceFilter:
     """The pack's internal resistance R (Ω) from V = OCV(SoC) − I·R, with the SoC from the
-    energy state (filterpy, one state with a slow random walk: R falls as the pack warms)."""
+    energy state (one state with a slow random walk: R falls as the pack warms)."""
 
     def __init__(self, pack: PackModel, settings: FusionSettings) -> None:
         self.pack = pack
         self.settings = settings
         cells = pack.spec.cells
         fixed = settings.internal_resistance_ohm
-        kf = KalmanFilter(dim_x=1, dim_z=1)
         prior = settings.resistance_prior_ohm_per_cell * cells
-        kf.x = np.array([prior if fixed is None else fixed])
-        kf.P = np.array([[0.0 if fixed is not None else prior**2]])
+        self._kf = LinearKalman(
+            np.array([prior if fixed is None else fixed]),
+            np.array([[0.0 if fixed is not None else prior**2]]),
+        )
         ocv_sigma_v = settings.ocv_curve_sigma_v_per_cell * cells
-        kf.R = np.array([[settings.voltage_noise_v**2 + ocv_sigma_v**2]])
-        self._kf = kf
+        self._voltage_var_v2 = settings.voltage_noise_v**2 + ocv_sigma_v**2
         self._fixed = fixed is not None
 
     @property
@@ -113,7 +114,7 @@ class ResistanceFilter:
         if abs(current_a) < self.settings.resistance_min_current_a:
             return  # the drop I·R is lost in the voltage noise (a pack at rest)
         ocv_v = float(self.pack.ocv_v(soc))
-        kf.update(np.array([ocv_v - voltage_v]), H=np.array([[current_a]]))
+        kf.update(ocv_v - voltage_v, np.array([current_a]), self._voltage_var_v2)
         kf.x[0] = min(max(kf.x[0], 0.0), 1.0)
 
     def terminal_voltage_v(self, ocv_v: ArrayLike, power_w: ArrayLike) -> FloatArray:
@@ -147,7 +148,7 @@ class EnergyFilter:
     def __init__(self, pack: PackModel, settings: FusionSettings | None = None) -> None:
         self.pack = pack
         self.settings = settings or FusionSettings()
-        self._kf: KalmanFilter | None = None
+        self._kf: LinearKalman | None = None
         self._time_s: float | None = None
         self._soc_ref = 1.0  # SoC when the consumed-charge counter read 0
         self._offset_sigma_wh = 0.0
@@ -200,7 +201,7 @@ class EnergyFilter:
             covariance=cov,
         )
 
-    def _require(self) -> KalmanFilter:
+    def _require(self) -> LinearKalman:
         if self._kf is None:
             raise RuntimeError("EnergyFilter used before the first battery sample")
         return self._kf
@@ -231,11 +232,8 @@ class EnergyFilter:
         self._offset_sigma_wh = math.hypot(
             min(sigma_soc, 0.5) * slope_wh, s.capacity_sigma_fraction * energy_wh
         )
-        kf = KalmanFilter(dim_x=2, dim_z=1)
-        kf.x = np.array([energy_wh, 1.0])
+        self._kf = LinearKalman(np.array([energy_wh, 1.0]), np.diag([0.0, s.bias_prior_sigma**2]))
         self._initial_wh = energy_wh
-        kf.P = np.diag([0.0, s.bias_prior_sigma**2])
-        self._kf = kf
         self._time_s = sample.time_s
         self.voltage = ResistanceFilter(pack, s)
 
@@ -267,11 +265,11 @@ class EnergyFilter:
         if measured:
             q_e = (s.power_noise_fraction * drain_wh) ** 2
             kf.x[0] -= drain_wh
-            kf.predict(F=np.eye(2), Q=np.diag([q_e, q_b]))
+            kf.predict(np.eye(2), np.diag([q_e, q_b]))
         else:
             f = np.array([[1.0, -drain_wh], [0.0, 1.0]])
             q_e = (s.model_power_noise_fraction * drain_wh) ** 2
-            kf.predict(F=f, Q=np.diag([q_e, q_b]))
+            kf.predict(f, np.diag([q_e, q_b]))
         self._cap_bias_variance()
 
     def flight_state_changed(self, steady_power_w: float) -> None:
@@ -333,9 +331,7 @@ class EnergyFilter:
         s = self.settings
         reading_sigma_w = s.power_noise_fraction * abs(measured_w) + s.power_noise_floor_w
         sigma_w = math.hypot(reading_sigma_w / math.sqrt(readings), model_sigma_w)
-        kf.update(
-            np.array([measured_w]), R=np.array([[sigma_w**2]]), H=np.array([[0.0, power_model_w]])
-        )
+        kf.update(measured_w, np.array([0.0, power_model_w]), sigma_w**2)
 
     def update_charge(self, consumed_mah: float) -> None:
         """Fold in the autopilot's consumed charge (mAh) as the energy it leaves (Wh)."""
@@ -346,7 +342,7 @@ class EnergyFilter:
         energy_wh = float(pack.usable_energy_wh(soc_now))
         used_wh = float(pack.energy_wh(self._soc_ref) - pack.energy_wh(soc_now))
         sigma_wh = self.settings.charge_sigma_fraction * abs(used_wh) + 0.2
-        kf.update(np.array([energy_wh]), R=np.array([[sigma_wh**2]]), H=np.array([[1.0, 0.0]]))
+        kf.update(energy_wh, np.array([1.0, 0.0]), sigma_wh**2)
 
     # -- endurance --------------------------------------------------------------------------
 

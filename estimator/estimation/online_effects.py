@@ -1,6 +1,7 @@
 """Online tracking of the effects that change during a flight: wind and mass.
 
-:class:`OnlineEffects` is a small causal unscented Kalman filter (filterpy) over the state
+:class:`OnlineEffects` is a small causal unscented Kalman filter (van der Merwe's scaled
+sigma points, :mod:`estimator.estimation.kalman`) over the state
 
     x = [w_n, w_e, δm]   air-mass velocity over ground (NED north/east, m/s) and the mass
                           difference from the vehicle file (kg),
@@ -64,14 +65,14 @@ which parts are known well enough to apply (the wind along the track flown, the 
 from __future__ import annotations
 
 import math
-from collections.abc import Iterable, Iterator, Sequence
+from collections.abc import Iterable, Sequence
 from dataclasses import dataclass
 from typing import NamedTuple
 
 import numpy as np
-from filterpy.kalman import MerweScaledSigmaPoints, UnscentedKalmanFilter
 
 from estimator.estimation.airborne import IDLE_FRACTION_OF_HOVER, AirborneGate, Phase
+from estimator.estimation.kalman import MerweSigmaPoints
 from estimator.logs import FlightSeries
 from estimator.physics.effects import (
     Effect,
@@ -195,12 +196,8 @@ class OnlineEffects:
         self._file_wind_ne_mps, self._file_mass = (wn, we), mass
         # a stepped mass from the file has not happened yet at take-off
         delta0 = mass.delta_kg if mass.at_s is None else 0.0
-        points = MerweScaledSigmaPoints(3, alpha=1.0, beta=2.0, kappa=0.0)
-        self._sigma_powers_w: Iterator[float] = iter(())
-        self._ukf = UnscentedKalmanFilter(
-            3, 1, 1.0, hx=self._next_sigma_power, fx=_identity, points=points
-        )
-        self._ukf.x = np.array([wn, we, delta0])
+        self._points = MerweSigmaPoints(3, alpha=1.0, beta=2.0, kappa=0.0)
+        self._x = np.array([wn, we, delta0])
         self._initial_var = np.array(
             [
                 s.initial_wind_sigma_mps**2,
@@ -208,7 +205,7 @@ class OnlineEffects:
                 (s.initial_mass_sigma_fraction * self.mass_kg) ** 2,
             ]
         )
-        self._ukf.P = np.diag(self._initial_var)
+        self._p = np.diag(self._initial_var)
         self._time_s: float | None = None
         self._cusum = [0.0, 0.0]  # g⁺, g⁻ of the normalised innovations
         self._hovering = False  # the last step was in hover (wind held)
@@ -245,11 +242,11 @@ class OnlineEffects:
 
     @property
     def wind(self) -> Wind:
-        return wind_from_vector(float(self._ukf.x[0]), float(self._ukf.x[1]))
+        return wind_from_vector(float(self._x[0]), float(self._x[1]))
 
     @property
     def mass_delta_kg(self) -> float:
-        return float(self._ukf.x[2])
+        return float(self._x[2])
 
     @property
     def mass_ratio(self) -> float:
@@ -259,13 +256,13 @@ class OnlineEffects:
     @property
     def sigma(self) -> dict[str, float]:
         """1σ of the wind components (m/s) and of the mass difference (kg)."""
-        sd = np.sqrt(np.clip(np.diag(self._ukf.P), 0.0, None))
+        sd = np.sqrt(np.clip(np.diag(self._p), 0.0, None))
         return {"wind_n_mps": float(sd[0]), "wind_e_mps": float(sd[1]), "mass_kg": float(sd[2])}
 
     @property
     def effects(self) -> tuple[Effect, ...]:
         """Effects to predict power with now (frame effects first)."""
-        return self._effects(self._ukf.x)
+        return self._effects(self._x)
 
     def identified_effects(
         self,
@@ -281,7 +278,7 @@ class OnlineEffects:
         from north towards east), the one that sets the power at the current course, when
         that component's 1σ is; the component across keeps the value in use. None when
         nothing is identified."""
-        x, p = self._ukf.x, self._ukf.P
+        x, p = self._x, self._p
         used_wind = next((e for e in in_use if isinstance(e, Wind)), None)
         used_mass = next((e for e in in_use if isinstance(e, Mass)), None)
         wind = (
@@ -327,12 +324,6 @@ class OnlineEffects:
         mass = SampleMass(np.repeat(np.maximum(points[:, 2], floor_kg), k))
         state = FlightState(*columns)
         return predict_power_w(self.model, self.mass_kg, state, (mass, *self.others)).reshape(m, k)
-
-    def _next_sigma_power(self, _point: np.ndarray) -> np.ndarray:
-        """filterpy's hx. The powers of all sigma points are predicted together before each
-        update (:meth:`_powers_w`); filterpy then asks for them one point at a time, in the
-        order of ``sigmas_f``."""
-        return np.array([next(self._sigma_powers_w)])
 
     def restart_clock(self) -> None:
         """The autopilot rebooted: readings come on a new clock (the estimate is kept)."""
@@ -413,7 +404,7 @@ class OnlineEffects:
         )
         reopen = step.moving and self._hovering
         self._hovering = not step.moving
-        main = self._prior(_Hypothesis(self._ukf.x, self._ukf.P, self._loglik), q, reopen)
+        main = self._prior(_Hypothesis(self._x, self._p, self._loglik), q, reopen)
         file_x = np.array([*self._file_wind_ne_mps, self._file_mass_kg()])
         done, (estimate_w, file_w) = self._step(main, step, np.vstack([main.x, file_x]))
         self.last_step_w = (step.measured_w, estimate_w, file_w)
@@ -441,7 +432,7 @@ class OnlineEffects:
             self.rejected += 1
         elif main.nu is not None:
             self.updates += 1
-        self._ukf.x, self._ukf.P, self._loglik = main.x, main.p, main.loglik
+        self._x, self._p, self._loglik = main.x, main.p, main.loglik
         return self.effects
 
     def _prior(self, h: _Hypothesis, q: np.ndarray, reopen: bool) -> _Hypothesis:
@@ -459,30 +450,30 @@ class OnlineEffects:
         """One filter step of a hypothesis: the updated one (the prior itself when the
         innovation is beyond the gate or the covariance broke), and the mean model powers (W)
         of the step's readings at the points ``extra`` (m × 3), from the same prediction."""
-        s, ukf = self.settings, self._ukf
-        ukf.x = prior.x.copy()
+        s = self.settings
         try:
-            self._draw(prior.p, step.moving)
+            drawn_p, sigmas = self._draw(prior.x, prior.p, step.moving)
         except np.linalg.LinAlgError:  # covariance lost positive definiteness: start it over
             self.resets += 1
             prior = _Hypothesis(prior.x, np.diag(self._initial_var), prior.loglik)
-            self._draw(prior.p, step.moving)
-        points = ukf.sigmas_f if extra is None else np.vstack([ukf.sigmas_f, extra])
+            drawn_p, sigmas = self._draw(prior.x, prior.p, step.moving)
+        points = sigmas if extra is None else np.vstack([sigmas, extra])
         powers_w = self._powers_w(points, step.rows).mean(axis=1)
-        n = len(ukf.sigmas_f)
-        self._sigma_powers_w = iter(powers_w[:n].tolist())
+        n = len(sigmas)
         try:
-            ukf.update(np.array([step.measured_w]), R=np.array([[step.noise_var_w2]]))
+            post = self._points.update(
+                prior.x, drawn_p, sigmas, powers_w[:n], step.measured_w, step.noise_var_w2
+            )
         except np.linalg.LinAlgError:  # covariance lost positive definiteness: start it over
             self.resets += 1
             restart = _Hypothesis(prior.x, np.diag(self._initial_var), prior.loglik)
             return restart, powers_w[n:].tolist()
-        y2, s_var = float(ukf.y[0]) ** 2, float(ukf.S[0, 0])
-        nu = float(ukf.y[0]) / math.sqrt(s_var)
+        y2, s_var = post.y**2, post.s_var
+        nu = post.y / math.sqrt(s_var)
         loglik = prior.loglik - 0.5 * (y2 / s_var + math.log(s_var))
         if abs(nu) > s.gate_sigma:
             return _Hypothesis(prior.x, prior.p, loglik, nu, y2, s_var), powers_w[n:].tolist()
-        x, p = ukf.x.copy(), 0.5 * (ukf.P + ukf.P.T)
+        x, p = post.x, 0.5 * (post.p + post.p.T)
         if not step.moving:  # the wind was held: its uncertainty is what it was
             p[:2, :] = p[:, :2] = 0.0
             p[:2, :2] = prior.p[:2, :2]
@@ -519,17 +510,15 @@ class OnlineEffects:
         self.changes += 1
         return True
 
-    def _draw(self, p: np.ndarray, moving: bool) -> None:
-        """Draw the sigma points the update evaluates from the estimate and covariance ``p``;
-        not ``moving`` (hover), with the wind held at its estimate (see the module
-        docstring)."""
-        ukf = self._ukf
-        ukf.P = p.copy()
+    def _draw(self, x: np.ndarray, p: np.ndarray, moving: bool) -> tuple[np.ndarray, np.ndarray]:
+        """The covariance the update uses and the sigma points drawn from it around the
+        estimate ``x`` with covariance ``p``; not ``moving`` (hover), with the wind held at its
+        estimate (see the module docstring)."""
+        p = p.copy()
         if not moving:
-            ukf.P[:2, :] = ukf.P[:, :2] = 0.0
-            ukf.P[0, 0] = ukf.P[1, 1] = _HELD_VARIANCE
-        ukf.Q = np.zeros((3, 3))
-        ukf.predict(dt=0.0)
+            p[:2, :] = p[:, :2] = 0.0
+            p[0, 0] = p[1, 1] = _HELD_VARIANCE
+        return p, self._points.points(x, p)
 
     def _widened(self, p: np.ndarray, wind: bool) -> np.ndarray:
         """``p`` with the wind (``wind``) or else the mass back at its initial variance and no
@@ -540,10 +529,6 @@ class OnlineEffects:
             p[i, :] = p[:, i] = 0.0
             p[i, i] = var
         return p
-
-
-def _identity(x: np.ndarray, dt: float) -> np.ndarray:
-    return x
 
 
 # -- offline runner ---------------------------------------------------------------------------

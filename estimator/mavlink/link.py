@@ -13,8 +13,10 @@ Connection strings follow ArduPilot/mavutil usage:
 
 A link parses what it receives into pymavlink messages (bad frames are counted, never
 raised) and queues them for :meth:`MavlinkLink.recv`; a flood beyond ``max_pending``
-messages drops the oldest ones (counted). Outgoing messages are packed with the link's own
-system/component id and sequence (:attr:`MavlinkLink.mav` is that encoder)::
+messages drops the oldest ones (counted). A link opened with ``message_ids`` drops frames of
+other ids by their header, before parsing (``counts['skipped_frames']``). Outgoing messages
+are packed with the link's own system/component id and sequence (:attr:`MavlinkLink.mav` is
+that encoder)::
 
     link = await open_link("udpin:127.0.0.1:14550", source_system=1, source_component=191)
     link.send(link.mav.heartbeat_encode(18, 8, 0, 0, 4))
@@ -49,6 +51,9 @@ MAX_UDP_PEERS = 16
 #: Seconds between attempts to reconnect a TCP client or reopen a serial device.
 TCP_RECONNECT_S = 1.0
 UDP_RECEIVE_BUFFER_BYTES = 1 << 20
+#: Datagrams read at one wake-up of the loop at most, and the largest one read whole.
+UDP_DATAGRAMS_PER_WAKE = 64
+UDP_DATAGRAM_MAX_BYTES = 65_535
 DEFAULT_BAUD = 115200
 _BAUD_RATES = {
     int(name[1:]): getattr(termios, name)
@@ -99,7 +104,7 @@ class MavlinkLink:
     """One MAVLink connection: received messages queue up for :meth:`recv`; :meth:`send`
     packs with our ids. Counters: ``counts['bad_frames']``, ``['dropped']`` (queue overflow),
     ``['rx_messages']``, ``['tx_messages']``, ``['tx_dropped']`` (no peer / not connected),
-    ``['reconnects']``."""
+    ``['reconnects']``, ``['skipped_frames']`` (ids outside ``message_ids``)."""
 
     def __init__(
         self,
@@ -107,8 +112,10 @@ class MavlinkLink:
         source_system: int,
         source_component: int,
         max_pending: int,
+        message_ids: frozenset[int] | None = None,
     ) -> None:
         self.address = address
+        self.message_ids = message_ids
         self.mav = mavlink.MAVLink(None, srcSystem=source_system, srcComponent=source_component)
         self.counts: Counter[str] = Counter()
         self._pending: deque[mavlink.MAVLink_message] = deque()
@@ -137,10 +144,18 @@ class MavlinkLink:
 
     # -- receiving --------------------------------------------------------------------------
 
-    def _deliver(self, messages: list[mavlink.MAVLink_message], bad_frames: int) -> None:
+    def parser(self, stream: bool) -> FrameParser:
+        """A frame parser for this link's transport (``stream``: TCP, serial)."""
+        return FrameParser(self.message_ids, stream)
+
+    def _deliver(
+        self, messages: list[mavlink.MAVLink_message], bad_frames: int, skipped_frames: int = 0
+    ) -> None:
         """Called by the transport with each parsed chunk."""
         if bad_frames:
             self.counts["bad_frames"] += bad_frames
+        if skipped_frames:
+            self.counts["skipped_frames"] += skipped_frames
         if not messages:
             return
         self.counts["rx_messages"] += len(messages)
@@ -204,14 +219,16 @@ async def open_link(
     source_system: int = 1,
     source_component: int = mavlink.MAV_COMP_ID_ONBOARD_COMPUTER,
     max_pending: int = 10_000,
+    message_ids: frozenset[int] | None = None,
 ) -> MavlinkLink:
-    """Open a link from a connection string (see the module docstring).
+    """Open a link from a connection string (see the module docstring). With
+    ``message_ids``, frames of other ids are dropped unparsed (:class:`FrameParser`).
 
     Failing to bind or open a device is a UserError; a ``tcp`` client that cannot connect yet
     keeps trying in the background (sends are dropped and counted meanwhile).
     """
     address = parse_url(url)
-    link = MavlinkLink(address, source_system, source_component, max_pending)
+    link = MavlinkLink(address, source_system, source_component, max_pending, message_ids)
     opener = {
         "udpin": _UdpTransport.open,
         "udpout": _UdpTransport.open,
@@ -246,7 +263,7 @@ class _StreamProtocol(asyncio.Protocol):
 
     def __init__(self, link: MavlinkLink, on_lost: Any = None) -> None:
         self.link = link
-        self.parser = FrameParser()
+        self.parser = link.parser(stream=True)
         self.transport: asyncio.Transport | None = None
         self.lost = asyncio.get_running_loop().create_future()
         self._on_lost = on_lost
@@ -256,9 +273,10 @@ class _StreamProtocol(asyncio.Protocol):
         self.transport = transport
 
     def data_received(self, data: bytes) -> None:
-        before = self.parser.bad_frames
-        messages = self.parser.feed(data)
-        self.link._deliver(messages, self.parser.bad_frames - before)
+        parser = self.parser
+        bad, skipped = parser.bad_frames, parser.skipped_frames
+        messages = parser.feed(data)
+        self.link._deliver(messages, parser.bad_frames - bad, parser.skipped_frames - skipped)
 
     def connection_lost(self, exc: Exception | None) -> None:
         self.transport = None
@@ -268,66 +286,93 @@ class _StreamProtocol(asyncio.Protocol):
             self._on_lost(self)
 
 
-class _DatagramProtocol(asyncio.DatagramProtocol):
-    """Each datagram is parsed on its own, so a truncated frame never swallows the next one."""
-
-    def __init__(self, link: MavlinkLink, peers: dict[Any, None] | None) -> None:
-        self.link = link
-        self.peers = peers
-
-    def datagram_received(self, data: bytes, addr: Any) -> None:
-        parser = FrameParser()
-        messages = parser.feed(data)
-        self.link._deliver(messages, parser.bad_frames)
-        if self.peers is not None and messages:
-            if addr in self.peers:
-                return
-            self.peers[addr] = None
-            if len(self.peers) > MAX_UDP_PEERS:
-                del self.peers[next(iter(self.peers))]
-
-    def error_received(self, exc: Exception) -> None:
-        # ICMP port unreachable from a peer that went away: count, keep going.
-        self.link.counts["socket_errors"] += 1
-
-
 class _UdpTransport(_Transport):
-    def __init__(self, transport: asyncio.DatagramTransport, peers: dict[Any, None] | None):
-        self.transport = transport
+    """A non-blocking UDP socket read with ``loop.add_reader``: each wake-up reads every
+    datagram waiting (up to :data:`UDP_DATAGRAMS_PER_WAKE`), without asyncio's datagram
+    transport and protocol between the socket and the parser. Each datagram is parsed on its
+    own, so a truncated frame never swallows the next one: a datagram that leaves part of a
+    frame in the parser gets a new parser for the next. ``udpin`` answers the peers heard
+    from; ``udpout`` sends to its address from a connected socket."""
+
+    def __init__(
+        self, link: MavlinkLink, sock: socket.socket, peers: dict[Any, None] | None
+    ) -> None:
+        self.link = link
+        self.sock = sock
         self.peers = peers
+        self._parser = link.parser(stream=False)
+        self.loop = asyncio.get_running_loop()
+        self.loop.add_reader(sock.fileno(), self._readable)
 
     @classmethod
     async def open(cls, link: MavlinkLink) -> _UdpTransport:
-        loop = asyncio.get_running_loop()
         addr = link.address
-        peers: dict[Any, None] | None = {} if addr.kind == "udpin" else None
-        if addr.kind == "udpin":
-            transport, _ = await loop.create_datagram_endpoint(
-                lambda: _DatagramProtocol(link, peers), local_addr=(addr.host, addr.port)
-            )
-            sock = transport.get_extra_info("socket")
-            if sock is not None:  # absorb bursts while the loop is busy (kernel may cap it)
+        loop = asyncio.get_running_loop()
+        infos = await loop.getaddrinfo(addr.host, addr.port, type=socket.SOCK_DGRAM)
+        if not infos:
+            raise OSError(f"cannot resolve {addr.host}")
+        family, _, _, _, sockaddr = infos[0]
+        sock = socket.socket(family, socket.SOCK_DGRAM)
+        try:
+            sock.setblocking(False)
+            if addr.kind == "udpin":
+                sock.bind(sockaddr)
+                # absorb bursts while the loop is busy (the kernel may cap it)
                 sock.setsockopt(socket.SOL_SOCKET, socket.SO_RCVBUF, UDP_RECEIVE_BUFFER_BYTES)
-        else:
-            transport, _ = await loop.create_datagram_endpoint(
-                lambda: _DatagramProtocol(link, None), remote_addr=(addr.host, addr.port)
-            )
-        return cls(transport, peers)
+            else:
+                sock.connect(sockaddr)
+        except OSError:
+            sock.close()
+            raise
+        return cls(link, sock, {} if addr.kind == "udpin" else None)
+
+    def _readable(self) -> None:
+        for _ in range(UDP_DATAGRAMS_PER_WAKE):  # then let the loop's other work run
+            try:
+                data, peer = self.sock.recvfrom(UDP_DATAGRAM_MAX_BYTES)
+            except (BlockingIOError, InterruptedError):
+                return
+            except OSError:  # ICMP port unreachable from a peer that went away: count, go on
+                self.link.counts["socket_errors"] += 1
+                return
+            self._received(data, peer)
+
+    def _received(self, data: bytes, peer: Any) -> None:
+        parser = self._parser
+        bad, skipped = parser.bad_frames, parser.skipped_frames
+        messages = parser.feed(data)
+        self.link._deliver(messages, parser.bad_frames - bad, parser.skipped_frames - skipped)
+        if parser.holds_partial_frame:  # a truncated datagram: its bytes go with the parser
+            self._parser = self.link.parser(stream=False)
+        if self.peers is not None and messages:
+            if peer in self.peers:
+                return
+            self.peers[peer] = None
+            if len(self.peers) > MAX_UDP_PEERS:
+                del self.peers[next(iter(self.peers))]
 
     def write(self, data: bytes) -> bool:
-        if self.peers is None:
-            self.transport.sendto(data)
-            return True
-        for peer in self.peers:
-            self.transport.sendto(data, peer)
-        return bool(self.peers)
+        if self.peers is not None and not self.peers:
+            return False
+        for peer in [None] if self.peers is None else list(self.peers):
+            try:
+                if peer is None:
+                    self.sock.send(data)
+                else:
+                    self.sock.sendto(data, peer)
+            except (BlockingIOError, InterruptedError):  # send buffer full: datagram lost
+                self.link.counts["tx_dropped"] += 1
+            except OSError:  # e.g. ICMP port unreachable reported on a connected socket
+                self.link.counts["socket_errors"] += 1
+        return True
 
     def local_address(self) -> tuple[str, int] | None:
-        host, port = self.transport.get_extra_info("sockname")[:2]
+        host, port = self.sock.getsockname()[:2]
         return str(host), int(port)
 
     async def close(self) -> None:
-        self.transport.close()
+        self.loop.remove_reader(self.sock.fileno())
+        self.sock.close()
 
 
 class _TcpClientTransport(_Transport):
@@ -457,7 +502,7 @@ class _SerialTransport(_Transport):
     def __init__(self, link: MavlinkLink, fd: int) -> None:
         self.link = link
         self.fd: int | None = None
-        self.parser = FrameParser()
+        self.parser = link.parser(stream=True)
         self.out = bytearray()
         self.loop = asyncio.get_running_loop()
         self.reopen_task: asyncio.Task[None] | None = None
@@ -469,7 +514,7 @@ class _SerialTransport(_Transport):
 
     def _attach(self, fd: int) -> None:
         self.fd = fd
-        self.parser = FrameParser()
+        self.parser = self.link.parser(stream=True)
         self.loop.add_reader(fd, self._readable)
 
     def _detach(self, reason: str) -> None:
@@ -507,9 +552,10 @@ class _SerialTransport(_Transport):
         if not data:
             self._detach("hung up")
             return
-        before = self.parser.bad_frames
-        messages = self.parser.feed(data)
-        self.link._deliver(messages, self.parser.bad_frames - before)
+        parser = self.parser
+        bad, skipped = parser.bad_frames, parser.skipped_frames
+        messages = parser.feed(data)
+        self.link._deliver(messages, parser.bad_frames - bad, parser.skipped_frames - skipped)
 
     def write(self, data: bytes) -> bool:
         if self.fd is None:

@@ -1,7 +1,8 @@
 """The onboard daemon: autopilot link in, :class:`Pipeline`, estimates out (asyncio, one thread).
 
 Messages are handled in the link's receive callback as their datagram arrives (decode →
-pipeline → JSON lines; no queue, no task switch). Tasks: publish (NAMED_VALUE_FLOAT and
+pipeline → JSON lines; no queue, no task switch); frames of ids the decoder does not use are
+dropped by their header before pymavlink parses them. Tasks: publish (NAMED_VALUE_FLOAT and
 BATTERY_STATUS at the configured rate), heartbeat + watchdog (1 Hz: our HEARTBEAT, stale
 detection, stream requests until telemetry flows, counters of bad input), and a drain per
 output link. Wall clock is used only for these timers; the estimates run on the autopilot's
@@ -30,7 +31,7 @@ from estimator.mavlink import publish
 from estimator.mavlink.config import ServiceConfig
 from estimator.mavlink.link import MavlinkLink, open_link, parse_url
 from estimator.physics.vehicle import Vehicle
-from estimator.telemetry.decode import SKIP_COUNTERS, TelemetryDecoder
+from estimator.telemetry.decode import SKIP_COUNTERS, USED_MESSAGE_IDS, TelemetryDecoder
 from estimator.telemetry.plausibility import pack_voltage_problem
 from estimator.telemetry.samples import BatterySample
 
@@ -101,7 +102,9 @@ class Service:
                 loop.add_signal_handler(sig, stop.set)
                 installed.append(sig)
         cfg = self.config
-        self.link = await open_link(cfg.connect, source_system=cfg.system_id)
+        self.link = await open_link(
+            cfg.connect, source_system=cfg.system_id, message_ids=USED_MESSAGE_IDS
+        )
         try:
             for url in cfg.publish:
                 self.outputs.append(await open_link(url, source_system=cfg.system_id))

@@ -220,11 +220,12 @@ async def fly_live(
 
 
 async def _caught_up(service: Service, sim_link: MavlinkLink, daemon: asyncio.Task[int]) -> None:
-    """Return once the daemon has read every frame the simulator sent (RuntimeError when it
-    makes no progress for :data:`STALL_S`)."""
+    """Return once the daemon has read (or skipped by header) every frame the simulator sent
+    (RuntimeError when it makes no progress for :data:`STALL_S`)."""
     last, stalled_s = -1, 0.0
     while not daemon.done():
-        received = 0 if service.link is None else service.link.counts["rx_messages"]
+        link = service.link
+        received = 0 if link is None else link.counts["rx_messages"] + link.counts["skipped_frames"]
         if received >= sim_link.counts["tx_messages"]:
             return
         stalled_s = 0.0 if received != last else stalled_s + POLL_S

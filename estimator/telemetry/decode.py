@@ -101,15 +101,31 @@ _NOT_AUTOPILOTS = frozenset(
 
 
 class FrameParser:
-    """Bytes in, MAVLink messages out; bad frames are counted, never raised."""
+    """Bytes in, MAVLink messages out; bad frames are counted, never raised.
 
-    def __init__(self) -> None:
+    With ``message_ids``, whole frames of other ids are dropped by their header before
+    pymavlink sees them (counted in ``skipped_frames``; their checksum is not verified):
+    the walk goes frame by frame from the chunk's start while each frame begins with a
+    MAVLink magic byte and lies whole in the chunk. What follows is parsed as it is
+    (garbage: pymavlink resynchronizes and counts it); with ``stream`` (TCP, serial) a
+    frame cut by the end of the chunk is held and completed by the next one.
+    """
+
+    def __init__(self, message_ids: frozenset[int] | None = None, stream: bool = False) -> None:
         self._codec = mavlink.MAVLink(None)
         self._codec.robust_parsing = True
+        self._message_ids = message_ids
+        self._stream = stream
+        self._held = b""
         self.bad_frames = 0
+        self.skipped_frames = 0
 
     def feed(self, data: bytes) -> list[mavlink.MAVLink_message]:
         """Parse a chunk (a datagram, a stream read, a tlog record) into good messages."""
+        if self._message_ids is not None and self._codec.buf_len() == 0:
+            data = self._wanted_frames(self._held + data)
+            if not data:
+                return []
         try:
             parsed = self._codec.parse_buffer(data) or []
         except Exception:  # pymavlink raises plain Exception subclasses on corrupt input
@@ -122,6 +138,41 @@ class FrameParser:
             else:
                 good.append(msg)
         return good
+
+    @property
+    def holds_partial_frame(self) -> bool:
+        """Whether bytes of an unfinished frame wait for the next chunk."""
+        return bool(self._held) or self._codec.buf_len() > 0
+
+    def _wanted_frames(self, data: bytes) -> bytes:
+        """``data`` without the whole frames of unwanted ids at its start (see the class)."""
+        assert self._message_ids is not None
+        wanted, at, end = self._message_ids, 0, len(data)
+        kept: list[bytes] = []
+        while at < end:
+            magic = data[at]
+            if magic == 0xFD and at + 10 <= end:  # MAVLink 2: 10-byte header, signature flag
+                size = 12 + data[at + 1] + (13 if data[at + 2] & 0x01 else 0)
+                msgid = data[at + 7] | data[at + 8] << 8 | data[at + 9] << 16
+            elif magic == 0xFE and at + 6 <= end:  # MAVLink 1: 6-byte header
+                size, msgid = 8 + data[at + 1], data[at + 5]
+            elif magic in (0xFD, 0xFE):
+                size, msgid = end - at + 1, -1  # header cut by the chunk's end
+            else:
+                break  # not at a frame: pymavlink resynchronizes on the rest
+            if at + size > end:
+                if self._stream:  # the rest of the frame comes with the next chunk
+                    self._held = data[at:]
+                    return b"".join(kept)
+                break
+            if msgid in wanted:
+                kept.append(data[at : at + size])
+            else:
+                self.skipped_frames += 1
+            at += size
+        self._held = b""
+        kept.append(data[at:])
+        return b"".join(kept)
 
     def decode_frame(self, frame: bytes) -> mavlink.MAVLink_message | None:
         """One whole frame (a log record's) into a message, without the byte-by-byte stream

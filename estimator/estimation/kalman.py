@@ -1,0 +1,93 @@
+"""Closed-form Kalman steps in numpy for the daemon's small filters (scalar measurements).
+
+The steps are filterpy's (``KalmanFilter.predict``/``update`` with the Joseph-form
+covariance; ``UnscentedKalmanFilter`` with ``MerweScaledSigmaPoints``), written out for the
+shapes used here: states of 1–3 elements and one measurement. Importing filterpy runs its
+package ``__init__``, which loads every submodule and with them ``scipy.stats``,
+``scipy.linalg`` and ``scipy.ndimage``: about 60 MB of the daemon's resident memory and
+0.7 s of its start-up for a few 3 × 3 products. tests/test_kalman.py checks every step
+here against filterpy's on random inputs (equal to 1e-12).
+"""
+
+from __future__ import annotations
+
+from typing import NamedTuple
+
+import numpy as np
+
+
+class LinearKalman:
+    """A linear Kalman filter: state ``x`` (n,) and covariance ``P`` (n × n), both updated
+    in place by :meth:`predict` and :meth:`update` (the caller may also edit them)."""
+
+    def __init__(self, x: np.ndarray, p: np.ndarray) -> None:
+        self.x = np.array(x, dtype=float)
+        self.P = np.array(p, dtype=float)
+
+    def predict(self, f: np.ndarray, q: np.ndarray) -> None:
+        """x ← F x, P ← F P Fᵀ + Q."""
+        self.x = f @ self.x
+        self.P = f @ self.P @ f.T + q
+
+    def update(self, z: float, h: np.ndarray, r_var: float) -> None:
+        """Fold in one measurement ``z = h · x + noise`` of variance ``r_var``; the Joseph
+        form P ← (I − K h) P (I − K h)ᵀ + K r Kᵀ keeps P symmetric and positive."""
+        pht = self.P @ h
+        s_var = float(h @ pht) + r_var
+        gain = pht / s_var
+        self.x = self.x + gain * (z - float(h @ self.x))
+        i_kh = np.eye(len(self.x)) - np.outer(gain, h)
+        self.P = i_kh @ self.P @ i_kh.T + r_var * np.outer(gain, gain)
+
+
+class UnscentedUpdate(NamedTuple):
+    """An unscented update's posterior state and covariance, its innovation y (measurement
+    minus predicted mean) and the innovation variance S."""
+
+    x: np.ndarray
+    p: np.ndarray
+    y: float
+    s_var: float
+
+
+class MerweSigmaPoints:
+    """Van der Merwe's scaled sigma points for an ``n``-state (2n + 1 points) and their mean
+    and covariance weights (``alpha``, ``beta``, ``kappa`` as in filterpy)."""
+
+    def __init__(self, n: int, alpha: float = 1.0, beta: float = 2.0, kappa: float = 0.0) -> None:
+        self.n = n
+        lam = alpha**2 * (n + kappa) - n
+        self._scale = lam + n
+        self.wm = np.full(2 * n + 1, 0.5 / (n + lam))
+        self.wc = self.wm.copy()
+        self.wm[0] = lam / (n + lam)
+        self.wc[0] = lam / (n + lam) + (1.0 - alpha**2 + beta)
+
+    def points(self, x: np.ndarray, p: np.ndarray) -> np.ndarray:
+        """The (2n + 1) × n sigma points of mean ``x`` and covariance ``p``: x, x + U_k,
+        x − U_k with U the upper Cholesky factor of (λ + n) P; raises
+        ``np.linalg.LinAlgError`` when ``p`` is not positive definite."""
+        u = np.linalg.cholesky(self._scale * np.asarray(p, dtype=float).T).T
+        return np.vstack([x, x + u, x - u])
+
+    def update(
+        self,
+        x: np.ndarray,
+        p: np.ndarray,
+        sigmas: np.ndarray,
+        z_sigmas: np.ndarray,
+        z: float,
+        r_var: float,
+    ) -> UnscentedUpdate:
+        """The unscented update of mean ``x`` and covariance ``p`` from their sigma points
+        ``sigmas`` and the measurement predicted at each (``z_sigmas``, 2n + 1), for a
+        measurement ``z`` of noise variance ``r_var``; raises ``np.linalg.LinAlgError`` for
+        an innovation variance that is not positive."""
+        z_mean = float(self.wm @ z_sigmas)
+        dz = z_sigmas - z_mean
+        s_var = float(self.wc @ (dz * dz)) + r_var
+        if not s_var > 0.0:
+            raise np.linalg.LinAlgError("innovation variance is not positive")
+        gain = ((sigmas - x).T @ (self.wc * dz)) / s_var
+        y = z - z_mean
+        return UnscentedUpdate(x + gain * y, p - s_var * np.outer(gain, gain), y, s_var)

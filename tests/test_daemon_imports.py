@@ -1,0 +1,48 @@
+"""The daemon's import set stays lean: no scipy, matplotlib, scikit-learn or filterpy, neither
+at start-up nor once telemetry flows (each would add tens of MB to its resident memory)."""
+
+from __future__ import annotations
+
+import json
+import subprocess
+import sys
+from pathlib import Path
+
+FLIGHT_TLOG = Path(__file__).parent / "data" / "arducopter_guided.tlog"
+HEAVY = ("scipy", "matplotlib", "sklearn", "filterpy")
+
+DAEMON_PATH = """
+import json, sys
+from estimator.commands import run  # everything `uav-energy run` imports
+from estimator.estimation.pipeline import Pipeline
+from estimator.mavlink.config import build_config
+from estimator.mavlink.publish import json_line
+from estimator.physics.vehicle import default_vehicle
+from estimator.telemetry.decode import USED_MESSAGE_IDS, FrameParser, TelemetryDecoder
+
+started = sorted(sys.modules)
+data = open(sys.argv[1], "rb").read()
+settings = build_config({}, {}).pipeline_settings()
+decoder, pipeline = TelemetryDecoder(), Pipeline(default_vehicle(), settings)
+estimates = 0
+for msg in FrameParser(USED_MESSAGE_IDS, stream=True).feed(data[8:]):  # the stamps: garbage
+    for sample in decoder.decode(msg):
+        if (estimate := pipeline.process(sample)) is not None:
+            json_line(estimate)
+            estimates += 1
+print(json.dumps({"started": started, "flying": sorted(sys.modules), "estimates": estimates}))
+"""
+
+
+def test_the_daemon_path_imports_no_scipy_matplotlib_sklearn_nor_filterpy() -> None:
+    out = subprocess.run(
+        [sys.executable, "-c", DAEMON_PATH, str(FLIGHT_TLOG)],
+        capture_output=True,
+        text=True,
+        check=True,
+    )
+    result = json.loads(out.stdout)
+    assert result["estimates"] > 50  # the telemetry went through the whole pipeline
+    for stage in ("started", "flying"):
+        heavy = sorted({m for m in result[stage] if m.split(".")[0] in HEAVY})
+        assert heavy == [], f"{stage}: {heavy[:5]}"
