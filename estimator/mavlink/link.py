@@ -3,7 +3,8 @@
 No ``mavutil`` (it changes process-wide state), no threads, no blocking calls on the loop.
 Connection strings follow ArduPilot/mavutil usage:
 
-- ``udpin:HOST:PORT``  bind and listen; replies go to every peer heard from (up to 16);
+- ``udpin:HOST:PORT``  bind and listen; replies go to every peer heard from (up to 16), or,
+  after :meth:`MavlinkLink.set_peer`, only to the address one (system, component) speaks from;
 - ``udpout:HOST:PORT`` send to HOST:PORT; replies arrive on our ephemeral port;
 - ``tcp:HOST:PORT``    TCP client that reconnects (1 s back-off) when the peer goes away;
 - ``tcpin:HOST:PORT``  TCP server; sends go to every connected client (used by simulators);
@@ -14,7 +15,9 @@ Connection strings follow ArduPilot/mavutil usage:
 A link parses what it receives into pymavlink messages (bad frames are counted, never
 raised) and queues them for :meth:`MavlinkLink.recv`; a flood beyond ``max_pending``
 messages drops the oldest ones (counted). Outgoing messages are packed with the link's own
-system/component id and sequence (:attr:`MavlinkLink.mav` is that encoder)::
+system/component id and sequence (:attr:`MavlinkLink.mav` is that encoder), and signed when
+the link has a :class:`~estimator.mavlink.signing.LinkSigning` (incoming frames are then
+checked by it too)::
 
     link = await open_link("udpin:127.0.0.1:14550", source_system=1, source_component=191)
     link.send(link.mav.heartbeat_encode(18, 8, 0, 0, 4))
@@ -28,9 +31,11 @@ from __future__ import annotations
 import asyncio
 import contextlib
 import logging
+import math
 import os
 import socket
 import termios
+import time
 import tty
 from collections import Counter, deque
 from collections.abc import Callable
@@ -40,6 +45,7 @@ from typing import Any
 from pymavlink.dialects.v20 import common as mavlink
 
 from estimator.errors import UserError
+from estimator.mavlink.signing import LinkSigning, SigningCodec
 from estimator.telemetry.decode import FrameParser
 
 log = logging.getLogger(__name__)
@@ -48,6 +54,9 @@ log = logging.getLogger(__name__)
 MAX_UDP_PEERS = 16
 #: Seconds between attempts to reconnect a TCP client or reopen a serial device.
 TCP_RECONNECT_S = 1.0
+#: A udpin link's pinned peer silent this long (s) may be replaced by the address its
+#: (system, component) now speaks from (an autopilot restarted on another port).
+REPIN_AFTER_S = 3.0
 UDP_RECEIVE_BUFFER_BYTES = 1 << 20
 DEFAULT_BAUD = 115200
 _BAUD_RATES = {
@@ -99,7 +108,8 @@ class MavlinkLink:
     """One MAVLink connection: received messages queue up for :meth:`recv`; :meth:`send`
     packs with our ids. Counters: ``counts['bad_frames']``, ``['dropped']`` (queue overflow),
     ``['rx_messages']``, ``['tx_messages']``, ``['tx_dropped']`` (no peer / not connected),
-    ``['reconnects']``."""
+    ``['reconnects']``, ``['foreign_peer']`` (udpin datagrams carrying the peer's ids from
+    another address, dropped)."""
 
     def __init__(
         self,
@@ -107,9 +117,13 @@ class MavlinkLink:
         source_system: int,
         source_component: int,
         max_pending: int,
+        signing: LinkSigning | None = None,
     ) -> None:
         self.address = address
         self.mav = mavlink.MAVLink(None, srcSystem=source_system, srcComponent=source_component)
+        self.signing = signing
+        if signing is not None:
+            self.mav.signing = signing
         self.counts: Counter[str] = Counter()
         self._pending: deque[mavlink.MAVLink_message] = deque()
         self._max_pending = max_pending
@@ -130,6 +144,20 @@ class MavlinkLink:
     @property
     def bad_frames(self) -> int:
         return self.counts["bad_frames"]
+
+    def new_parser(self) -> FrameParser:
+        """A frame parser for this link (checking signatures when the link signs)."""
+        if self.signing is None:
+            return FrameParser()
+        return FrameParser(SigningCodec(self.signing))
+
+    def set_peer(self, source: tuple[int, int] | None) -> None:
+        """``udpin`` only: answer only the address ``source`` (system, component) speaks
+        from, and drop datagrams carrying its ids from any other address (counted in
+        ``foreign_peer``) unless that address was silent for :data:`REPIN_AFTER_S`.
+        None: answer every peer again. Other links are point to point: no effect."""
+        if self._transport is not None:
+            self._transport.set_peer(source)
 
     @property
     def closed(self) -> bool:
@@ -178,7 +206,10 @@ class MavlinkLink:
     # -- sending ----------------------------------------------------------------------------
 
     def send(self, msg: mavlink.MAVLink_message) -> None:
-        """Pack ``msg`` with this link's system/component id and sequence, and send it."""
+        """Pack ``msg`` with this link's system/component id and sequence (signed when the
+        link signs), and send it."""
+        if self.signing is not None:
+            self.signing.stamp()
         self.send_bytes(msg.pack(self.mav))
 
     def send_bytes(self, data: bytes) -> None:
@@ -204,14 +235,16 @@ async def open_link(
     source_system: int = 1,
     source_component: int = mavlink.MAV_COMP_ID_ONBOARD_COMPUTER,
     max_pending: int = 10_000,
+    signing: LinkSigning | None = None,
 ) -> MavlinkLink:
-    """Open a link from a connection string (see the module docstring).
+    """Open a link from a connection string (see the module docstring); ``signing``: sign
+    what we send and check what we receive with it.
 
     Failing to bind or open a device is a UserError; a ``tcp`` client that cannot connect yet
     keeps trying in the background (sends are dropped and counted meanwhile).
     """
     address = parse_url(url)
-    link = MavlinkLink(address, source_system, source_component, max_pending)
+    link = MavlinkLink(address, source_system, source_component, max_pending, signing)
     opener = {
         "udpin": _UdpTransport.open,
         "udpout": _UdpTransport.open,
@@ -236,6 +269,9 @@ class _Transport:
     def local_address(self) -> tuple[str, int] | None:
         return None
 
+    def set_peer(self, source: tuple[int, int] | None) -> None:
+        """See :meth:`MavlinkLink.set_peer` (point-to-point transports ignore it)."""
+
     def write(self, data: bytes) -> bool:
         """Queue ``data`` for sending; False when there is nowhere to send it."""
         raise NotImplementedError
@@ -246,7 +282,7 @@ class _StreamProtocol(asyncio.Protocol):
 
     def __init__(self, link: MavlinkLink, on_lost: Any = None) -> None:
         self.link = link
-        self.parser = FrameParser()
+        self.parser = link.new_parser()
         self.transport: asyncio.Transport | None = None
         self.lost = asyncio.get_running_loop().create_future()
         self._on_lost = on_lost
@@ -271,28 +307,74 @@ class _StreamProtocol(asyncio.Protocol):
 class _DatagramProtocol(asyncio.DatagramProtocol):
     """Each datagram is parsed on its own, so a truncated frame never swallows the next one."""
 
-    def __init__(self, link: MavlinkLink, peers: dict[Any, None] | None) -> None:
+    def __init__(self, link: MavlinkLink, peers: _Peers | None) -> None:
         self.link = link
         self.peers = peers
 
     def datagram_received(self, data: bytes, addr: Any) -> None:
-        parser = FrameParser()
+        parser = self.link.new_parser()
         messages = parser.feed(data)
+        if self.peers is not None and messages and not self.peers.heard(addr, messages):
+            self.link.counts["foreign_peer"] += 1
+            return
         self.link._deliver(messages, parser.bad_frames)
-        if self.peers is not None and messages:
-            if addr in self.peers:
-                return
-            self.peers[addr] = None
-            if len(self.peers) > MAX_UDP_PEERS:
-                del self.peers[next(iter(self.peers))]
 
     def error_received(self, exc: Exception) -> None:
         # ICMP port unreachable from a peer that went away: count, keep going.
         self.link.counts["socket_errors"] += 1
 
 
+class _Peers:
+    """A udpin link's peers: every address heard from (up to :data:`MAX_UDP_PEERS`), or the
+    one address a chosen (system, component) speaks from."""
+
+    def __init__(self, link: MavlinkLink) -> None:
+        self.link = link
+        self.every: dict[Any, None] = {}
+        self.source: tuple[int, int] | None = None
+        self.pinned: Any = None
+        self.pinned_heard_s = -math.inf
+        self._last: tuple[Any, set[tuple[int, int]]] | None = None  # latest datagram's
+
+    def choose(self, source: tuple[int, int] | None) -> None:
+        """Answer only ``source``: pinned at once when the datagram being delivered is its."""
+        self.source, self.pinned, self.pinned_heard_s = source, None, -math.inf
+        if source is not None and self._last is not None and source in self._last[1]:
+            self.pinned, self.pinned_heard_s = self._last[0], time.monotonic()
+
+    def heard(self, addr: Any, messages: list[mavlink.MAVLink_message]) -> bool:
+        """Note a datagram's sender; False to drop it (the chosen ids from a foreign address)."""
+        sources = {(m.get_srcSystem(), m.get_srcComponent()) for m in messages}
+        self._last = addr, sources
+        if self.source in sources:
+            now_s = time.monotonic()
+            if addr != self.pinned:
+                if now_s - self.pinned_heard_s < REPIN_AFTER_S:
+                    return False
+                if self.pinned is not None:
+                    log.warning(
+                        "udpin %s: system %d component %d now speaks from %s (was %s)",
+                        self.link.url,
+                        *self.source,
+                        addr,
+                        self.pinned,
+                    )
+                self.pinned = addr
+            self.pinned_heard_s = now_s
+        if addr not in self.every:
+            self.every[addr] = None
+            if len(self.every) > MAX_UDP_PEERS:
+                del self.every[next(iter(self.every))]
+        return True
+
+    def targets(self) -> list[Any]:
+        if self.source is None:
+            return list(self.every)
+        return [] if self.pinned is None else [self.pinned]
+
+
 class _UdpTransport(_Transport):
-    def __init__(self, transport: asyncio.DatagramTransport, peers: dict[Any, None] | None):
+    def __init__(self, transport: asyncio.DatagramTransport, peers: _Peers | None):
         self.transport = transport
         self.peers = peers
 
@@ -300,7 +382,7 @@ class _UdpTransport(_Transport):
     async def open(cls, link: MavlinkLink) -> _UdpTransport:
         loop = asyncio.get_running_loop()
         addr = link.address
-        peers: dict[Any, None] | None = {} if addr.kind == "udpin" else None
+        peers = _Peers(link) if addr.kind == "udpin" else None
         if addr.kind == "udpin":
             transport, _ = await loop.create_datagram_endpoint(
                 lambda: _DatagramProtocol(link, peers), local_addr=(addr.host, addr.port)
@@ -314,13 +396,18 @@ class _UdpTransport(_Transport):
             )
         return cls(transport, peers)
 
+    def set_peer(self, source: tuple[int, int] | None) -> None:
+        if self.peers is not None and source != self.peers.source:
+            self.peers.choose(source)
+
     def write(self, data: bytes) -> bool:
         if self.peers is None:
             self.transport.sendto(data)
             return True
-        for peer in self.peers:
+        targets = self.peers.targets()
+        for peer in targets:
             self.transport.sendto(data, peer)
-        return bool(self.peers)
+        return bool(targets)
 
     def local_address(self) -> tuple[str, int] | None:
         host, port = self.transport.get_extra_info("sockname")[:2]
@@ -457,7 +544,7 @@ class _SerialTransport(_Transport):
     def __init__(self, link: MavlinkLink, fd: int) -> None:
         self.link = link
         self.fd: int | None = None
-        self.parser = FrameParser()
+        self.parser = link.new_parser()
         self.out = bytearray()
         self.loop = asyncio.get_running_loop()
         self.reopen_task: asyncio.Task[None] | None = None
@@ -469,7 +556,7 @@ class _SerialTransport(_Transport):
 
     def _attach(self, fd: int) -> None:
         self.fd = fd
-        self.parser = FrameParser()
+        self.parser = self.link.new_parser()
         self.loop.add_reader(fd, self._readable)
 
     def _detach(self, reason: str) -> None:

@@ -101,10 +101,13 @@ _NOT_AUTOPILOTS = frozenset(
 
 
 class FrameParser:
-    """Bytes in, MAVLink messages out; bad frames are counted, never raised."""
+    """Bytes in, MAVLink messages out; bad frames are counted, never raised.
 
-    def __init__(self) -> None:
-        self._codec = mavlink.MAVLink(None)
+    ``codec``: a pymavlink codec to parse with (e.g. one that checks signatures); frames it
+    rejects for their signature are counted by its signing state, not as bad frames."""
+
+    def __init__(self, codec: mavlink.MAVLink | None = None) -> None:
+        self._codec = codec or mavlink.MAVLink(None)
         self._codec.robust_parsing = True
         self.bad_frames = 0
 
@@ -118,7 +121,7 @@ class FrameParser:
         good = []
         for msg in parsed:
             if isinstance(msg, mavlink.MAVLink_bad_data):
-                self.bad_frames += 1
+                self.bad_frames += msg.reason != "Invalid signature"
             else:
                 good.append(msg)
         return good
@@ -204,7 +207,7 @@ class TelemetryDecoder:
             return []
         kind = msg.get_type()
         if self.target is None:
-            if kind == "HEARTBEAT" and _is_autopilot(msg):
+            if kind == "HEARTBEAT" and is_autopilot(msg):
                 self.target = source
             else:
                 self.counts["before_autopilot"] += 1
@@ -397,7 +400,9 @@ class TelemetryDecoder:
         return sample
 
 
-def _is_autopilot(msg: mavlink.MAVLink_message) -> bool:
+def is_autopilot(msg: mavlink.MAVLink_message) -> bool:
+    """A HEARTBEAT of an autopilot (not MAV_AUTOPILOT_INVALID) of a vehicle type (not a
+    ground station, companion computer, gimbal, ADS-B receiver or camera)."""
     return bool(msg.autopilot != mavlink.MAV_AUTOPILOT_INVALID and msg.type not in _NOT_AUTOPILOTS)
 
 
