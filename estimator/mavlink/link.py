@@ -30,6 +30,7 @@ from __future__ import annotations
 
 import asyncio
 import contextlib
+import errno
 import logging
 import math
 import os
@@ -44,7 +45,7 @@ from typing import Any
 
 from pymavlink.dialects.v20 import common as mavlink
 
-from estimator.errors import UserError
+from estimator.errors import Unavailable, UserError
 from estimator.mavlink.signing import LinkSigning, SigningCodec
 from estimator.telemetry.decode import FrameParser
 
@@ -58,6 +59,10 @@ TCP_RECONNECT_S = 1.0
 #: (system, component) now speaks from (an autopilot restarted on another port).
 REPIN_AFTER_S = 3.0
 UDP_RECEIVE_BUFFER_BYTES = 1 << 20
+#: errno values of a serial device that may come back: missing, unplugged, busy, failing.
+_DEVICE_MAY_COME_BACK = frozenset(
+    {errno.ENOENT, errno.ENODEV, errno.ENXIO, errno.EBUSY, errno.EIO, errno.EAGAIN}
+)
 DEFAULT_BAUD = 115200
 _BAUD_RATES = {
     int(name[1:]): getattr(termios, name)
@@ -240,7 +245,9 @@ async def open_link(
     """Open a link from a connection string (see the module docstring); ``signing``: sign
     what we send and check what we receive with it.
 
-    Failing to bind or open a device is a UserError; a ``tcp`` client that cannot connect yet
+    A serial device that is missing or busy (it may come back: USB unplugged, another
+    program holding it) is :class:`~estimator.errors.Unavailable`; failing to bind, or a
+    device that is not a serial port, is a UserError; a ``tcp`` client that cannot connect yet
     keeps trying in the background (sends are dropped and counted meanwhile).
     """
     address = parse_url(url)
@@ -255,7 +262,10 @@ async def open_link(
     try:
         link._transport = await opener(link)
     except OSError as exc:
-        raise UserError(f"cannot open {url}: {exc.strerror or exc}") from None
+        reason = exc.strerror or str(exc)
+        if address.kind == "serial" and exc.errno in _DEVICE_MAY_COME_BACK:
+            raise Unavailable(f"cannot open {url}: {reason}") from None
+        raise UserError(f"cannot open {url}: {reason}") from None
     return link
 
 
