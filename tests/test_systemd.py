@@ -12,8 +12,8 @@ from pathlib import Path
 
 import pytest
 
-from estimator.commands.run import config_from_args
 from estimator.cli import build_parser
+from estimator.commands.run import config_from_args
 from estimator.errors import EXIT_UNAVAILABLE
 from estimator.physics.vehicle import load_vehicle
 
