@@ -261,7 +261,20 @@ async def test_a_rebooted_autopilot_that_does_not_confirm_itself_is_released(
         assert service.decoder.target is None
         await play(sender, messages)  # it speaks again: selected and locked again
         await wait_for(lambda: service.lock.locked == (1, 1))
+        # another reboot, and a HEARTBEAT of another vehicle type with those ids: released
+        # at once, that HEARTBEAT the new candidate
+        for j in range(5):
+            sender.send(sender.mav.attitude_encode(1_000 + 100 * j, 0, 0, 0, 0, 0, 0))
+        await wait_for(lambda: service.decoder.counts["reboots"] == 2)
+        sender.send(
+            sender.mav.heartbeat_encode(
+                mavlink.MAV_TYPE_FIXED_WING, mavlink.MAV_AUTOPILOT_ARDUPILOTMEGA, 0, 0, 3
+            )
+        )
+        await wait_for(lambda: service.lock.candidate == (1, 1))
+        assert service.lock.counts["released"] == 2 and service.decoder.target is None
     assert "did not confirm itself after its reboot" in caplog.text
+    assert "sent a HEARTBEAT of type 1, autopilot 3 after its reboot" in caplog.text
 
 
 # -- udpin answers only the autopilot -----------------------------------------------------------

@@ -29,7 +29,7 @@ from collections import Counter
 
 from pymavlink.dialects.v20 import common as mavlink
 
-from estimator.telemetry.decode import is_autopilot
+from estimator.telemetry.decode import is_autopilot, message_source
 from estimator.telemetry.plausibility import AutopilotClock, ClockVerdict
 
 log = logging.getLogger("uav_energy.autopilot")
@@ -46,10 +46,6 @@ MAX_HELD = 5000
 OTHER_LOG_S = 60.0
 
 Source = tuple[int, int]
-
-
-def _source(msg: mavlink.MAVLink_message) -> Source:
-    return msg.get_srcSystem(), msg.get_srcComponent()
 
 
 class _Confirmation:
@@ -105,16 +101,19 @@ class AutopilotLock:
     def admit(self, msg: mavlink.MAVLink_message, now_s: float) -> list[mavlink.MAVLink_message]:
         """Messages to hand to the decoder now (in order), given ``msg`` received at wall
         time ``now_s``."""
-        source = _source(msg)
+        source = message_source(msg)
         if source == self.own:
             return [msg]  # the decoder counts our own
         heartbeat = msg.get_type() == "HEARTBEAT" and is_autopilot(msg)
         if self.locked is not None:
             if source != self.locked:
                 self._other(source, heartbeat, now_s)
-            elif self.rechecking:
+                return [msg]  # the decoder counts it as another source's
+            if self.rechecking:
                 self._recheck_step(msg, heartbeat, now_s)
-            return [msg]
+            if self.locked is not None:
+                return [msg]
+            # released by this message: selection starts over with it
         if self.candidate is not None and now_s > self._deadline_s:
             log.warning(
                 "autopilot candidate system %d component %d not confirmed by its telemetry "
@@ -209,7 +208,9 @@ class AutopilotLock:
         if self._confirm_step(msg) and self._heartbeat_seen:
             self.rechecking = False
             self._deadline_s = math.inf
-            log.info("autopilot system %d component %d confirmed after its reboot", *_source(msg))
+            log.info(
+                "autopilot system %d component %d confirmed after its reboot", *message_source(msg)
+            )
         elif now_s > self._deadline_s:
             self._release("did not confirm itself after its reboot")
 

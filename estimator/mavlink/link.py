@@ -47,7 +47,7 @@ from pymavlink.dialects.v20 import common as mavlink
 
 from estimator.errors import Unavailable, UserError
 from estimator.mavlink.signing import LinkSigning, SigningCodec
-from estimator.telemetry.decode import FrameParser
+from estimator.telemetry.decode import FrameParser, message_source
 
 log = logging.getLogger(__name__)
 
@@ -354,7 +354,7 @@ class _Peers:
 
     def heard(self, addr: Any, messages: list[mavlink.MAVLink_message]) -> bool:
         """Note a datagram's sender; False to drop it (the chosen ids from a foreign address)."""
-        sources = {(m.get_srcSystem(), m.get_srcComponent()) for m in messages}
+        sources = {message_source(m) for m in messages}
         self._last = addr, sources
         if self.source in sources:
             now_s = time.monotonic()

@@ -199,9 +199,7 @@ class TelemetryDecoder:
 
     def decode(self, msg: mavlink.MAVLink_message) -> list[Sample]:
         """Decode one message into zero or more samples."""
-        source = (msg.get_srcSystem(), msg.get_srcComponent())
-        if isinstance(msg, mavlink.MAVLink_unknown):  # pymavlink leaves its header unset
-            source = _frame_source(bytes(msg.get_msgbuf()))
+        source = message_source(msg)
         if source == self.own:
             self.counts["own"] += 1
             return []
@@ -404,6 +402,14 @@ def is_autopilot(msg: mavlink.MAVLink_message) -> bool:
     """A HEARTBEAT of an autopilot (not MAV_AUTOPILOT_INVALID) of a vehicle type (not a
     ground station, companion computer, gimbal, ADS-B receiver or camera)."""
     return bool(msg.autopilot != mavlink.MAV_AUTOPILOT_INVALID and msg.type not in _NOT_AUTOPILOTS)
+
+
+def message_source(msg: mavlink.MAVLink_message) -> tuple[int, int]:
+    """(system, component) that sent ``msg`` (also for a message of an unknown type, whose
+    header pymavlink leaves unset)."""
+    if isinstance(msg, mavlink.MAVLink_unknown):
+        return _frame_source(bytes(msg.get_msgbuf()))
+    return msg.get_srcSystem(), msg.get_srcComponent()
 
 
 def _frame_source(frame: bytes) -> tuple[int, int]:
