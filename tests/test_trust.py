@@ -303,3 +303,23 @@ async def test_udpin_answers_only_the_locked_autopilot(
     kinds = {m.get_type() for m in autopilot.received}
     assert {"REQUEST_DATA_STREAM", "COMMAND_LONG", "HEARTBEAT", "NAMED_VALUE_FLOAT"} <= kinds
     assert forger.datagrams == 0 and other.datagrams == 0
+
+
+async def test_stream_requests_stay_rate_limited_whatever_asks(
+    flight: Messages,  # noqa: F811
+    monkeypatch: pytest.MonkeyPatch,
+) -> None:
+    """30 autopilot HEARTBEATs of new systems, each a candidate that never confirms (timeout
+    0.2 s here), in 7.5 s: each candidate is asked for telemetry, but at most one round of
+    stream requests goes out per REQUEST_RETRY_S (5 s), not thirty."""
+    monkeypatch.setattr(autopilot_lock, "CANDIDATE_TIMEOUT_S", 0.2)
+    heartbeat = next(m for _, m in flight if m.get_type() == "HEARTBEAT")
+    async with running(ServiceConfig(stale_after_s=30.0)) as (service, _sender):
+        forgers = [await autopilot_to(daemon_port(service), system=10 + k) for k in range(30)]
+        for forger in forgers:
+            forger.send_raw(forger.pack(heartbeat))
+            await asyncio.sleep(0.25)
+        await wait_for(lambda: service.lock.counts["candidates"] == 30)
+    rounds = sum(m.get_type() == "REQUEST_DATA_STREAM" for f in forgers for m in f.received) / 2
+    assert service.lock.counts["candidates_dropped"] >= 29
+    assert 1 <= rounds <= 3  # 7.5 s: at 0, 5 (and a late one at 10 s at most)
