@@ -27,7 +27,6 @@ import gc
 import logging
 import signal
 import sys
-import time
 from dataclasses import replace
 
 from pymavlink.dialects.v20 import common as mavlink
@@ -38,7 +37,7 @@ from estimator.mavlink.autopilot_lock import AutopilotLock
 from estimator.mavlink.config import ServiceConfig
 from estimator.mavlink.link import MavlinkLink, open_link, parse_url
 from estimator.mavlink.signing import LinkSigning, load_key
-from estimator.mavlink.state_file import SavedState, mismatch, read_state, write_state
+from estimator.mavlink.state_file import StateKeeper
 from estimator.physics.vehicle import Vehicle
 from estimator.telemetry.decode import SKIP_COUNTERS, TelemetryDecoder
 from estimator.telemetry.plausibility import pack_voltage_problem
@@ -97,9 +96,11 @@ class Service:
         self._streams_ok = False
         self._logged: dict[str, tuple[int, float]] = {}  # counter → (value, wall s) logged
         self._event_logged_s: dict[str, float] = {}
-        self._saved: SavedState | None = None  # a state file waiting for the autopilot
-        self.state_writes = 0
-        self.state_write_errors = 0
+        self.state: StateKeeper | None = None
+        if config.state_file:
+            self.state = StateKeeper(
+                config.state_file, config.state_max_age_s, config.state_period_s, self.pipeline
+            )
         # BATTERY_STATUS.battery_remaining is a share of a full pack's usable energy.
         self._full_usable_wh = float(self.pipeline.pack.usable_energy_wh(1.0))
 
@@ -123,8 +124,8 @@ class Service:
         self.link = await open_link(cfg.connect, source_system=cfg.system_id, signing=signing(0))
         if self.lock.locked is not None:
             self.link.set_peer(self.lock.locked)
-        if cfg.state_file:
-            self._load_state()
+        if self.state is not None:
+            self.state.load()
         try:
             for i, url in enumerate(cfg.publish, start=1):
                 self.outputs.append(
@@ -149,9 +150,10 @@ class Service:
             tasks = [
                 loop.create_task(self._publish_loop()),
                 loop.create_task(self._heartbeat_loop()),
-                loop.create_task(self._state_loop()),
                 *(loop.create_task(_drain(out)) for out in self.outputs),
             ]
+            if self.state is not None:
+                tasks.append(loop.create_task(self.state.run(lambda: self.decoder.target)))
             await stop.wait()
             for task in tasks:
                 task.cancel()
@@ -160,8 +162,8 @@ class Service:
                     await task
             if (last := self.pipeline.flush()) is not None:  # the samples of the open period
                 self._deliver(last, loop.time())
-            if (state := self._state_to_save()) is not None:
-                self._write_state(state)
+            if self.state is not None:
+                self.state.save(self.decoder.target)
         finally:
             for link in [self.link, *self.outputs]:
                 await link.close()
@@ -185,7 +187,8 @@ class Service:
         out.update({f"decode_{k}": v for k, v in self.decoder.counts.items()})
         out.update({f"pipeline_{k}": v for k, v in self.pipeline.counts.items()})
         out.update(internal_errors=self.internal_errors, json_dropped=self.json_dropped)
-        out.update(state_writes=self.state_writes, state_write_errors=self.state_write_errors)
+        if self.state is not None:
+            out.update(state_writes=self.state.writes, state_write_errors=self.state.write_errors)
         return out
 
     # -- receive ----------------------------------------------------------------------------
@@ -246,8 +249,9 @@ class Service:
             )
         if not samples:
             return
-        if self._saved is not None:
-            self._resume_state()
+        if self.state is not None and self.state.saved is not None:
+            assert self.decoder.target is not None
+            self.state.resume(self.decoder.target, self.decoder.clock_s)
         self._last_rx_s = now_s
         if self.stale:
             self.stale = False
@@ -316,94 +320,6 @@ class Service:
             cfg.velocity_rate_hz,
             cfg.battery_rate_hz,
         )
-
-    # -- state file -------------------------------------------------------------------------
-
-    def _load_state(self) -> None:
-        path = self.config.state_file
-        state = read_state(path, self.config.state_max_age_s, time.time())
-        if isinstance(state, str):
-            log.info("state file %s ignored: %s", path, state)
-            return
-        self._saved = state
-        log.info(
-            "state file %s: %.0f s old, used if system %d component %d is in the same flight",
-            path,
-            time.time() - state.wall_unix_s,
-            state.system,
-            state.component,
-        )
-
-    def _resume_state(self) -> None:
-        """The first samples of the autopilot: continue from the state file if it fits."""
-        saved, self._saved = self._saved, None
-        assert saved is not None and self.decoder.target is not None
-        clock_s = self.decoder.clock_s
-        why = "no autopilot clock" if clock_s is None else None
-        if why is None:
-            assert clock_s is not None
-            why = mismatch(saved, self.decoder.target, clock_s, time.time())
-        if why is None:
-            try:
-                self.pipeline.resume(saved.pipeline)
-            except ValueError as exc:
-                why = str(exc)
-        if why is not None:
-            log.warning("state file %s ignored: %s", self.config.state_file, why)
-            return
-        energy = saved.pipeline["energy"]
-        log.info(
-            "state file %s: continuing the flight from %.1f s (energy %.1f Wh, bias %.3f)",
-            self.config.state_file,
-            saved.clock_s,
-            energy["x"][0],
-            energy["x"][1],
-        )
-
-    def _state_to_save(self) -> SavedState | None:
-        if not self.config.state_file or self.decoder.target is None:
-            return None
-        snapshot = self.pipeline.snapshot()
-        if snapshot is None:
-            return None
-        clock_s = float(snapshot["energy"]["time_s"])
-        return SavedState(*self.decoder.target, time.time(), clock_s, snapshot)
-
-    def _write_state(self, state: SavedState) -> None:
-        """Write the state file now (at exit)."""
-        try:
-            write_state(self.config.state_file, state)
-        except OSError as exc:
-            self._state_write_failed(exc)
-            return
-        self.state_writes += 1
-
-    def _state_write_failed(self, exc: OSError) -> None:
-        self.state_write_errors += 1
-        self._log_throttled(
-            "state_write",
-            asyncio.get_running_loop().time(),
-            "cannot write state file %s: %s (%d failure(s))",
-            self.config.state_file,
-            exc.strerror or exc,
-            self.state_write_errors,
-        )
-
-    async def _state_loop(self) -> None:
-        """Write the state file every ``state_period_s`` (the write and fsync in a worker
-        thread, off the event loop)."""
-        if not self.config.state_file:
-            return
-        while True:
-            await asyncio.sleep(self.config.state_period_s)
-            if (state := self._state_to_save()) is None:
-                continue
-            try:
-                await asyncio.to_thread(write_state, self.config.state_file, state)
-            except OSError as exc:
-                self._state_write_failed(exc)
-                continue
-            self.state_writes += 1
 
     # -- publish ----------------------------------------------------------------------------
 

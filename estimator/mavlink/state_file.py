@@ -12,22 +12,37 @@ not older than ``max_age_s``, and the autopilot's clock now within
 [saved clock, saved clock + wall time since + :data:`CLOCK_SLACK_S`] — the same boot; a
 rebooted autopilot (clock behind) or another flight does not fit. A missing, unreadable,
 corrupt or unfitting file is ignored with one log line, never an error.
+
+:class:`StateKeeper` is the daemon's side: load at start, resume at the autopilot's first
+samples, write every ``period_s`` (the write and fsync in a worker thread, off the event
+loop) and at exit.
 """
 
 from __future__ import annotations
 
+import asyncio
 import json
+import logging
 import math
 import os
+import time
+from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
+
+if TYPE_CHECKING:
+    from estimator.estimation.pipeline import Pipeline
+
+log = logging.getLogger("uav_energy.service")
 
 #: Format version of the state file.
 STATE_VERSION = 1
 #: Autopilot clock (s) allowed ahead of the saved clock plus the wall time since (link
 #: latency, a slow restart).
 CLOCK_SLACK_S = 5.0
+#: Seconds between log lines about failing writes.
+WRITE_ERROR_LOG_S = 10.0
 
 
 @dataclass(frozen=True)
@@ -118,3 +133,101 @@ def mismatch(
             f"({state.clock_s:.1f} s to {latest_s:.1f} s): rebooted or another flight"
         )
     return None
+
+
+class StateKeeper:
+    """The daemon's state file ``path``: see the module docstring. ``writes`` and
+    ``write_errors`` count what happened; a failing write is logged at most every
+    :data:`WRITE_ERROR_LOG_S`, never fatal."""
+
+    def __init__(self, path: str, max_age_s: float, period_s: float, pipeline: Pipeline) -> None:
+        self.path, self.max_age_s, self.period_s = path, max_age_s, period_s
+        self.pipeline = pipeline
+        self.saved: SavedState | None = None  # loaded, waiting for the autopilot
+        self.writes = 0
+        self.write_errors = 0
+        self._error_logged_s = -math.inf
+
+    def load(self) -> None:
+        """Read the file at start (one line either way)."""
+        state = read_state(self.path, self.max_age_s, time.time())
+        if isinstance(state, str):
+            log.info("state file %s ignored: %s", self.path, state)
+            return
+        self.saved = state
+        log.info(
+            "state file %s: %.0f s old, used if system %d component %d is in the same flight",
+            self.path,
+            time.time() - state.wall_unix_s,
+            state.system,
+            state.component,
+        )
+
+    def resume(self, autopilot: tuple[int, int], clock_s: float | None) -> None:
+        """The autopilot's first samples, its clock then (s): continue from the loaded state
+        if it fits this boot, else say why not."""
+        saved, self.saved = self.saved, None
+        if saved is None:
+            return
+        why = "no autopilot clock" if clock_s is None else None
+        if clock_s is not None:
+            why = mismatch(saved, autopilot, clock_s, time.time())
+        if why is None:
+            try:
+                self.pipeline.resume(saved.pipeline)
+            except ValueError as exc:
+                why = str(exc)
+        if why is not None:
+            log.warning("state file %s ignored: %s", self.path, why)
+            return
+        energy = saved.pipeline["energy"]
+        log.info(
+            "state file %s: continuing the flight from %.1f s (energy %.1f Wh, bias %.3f)",
+            self.path,
+            saved.clock_s,
+            energy["x"][0],
+            energy["x"][1],
+        )
+
+    def _state(self, autopilot: tuple[int, int] | None) -> SavedState | None:
+        snapshot = self.pipeline.snapshot()
+        if autopilot is None or snapshot is None:
+            return None
+        clock_s = float(snapshot["energy"]["time_s"])
+        return SavedState(*autopilot, time.time(), clock_s, snapshot)
+
+    def save(self, autopilot: tuple[int, int] | None) -> None:
+        """Write now (at exit), if there is a flight state."""
+        if (state := self._state(autopilot)) is None:
+            return
+        try:
+            write_state(self.path, state)
+        except OSError as exc:
+            self._failed(exc)
+            return
+        self.writes += 1
+
+    async def run(self, autopilot: Callable[[], tuple[int, int] | None]) -> None:
+        """Write every ``period_s`` while the daemon runs (``autopilot()``: its ids now)."""
+        while True:
+            await asyncio.sleep(self.period_s)
+            if (state := self._state(autopilot())) is None:
+                continue
+            try:
+                await asyncio.to_thread(write_state, self.path, state)
+            except OSError as exc:
+                self._failed(exc)
+                continue
+            self.writes += 1
+
+    def _failed(self, exc: OSError) -> None:
+        self.write_errors += 1
+        now_s = time.monotonic()
+        if now_s - self._error_logged_s >= WRITE_ERROR_LOG_S:
+            self._error_logged_s = now_s
+            log.warning(
+                "cannot write state file %s: %s (%d failure(s))",
+                self.path,
+                exc.strerror or exc,
+                self.write_errors,
+            )
