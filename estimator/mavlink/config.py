@@ -33,7 +33,7 @@ class ServiceConfig:
     SET_MESSAGE_INTERVAL) at velocity_rate_hz and battery_rate_hz.
     publish_rate_hz: NAMED_VALUE_FLOAT and BATTERY_STATUS rate (0: with every estimate).
     battery_id: BATTERY_STATUS id of our estimate (distinct from the autopilot's 0).
-    values_to_autopilot: also send HEARTBEAT/NAMED_VALUE_FLOAT on the connect link.
+    values_to_autopilot: also send NAMED_VALUE_FLOAT on the connect link.
     battery_status_to_autopilot: also send BATTERY_STATUS there (PX4 then treats it as a
     battery of its own: only if you mean it).
     heartbeat_to_autopilot: send our 1 Hz HEARTBEAT on the connect link too.
