@@ -6,12 +6,16 @@
    and signed; µs per frame, best of 3.
 2. The state file of that flight written 50 times (temporary file, fsync, ``os.replace``,
    directory fsync) in a temporary directory: size, median and worst write time.
+3. A restart mid-flight, in process: the flight replayed until 60 s, its snapshot through
+   JSON, telemetry lost until 63 s, then a new pipeline continuing from the snapshot, and
+   one starting from scratch, against the uninterrupted replay (energy, endurance).
 
 Run: ``python -m bench.trust``.
 """
 
 from __future__ import annotations
 
+import json
 import tempfile
 import time
 from collections.abc import Callable
@@ -19,7 +23,7 @@ from pathlib import Path
 
 from pymavlink.dialects.v20 import common as mavlink
 
-from estimator.estimation.pipeline import Pipeline
+from estimator.estimation.pipeline import Estimate, Pipeline
 from estimator.mavlink.signing import LinkSigning, SigningCodec
 from estimator.mavlink.state_file import SavedState, write_state
 from estimator.physics.vehicle import default_vehicle
@@ -28,6 +32,7 @@ from estimator.sim.simulator import simulate
 from estimator.telemetry.decode import FrameParser, TelemetryDecoder
 
 KEY = bytes(range(32))
+RESTART_AT_S, DOWN_S = 60.0, 3.0
 REPEATS = 3
 WRITES = 50
 
@@ -41,8 +46,49 @@ def best_us_per_item(items: list, work: Callable[[list], None]) -> float:  # typ
     return best / len(items) * 1e6
 
 
+def replay(
+    messages: list[tuple[float, mavlink.MAVLink_message]],
+    snapshot: dict | None = None,  # type: ignore[type-arg]
+) -> tuple[Pipeline, list[Estimate]]:
+    decoder, pipeline = TelemetryDecoder(), Pipeline(default_vehicle())
+    if snapshot is not None:
+        pipeline.resume(snapshot)
+    estimates = []
+    for _, msg in messages:
+        for sample in decoder.decode(msg):
+            if (estimate := pipeline.process(sample)) is not None:
+                estimates.append(estimate)
+    return pipeline, estimates
+
+
+def restart(timed: list[tuple[float, mavlink.MAVLink_message]]) -> None:
+    _, full = replay(timed)
+    reference = {round(e.time_s, 3): e for e in full}
+    before, _ = replay([(t, m) for t, m in timed if t <= RESTART_AT_S])
+    snapshot = json.loads(json.dumps(before.snapshot()))
+    after = [(t, m) for t, m in timed if t >= RESTART_AT_S + DOWN_S]
+    print(f"restart at {RESTART_AT_S:.0f} s, {DOWN_S:.0f} s of telemetry lost:")
+    for name, (_, estimates) in (
+        ("continued", replay(after, snapshot)),
+        ("scratch", replay(after)),
+    ):
+        first, last = estimates[0], estimates[-1]
+        ref_first, ref_last = reference[round(first.time_s, 3)], reference[round(last.time_s, 3)]
+        valid = next(e.time_s for e in estimates if e.endurance_valid)
+        print(
+            f"  {name:9s} first {first.time_s:5.1f} s: {first.energy_remaining_wh:7.2f} Wh "
+            f"({first.energy_remaining_wh / ref_first.energy_remaining_wh - 1:+.2%}), bias "
+            f"{first.bias:.3f} ± {first.bias_sigma:.3f}; at {last.time_s:5.1f} s: "
+            f"{last.energy_remaining_wh:7.2f} Wh "
+            f"({last.energy_remaining_wh / ref_last.energy_remaining_wh - 1:+.2%}), endurance "
+            f"{last.endurance_s:5.0f} s (uninterrupted {ref_last.endurance_s:5.0f} s); "
+            f"endurance valid from {valid:.1f} s"
+        )
+
+
 def main() -> None:
-    messages = [m for _, m in simulate(SimConfig(plan="hover-cruise", duration_s=120.0)).messages]
+    timed = simulate(SimConfig(plan="hover-cruise", duration_s=120.0, seed=3)).messages
+    messages = [m for _, m in timed]
     plain = mavlink.MAVLink(None, srcSystem=1, srcComponent=1)
     signer = mavlink.MAVLink(None, srcSystem=1, srcComponent=1)
     signer.signing = LinkSigning(KEY, 0, require=True)
@@ -86,6 +132,7 @@ def main() -> None:
             f"state file: {path.stat().st_size} bytes; atomic write median "
             f"{times_ms[WRITES // 2]:.2f} ms, worst {times_ms[-1]:.2f} ms ({WRITES} writes, {tmp})"
         )
+    restart(timed)
 
 
 if __name__ == "__main__":
