@@ -5,7 +5,8 @@ module of the command being run is imported (the daemon does not pay for matplot
 scikit-learn); ``--help`` without a command lists the one-line summaries below and imports
 no command module (numpy, pymavlink and scipy stay unloaded). A
 :class:`~estimator.errors.UserError` anywhere ends the process with its one-line message and
-exit code 2.
+exit code 2, an :class:`~estimator.errors.Unavailable` (a missing or busy serial device) with
+exit code 75 (``EXIT_UNAVAILABLE``: systemd restarts the daemon).
 """
 
 from __future__ import annotations
@@ -16,7 +17,7 @@ import sys
 from collections.abc import Sequence
 
 from estimator import __version__
-from estimator.errors import UserError
+from estimator.errors import EXIT_UNAVAILABLE, Unavailable, UserError
 
 #: Subcommands with their one-line summaries, in the order ``--help`` lists them; the module
 #: of ``a-b`` is ``estimator/commands/a_b.py``.
@@ -59,6 +60,9 @@ def main(argv: Sequence[str] | None = None) -> int:
     except UserError as exc:
         print(f"uav-energy {args.command}: error: {exc}", file=sys.stderr)
         return 2
+    except Unavailable as exc:
+        print(f"uav-energy {args.command}: unavailable: {exc}", file=sys.stderr)
+        return EXIT_UNAVAILABLE
     except KeyboardInterrupt:
         return 130
 

@@ -9,7 +9,7 @@ from pathlib import Path
 import pytest
 from pymavlink.dialects.v20 import common as mavlink
 
-from estimator.errors import UserError
+from estimator.errors import Unavailable, UserError
 from estimator.mavlink.link import MavlinkLink, open_link, parse_url
 
 
@@ -148,9 +148,15 @@ async def test_serial_link_over_a_pseudo_terminal() -> None:
         os.close(worker)
 
 
-async def test_opening_a_missing_serial_device_is_a_user_error() -> None:
-    with pytest.raises(UserError, match="cannot open"):
+async def test_opening_a_missing_serial_device_is_unavailable_not_a_user_error(
+    tmp_path: Path,
+) -> None:
+    """Missing: it may come back (exit 75, systemd restarts); not a serial port: a mistake."""
+    with pytest.raises(Unavailable, match="cannot open"):
         await open_link("/dev/does-not-exist-uav:115200")
+    (tmp_path / "plain").write_text("")
+    with pytest.raises(UserError, match="not a serial port"):
+        await open_link(f"{tmp_path / 'plain'}:115200")
 
 
 async def test_serial_device_that_disappears_is_reopened(tmp_path: Path) -> None:

@@ -25,7 +25,9 @@ estimate misses.
 from __future__ import annotations
 
 import math
+from collections.abc import Mapping
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 from numpy.typing import ArrayLike
@@ -104,6 +106,16 @@ class ResistanceFilter:
     def resistance_ohm(self) -> float:
         return max(float(self._kf.x[0]), 0.0)
 
+    def snapshot(self) -> dict[str, float]:
+        """R (Ω) and its variance (Ω²), to continue from after a restart."""
+        return {"ohm": float(self._kf.x[0]), "var_ohm2": float(self._kf.P[0, 0])}
+
+    def restore(self, state: Mapping[str, Any]) -> None:
+        """Continue from :meth:`snapshot` (a fixed resistance stays fixed)."""
+        if not self._fixed:
+            self._kf.x = np.array([_finite(state["ohm"], 0.0, 1.0)])
+            self._kf.P = np.array([[_finite(state["var_ohm2"], 0.0, 1.0)]])
+
     def update(self, dt_s: float, soc: float, voltage_v: float, current_a: float) -> None:
         """Fold in a terminal voltage (V) at ``current_a`` (A) and state of charge ``soc``."""
         if self._fixed:
@@ -122,6 +134,14 @@ class ResistanceFilter:
         ocv, power = np.asarray(ocv_v, dtype=float), np.asarray(power_w, dtype=float)
         disc = np.maximum(ocv * ocv - 4.0 * power * self.resistance_ohm, 0.0)
         return np.asarray(0.5 * (ocv + np.sqrt(disc)))
+
+
+def _finite(value: Any, low: float, high: float) -> float:
+    """``value`` as a float within [low, high]; ValueError otherwise."""
+    number = float(value)
+    if not (math.isfinite(number) and low <= number <= high):
+        raise ValueError(f"{number} is not within [{low}, {high}]")
+    return number
 
 
 def _ocv_slope_v(pack: PackModel, soc: float) -> float:
@@ -236,6 +256,50 @@ class EnergyFilter:
         self._initial_wh = energy_wh
         self._time_s = sample.time_s
         self.voltage = ResistanceFilter(pack, s)
+
+    def snapshot(self) -> dict[str, Any]:
+        """Everything needed to continue after a daemon restart within the same autopilot
+        boot (JSON-ready): time (s, autopilot clock), [E, b] and covariance, the SoC at which
+        the consumed-charge counter read 0 (the energy anchor), the start-error terms, the
+        resistance filter."""
+        kf = self._require()
+        assert self.voltage is not None
+        return {
+            "time_s": self._time_s,
+            "x": [float(v) for v in kf.x],
+            "P": [[float(v) for v in row] for row in kf.P],
+            "soc_ref": self._soc_ref,
+            "offset_sigma_wh": self._offset_sigma_wh,
+            "initial_wh": self._initial_wh,
+            "anchor_power_w": self._anchor_power_w,
+            "has_current": self.has_current,
+            "has_charge": self.has_charge,
+            "resistance": self.voltage.snapshot(),
+        }
+
+    def restore(self, state: Mapping[str, Any]) -> None:
+        """Continue from :meth:`snapshot`; ValueError/KeyError/TypeError on a bad one."""
+        x = np.array([float(v) for v in state["x"]])
+        p = np.array([[float(v) for v in row] for row in state["P"]])
+        if (
+            x.shape != (2,)
+            or p.shape != (2, 2)
+            or not (np.isfinite(x).all() and np.isfinite(p).all())
+        ):
+            raise ValueError("energy state is not a finite [E, b] with a 2×2 covariance")
+        voltage = ResistanceFilter(self.pack, self.settings)
+        voltage.restore(state["resistance"])
+        anchor = state["anchor_power_w"]
+        kf = KalmanFilter(dim_x=2, dim_z=1)
+        kf.x, kf.P = x, p
+        self._kf, self.voltage = kf, voltage
+        self._time_s = _finite(state["time_s"], 0.0, math.inf)
+        self._soc_ref = _finite(state["soc_ref"], 0.0, 1.0)
+        self._offset_sigma_wh = _finite(state["offset_sigma_wh"], 0.0, math.inf)
+        self._initial_wh = _finite(state["initial_wh"], 0.0, math.inf)
+        self._anchor_power_w = None if anchor is None else float(anchor)
+        self.has_current = bool(state["has_current"])
+        self.has_charge = bool(state["has_charge"])
 
     def rebase(self, time_s: float) -> None:
         """The autopilot rebooted: its clock restarts at ``time_s`` and its consumed-charge

@@ -38,11 +38,13 @@ from __future__ import annotations
 
 import math
 from collections import Counter
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field, fields
+from typing import Any
 
 import numpy as np
 
+from estimator.errors import UserError
 from estimator.estimation.airborne import AirborneGate, Phase
 from estimator.estimation.fusion import EnergyFilter, FusionSettings
 from estimator.estimation.online_effects import OnlineEffects, TrackerReading
@@ -52,6 +54,7 @@ from estimator.physics.effects import (
     Effect,
     FlightState,
     effects_from_tables,
+    effects_to_tables,
     predict_power_w,
 )
 from estimator.physics.kinematics import KinematicsFilter, KinematicsSettings, KinematicState
@@ -201,6 +204,17 @@ class _Event:
     voltage_v: float
 
 
+@dataclass(frozen=True, slots=True)
+class _Resume:
+    """A parsed snapshot waiting for the first battery sample."""
+
+    energy: EnergyFilter
+    effects: tuple[Effect, ...]
+    tracked_sq_w2: float
+    file_sq_w2: float
+    endurance_valid: bool
+
+
 class Pipeline:
     """Samples in (:meth:`process`), estimates out; ``counts`` says what it did and skipped.
 
@@ -257,6 +271,7 @@ class Pipeline:
         self._steady_power_w = 0.0
         self._time_s: float | None = None  # newest sample time (ordering)
         self._loss_factor = 1.0
+        self._resume: _Resume | None = None
         self._refresh_speeds()
 
     # -- power: every prediction goes through predict_power_w ----------------------------------
@@ -416,16 +431,74 @@ class Pipeline:
         voltage_v = math.nan if self._battery is None else self._battery.voltage_v
         self._events.append(_Event(time_s, self._state, self._armed, voltage_v))
 
+    # -- continuing after a restart ---------------------------------------------------------------
+
+    def snapshot(self) -> dict[str, Any] | None:
+        """What a restarted process needs to continue this flight (JSON-ready): the energy
+        and resistance filters with the energy anchor, the effects in use (tracked wind and
+        mass), their scores, and whether endurance is valid. None before the energy state
+        starts."""
+        if not self.energy.initialized:
+            return None
+        return {
+            "energy": self.energy.snapshot(),
+            "effects": effects_to_tables(self.effects),
+            "tracked_sq_w2": self._tracked_sq_w2,
+            "file_sq_w2": self._file_sq_w2,
+            "endurance_valid": self.endurance_valid,
+        }
+
+    def resume(self, snapshot: Mapping[str, Any]) -> None:
+        """Continue from ``snapshot`` (:meth:`snapshot` of the same autopilot boot, checked by
+        the caller) at the first battery sample instead of starting from its voltage (a
+        sample older than the snapshot starts afresh). ValueError for a snapshot that does
+        not parse."""
+        try:
+            energy = EnergyFilter(self.pack, self.settings.fusion)
+            energy.restore(snapshot["energy"])
+            self._resume = _Resume(
+                energy,
+                tuple(effects_from_tables(snapshot["effects"])),
+                float(snapshot["tracked_sq_w2"]),
+                float(snapshot["file_sq_w2"]),
+                bool(snapshot["endurance_valid"]),
+            )
+        except (KeyError, TypeError, AttributeError, ValueError, UserError) as exc:
+            raise ValueError(f"not a pipeline snapshot ({exc})") from None
+
     def _initialize(self, sample: BatterySample) -> None:
-        """First valid battery sample: start the energy state at the model power now."""
+        """First valid battery sample: start the energy state at the model power now, or
+        continue from a snapshot (:meth:`resume`): the time since it is drawn at this
+        sample's power, and the charge counter then corrects it."""
+        resume, self._resume = self._resume, None
+        resumed = resume is not None and resume.energy.time_s <= sample.time_s
+        if resumed:
+            assert resume is not None
+            self.energy, self.effects, self.endurance_valid = (
+                resume.energy,
+                resume.effects,
+                resume.endurance_valid,
+            )
+            self._tracked_sq_w2, self._file_sq_w2 = resume.tracked_sq_w2, resume.file_sq_w2
+            if self.online is not None:
+                self.online = OnlineEffects(self.vehicle.model, self.vehicle.mass_kg, self.effects)
+            self._refresh_speeds()
         self._battery = sample
         self._time_s = sample.time_s
         now = _Event(sample.time_s, self._state, self._armed, sample.voltage_v)
         self._power_model_w = self._event_powers_w([now], sample.time_s)[0]
-        self.energy.initialize(sample, self._power_model_w)
+        if resumed:
+            power_w = sample.power_w
+            if power_w is None:
+                power_w = self.energy.bias * self._power_model_w
+            loss = self.energy.loss_factor(power_w)
+            self.energy.predict(sample.time_s, power_w, loss, measured=sample.power_w is not None)
+            self.counts["resumed"] += 1
+        else:
+            self.energy.initialize(sample, self._power_model_w)
+            self.counts["energy_initialized"] += 1
         self._resistance_time_s = sample.time_s
         self._start_period(sample.time_s)
-        self.counts["energy_initialized"] += 1
 
     def _start_period(self, time_s: float) -> None:
         period = self.settings.estimate_period_s

@@ -33,12 +33,18 @@ class ServiceConfig:
     SET_MESSAGE_INTERVAL) at velocity_rate_hz and battery_rate_hz.
     publish_rate_hz: NAMED_VALUE_FLOAT and BATTERY_STATUS rate (0: with every estimate).
     battery_id: BATTERY_STATUS id of our estimate (distinct from the autopilot's 0).
-    values_to_autopilot: also send HEARTBEAT/NAMED_VALUE_FLOAT on the connect link.
+    values_to_autopilot: also send NAMED_VALUE_FLOAT on the connect link.
     battery_status_to_autopilot: also send BATTERY_STATUS there (PX4 then treats it as a
     battery of its own: only if you mean it).
+    heartbeat_to_autopilot: send our 1 Hz HEARTBEAT on the connect link too.
+    signing_key_file: MAVLink 2 signing key (:func:`~estimator.mavlink.signing.load_key`;
+    "" = no signing); require_signing: reject unsigned frames.
+    state_file: where the estimator's state is kept across restarts ("" = nowhere);
+    state_max_age_s: an older state file is ignored; state_period_s: seconds between writes.
     json: "" (off), "-" (stdout) or "udp:HOST:PORT"; json_rate_hz 0: every estimate.
     stale_after_s: no telemetry for this long marks estimates stale.
-    vehicle: vehicle TOML file ("" = the built-in default vehicle).
+    vehicle: vehicle TOML file ("" = the built-in default vehicle). Paths in a config file
+    (vehicle, signing key, state file) are relative to that file's directory.
     track_effects: follow wind and mass online (:mod:`estimator.estimation.online_effects`) instead
     of
     keeping the vehicle file's values for the whole flight.
@@ -59,6 +65,12 @@ class ServiceConfig:
     battery_id: int = 9
     values_to_autopilot: bool = False
     battery_status_to_autopilot: bool = False
+    heartbeat_to_autopilot: bool = False
+    signing_key_file: str = ""
+    require_signing: bool = False
+    state_file: str = ""
+    state_max_age_s: float = 120.0
+    state_period_s: float = 2.0
     json: str = ""
     json_rate_hz: float = 0.0
     stale_after_s: float = 3.0
@@ -91,6 +103,12 @@ _KEYS = {
     ("link", "velocity_rate_hz"): "velocity_rate_hz",
     ("link", "battery_rate_hz"): "battery_rate_hz",
     ("link", "stale_after_s"): "stale_after_s",
+    ("link", "heartbeat_to_autopilot"): "heartbeat_to_autopilot",
+    ("signing", "key_file"): "signing_key_file",
+    ("signing", "require_signing"): "require_signing",
+    ("state", "file"): "state_file",
+    ("state", "max_age_s"): "state_max_age_s",
+    ("state", "period_s"): "state_period_s",
     ("publish", "urls"): "publish",
     ("publish", "rate_hz"): "publish_rate_hz",
     ("publish", "battery_id"): "battery_id",
@@ -102,11 +120,15 @@ _KEYS = {
     ("vehicle", "track_effects"): "track_effects",
     ("log", "level"): "log_level",
 }
+#: Fields holding file paths: relative ones in a config file are relative to its directory.
+_PATH_FIELDS = frozenset({"vehicle", "signing_key_file", "state_file"})
 
 
 def load_config_file(path: str | Path) -> dict[str, Any]:
-    """Read a config TOML into ServiceConfig field values (unknown keys are errors)."""
+    """Read a config TOML into ServiceConfig field values (unknown keys are errors); relative
+    paths become paths relative to the file's directory."""
     doc = read_toml(path, "config")
+    base = Path(path).resolve().parent
     values: dict[str, Any] = {}
     for section, table in doc.items():
         if not isinstance(table, dict):
@@ -118,6 +140,8 @@ def load_config_file(path: str | Path) -> dict[str, Any]:
             name = _KEYS.get((section, key))
             if name is None:
                 raise UserError(f"config file {path}: unknown key [{section}] {key}")
+            if name in _PATH_FIELDS and isinstance(value, str) and value:
+                value = str(base / Path(value).expanduser())
             values[name] = value
     return values
 
@@ -203,8 +227,11 @@ def validate(config: ServiceConfig) -> None:
     for name in ("publish_rate_hz", "json_rate_hz"):
         if not 0 <= getattr(config, name) <= 100:
             raise UserError(f"config '{name}' must be in [0, 100] Hz (0: every estimate)")
-    if config.stale_after_s <= 0:
-        raise UserError("config 'stale_after_s' must be > 0")
+    for name in ("stale_after_s", "state_max_age_s", "state_period_s"):
+        if getattr(config, name) <= 0:
+            raise UserError(f"config '{name}' must be > 0")
+    if config.require_signing and not config.signing_key_file:
+        raise UserError("config 'require_signing' needs a signing key_file")
     if config.json not in ("", "-") and not config.json.startswith("udp:"):
         raise UserError(f"config 'json' must be '', '-' or udp:HOST:PORT, got {config.json!r}")
     if config.json.startswith("udp:"):

@@ -3,7 +3,8 @@
 No ``mavutil`` (it changes process-wide state), no threads, no blocking calls on the loop.
 Connection strings follow ArduPilot/mavutil usage:
 
-- ``udpin:HOST:PORT``  bind and listen; replies go to every peer heard from (up to 16);
+- ``udpin:HOST:PORT``  bind and listen; replies go to every peer heard from (up to 16), or,
+  after :meth:`MavlinkLink.set_peer`, only to the address one (system, component) speaks from;
 - ``udpout:HOST:PORT`` send to HOST:PORT; replies arrive on our ephemeral port;
 - ``tcp:HOST:PORT``    TCP client that reconnects (1 s back-off) when the peer goes away;
 - ``tcpin:HOST:PORT``  TCP server; sends go to every connected client (used by simulators);
@@ -16,7 +17,8 @@ raised) and queues them for :meth:`MavlinkLink.recv`; a flood beyond ``max_pendi
 messages drops the oldest ones (counted). A link opened with ``message_ids`` drops frames of
 other ids by their header, before parsing (``counts['skipped_frames']``). Outgoing messages
 are packed with the link's own system/component id and sequence (:attr:`MavlinkLink.mav` is
-that encoder)::
+that encoder), and signed when the link has a :class:`~estimator.mavlink.signing.LinkSigning`
+(incoming frames are then checked by it too)::
 
     link = await open_link("udpin:127.0.0.1:14550", source_system=1, source_component=191)
     link.send(link.mav.heartbeat_encode(18, 8, 0, 0, 4))
@@ -29,10 +31,13 @@ from __future__ import annotations
 
 import asyncio
 import contextlib
+import errno
 import logging
+import math
 import os
 import socket
 import termios
+import time
 import tty
 from collections import Counter, deque
 from collections.abc import Callable
@@ -41,8 +46,9 @@ from typing import Any
 
 from pymavlink.dialects.v20 import common as mavlink
 
-from estimator.errors import UserError
-from estimator.telemetry.decode import FrameParser
+from estimator.errors import Unavailable, UserError
+from estimator.mavlink.signing import LinkSigning, SigningCodec
+from estimator.telemetry.decode import FrameParser, message_source
 
 log = logging.getLogger(__name__)
 
@@ -51,6 +57,13 @@ MAX_UDP_PEERS = 16
 #: Seconds between attempts to reconnect a TCP client or reopen a serial device.
 TCP_RECONNECT_S = 1.0
 UDP_RECEIVE_BUFFER_BYTES = 1 << 20
+#: A udpin link's pinned peer silent this long (s) may be replaced by the address its
+#: (system, component) now speaks from (an autopilot restarted on another port).
+REPIN_AFTER_S = 3.0
+#: errno values of a serial device that may come back: missing, unplugged, busy, failing.
+_DEVICE_MAY_COME_BACK = frozenset(
+    {errno.ENOENT, errno.ENODEV, errno.ENXIO, errno.EBUSY, errno.EIO, errno.EAGAIN}
+)
 #: Datagrams read at one wake-up of the loop at most, and the largest one read whole.
 UDP_DATAGRAMS_PER_WAKE = 64
 UDP_DATAGRAM_MAX_BYTES = 65_535
@@ -104,7 +117,9 @@ class MavlinkLink:
     """One MAVLink connection: received messages queue up for :meth:`recv`; :meth:`send`
     packs with our ids. Counters: ``counts['bad_frames']``, ``['dropped']`` (queue overflow),
     ``['rx_messages']``, ``['tx_messages']``, ``['tx_dropped']`` (no peer / not connected),
-    ``['reconnects']``, ``['skipped_frames']`` (ids outside ``message_ids``)."""
+    ``['reconnects']``, ``['skipped_frames']`` (ids outside ``message_ids``),
+    ``['foreign_peer']`` (udpin datagrams carrying the peer's ids from another address,
+    dropped)."""
 
     def __init__(
         self,
@@ -113,10 +128,14 @@ class MavlinkLink:
         source_component: int,
         max_pending: int,
         message_ids: frozenset[int] | None = None,
+        signing: LinkSigning | None = None,
     ) -> None:
         self.address = address
         self.message_ids = message_ids
         self.mav = mavlink.MAVLink(None, srcSystem=source_system, srcComponent=source_component)
+        self.signing = signing
+        if signing is not None:
+            self.mav.signing = signing
         self.counts: Counter[str] = Counter()
         self._pending: deque[mavlink.MAVLink_message] = deque()
         self._max_pending = max_pending
@@ -145,8 +164,18 @@ class MavlinkLink:
     # -- receiving --------------------------------------------------------------------------
 
     def parser(self, stream: bool) -> FrameParser:
-        """A frame parser for this link's transport (``stream``: TCP, serial)."""
-        return FrameParser(self.message_ids, stream)
+        """A frame parser for this link's transport (``stream``: TCP, serial), checking
+        signatures when the link signs."""
+        codec = None if self.signing is None else SigningCodec(self.signing)
+        return FrameParser(self.message_ids, stream, codec)
+
+    def set_peer(self, source: tuple[int, int] | None) -> None:
+        """``udpin`` only: answer only the address ``source`` (system, component) speaks
+        from, and drop datagrams carrying its ids from any other address (counted in
+        ``foreign_peer``) unless that address was silent for :data:`REPIN_AFTER_S`.
+        None: answer every peer again. Other links are point to point: no effect."""
+        if self._transport is not None:
+            self._transport.set_peer(source)
 
     def _deliver(
         self, messages: list[mavlink.MAVLink_message], bad_frames: int, skipped_frames: int = 0
@@ -193,7 +222,10 @@ class MavlinkLink:
     # -- sending ----------------------------------------------------------------------------
 
     def send(self, msg: mavlink.MAVLink_message) -> None:
-        """Pack ``msg`` with this link's system/component id and sequence, and send it."""
+        """Pack ``msg`` with this link's system/component id and sequence (signed when the
+        link signs), and send it."""
+        if self.signing is not None:
+            self.signing.stamp()
         self.send_bytes(msg.pack(self.mav))
 
     def send_bytes(self, data: bytes) -> None:
@@ -220,15 +252,19 @@ async def open_link(
     source_component: int = mavlink.MAV_COMP_ID_ONBOARD_COMPUTER,
     max_pending: int = 10_000,
     message_ids: frozenset[int] | None = None,
+    signing: LinkSigning | None = None,
 ) -> MavlinkLink:
     """Open a link from a connection string (see the module docstring). With
-    ``message_ids``, frames of other ids are dropped unparsed (:class:`FrameParser`).
+    ``message_ids``, frames of other ids are dropped unparsed (:class:`FrameParser`);
+    ``signing``: sign what we send and check what we receive with it.
 
-    Failing to bind or open a device is a UserError; a ``tcp`` client that cannot connect yet
+    A serial device that is missing or busy (it may come back: USB unplugged, another
+    program holding it) is :class:`~estimator.errors.Unavailable`; failing to bind, or a
+    device that is not a serial port, is a UserError; a ``tcp`` client that cannot connect yet
     keeps trying in the background (sends are dropped and counted meanwhile).
     """
     address = parse_url(url)
-    link = MavlinkLink(address, source_system, source_component, max_pending, message_ids)
+    link = MavlinkLink(address, source_system, source_component, max_pending, message_ids, signing)
     opener = {
         "udpin": _UdpTransport.open,
         "udpout": _UdpTransport.open,
@@ -239,7 +275,10 @@ async def open_link(
     try:
         link._transport = await opener(link)
     except OSError as exc:
-        raise UserError(f"cannot open {url}: {exc.strerror or exc}") from None
+        reason = exc.strerror or str(exc)
+        if address.kind == "serial" and exc.errno in _DEVICE_MAY_COME_BACK:
+            raise Unavailable(f"cannot open {url}: {reason}") from None
+        raise UserError(f"cannot open {url}: {reason}") from None
     return link
 
 
@@ -256,6 +295,9 @@ class _Transport:
     def write(self, data: bytes) -> bool:
         """Queue ``data`` for sending; False when there is nowhere to send it."""
         raise NotImplementedError
+
+    def set_peer(self, source: tuple[int, int] | None) -> None:
+        """See :meth:`MavlinkLink.set_peer` (point-to-point transports ignore it)."""
 
 
 class _StreamProtocol(asyncio.Protocol):
@@ -286,17 +328,65 @@ class _StreamProtocol(asyncio.Protocol):
             self._on_lost(self)
 
 
+class _Peers:
+    """A udpin link's peers: every address heard from (up to :data:`MAX_UDP_PEERS`), or the
+    one address a chosen (system, component) speaks from."""
+
+    def __init__(self, link: MavlinkLink) -> None:
+        self.link = link
+        self.every: dict[Any, None] = {}
+        self.source: tuple[int, int] | None = None
+        self.pinned: Any = None
+        self.pinned_heard_s = -math.inf
+        self._last: tuple[Any, set[tuple[int, int]]] | None = None  # latest datagram's
+
+    def choose(self, source: tuple[int, int] | None) -> None:
+        """Answer only ``source``: pinned at once when the datagram being delivered is its."""
+        self.source, self.pinned, self.pinned_heard_s = source, None, -math.inf
+        if source is not None and self._last is not None and source in self._last[1]:
+            self.pinned, self.pinned_heard_s = self._last[0], time.monotonic()
+
+    def heard(self, addr: Any, messages: list[mavlink.MAVLink_message]) -> bool:
+        """Note a datagram's sender; False to drop it (the chosen ids from a foreign address)."""
+        sources = {message_source(m) for m in messages}
+        self._last = addr, sources
+        if self.source in sources:
+            now_s = time.monotonic()
+            if addr != self.pinned:
+                if now_s - self.pinned_heard_s < REPIN_AFTER_S:
+                    return False
+                if self.pinned is not None:
+                    log.warning(
+                        "udpin %s: system %d component %d now speaks from %s (was %s)",
+                        self.link.url,
+                        *self.source,
+                        addr,
+                        self.pinned,
+                    )
+                self.pinned = addr
+            self.pinned_heard_s = now_s
+        if addr not in self.every:
+            self.every[addr] = None
+            if len(self.every) > MAX_UDP_PEERS:
+                del self.every[next(iter(self.every))]
+        return True
+
+    def targets(self) -> list[Any]:
+        if self.source is None:
+            return list(self.every)
+        return [] if self.pinned is None else [self.pinned]
+
+
 class _UdpTransport(_Transport):
     """A non-blocking UDP socket read with ``loop.add_reader``: each wake-up reads every
     datagram waiting (up to :data:`UDP_DATAGRAMS_PER_WAKE`), without asyncio's datagram
     transport and protocol between the socket and the parser. Each datagram is parsed on its
     own, so a truncated frame never swallows the next one: a datagram that leaves part of a
     frame in the parser gets a new parser for the next. ``udpin`` answers the peers heard
-    from; ``udpout`` sends to its address from a connected socket."""
+    from (or the chosen peer, :class:`_Peers`); ``udpout`` sends to its address from a
+    connected socket."""
 
-    def __init__(
-        self, link: MavlinkLink, sock: socket.socket, peers: dict[Any, None] | None
-    ) -> None:
+    def __init__(self, link: MavlinkLink, sock: socket.socket, peers: _Peers | None) -> None:
         self.link = link
         self.sock = sock
         self.peers = peers
@@ -324,7 +414,7 @@ class _UdpTransport(_Transport):
         except OSError:
             sock.close()
             raise
-        return cls(link, sock, {} if addr.kind == "udpin" else None)
+        return cls(link, sock, _Peers(link) if addr.kind == "udpin" else None)
 
     def _readable(self) -> None:
         for _ in range(UDP_DATAGRAMS_PER_WAKE):  # then let the loop's other work run
@@ -341,20 +431,22 @@ class _UdpTransport(_Transport):
         parser = self._parser
         bad, skipped = parser.bad_frames, parser.skipped_frames
         messages = parser.feed(data)
-        self.link._deliver(messages, parser.bad_frames - bad, parser.skipped_frames - skipped)
         if parser.holds_partial_frame:  # a truncated datagram: its bytes go with the parser
             self._parser = self.link.parser(stream=False)
-        if self.peers is not None and messages:
-            if peer in self.peers:
-                return
-            self.peers[peer] = None
-            if len(self.peers) > MAX_UDP_PEERS:
-                del self.peers[next(iter(self.peers))]
+        if self.peers is not None and messages and not self.peers.heard(peer, messages):
+            self.link.counts["foreign_peer"] += 1
+            messages = []
+        self.link._deliver(messages, parser.bad_frames - bad, parser.skipped_frames - skipped)
+
+    def set_peer(self, source: tuple[int, int] | None) -> None:
+        if self.peers is not None and source != self.peers.source:
+            self.peers.choose(source)
 
     def write(self, data: bytes) -> bool:
-        if self.peers is not None and not self.peers:
+        targets = [None] if self.peers is None else self.peers.targets()
+        if not targets:
             return False
-        for peer in [None] if self.peers is None else list(self.peers):
+        for peer in targets:
             try:
                 if peer is None:
                     self.sock.send(data)

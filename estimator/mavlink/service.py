@@ -7,6 +7,12 @@ BATTERY_STATUS at the configured rate), heartbeat + watchdog (1 Hz: our HEARTBEA
 detection, stream requests until telemetry flows, counters of bad input), and a drain per
 output link. Wall clock is used only for these timers; the estimates run on the autopilot's
 clock.
+The autopilot is chosen by :class:`~estimator.mavlink.autopilot_lock.AutopilotLock`
+(configured, or the first autopilot HEARTBEAT confirmed by its telemetry); a ``udpin`` link
+then answers only the address it speaks from. Links sign and check frames when a signing key
+is configured (:mod:`estimator.mavlink.signing`). With a state file
+(:mod:`estimator.mavlink.state_file`) the flight state is written every ``state_period_s``
+and on exit, and a restarted daemon continues from it when it fits the autopilot's boot.
 One log line per event: autopilot found, streams requested, energy initialized (with a
 warning when the pack voltage does not fit the vehicle file's cell count), model-only mode,
 reboot or clock jump, link silent (stale) / resumed, bad frames, floods and input skipped as
@@ -28,8 +34,11 @@ from pymavlink.dialects.v20 import common as mavlink
 
 from estimator.estimation.pipeline import Estimate, Pipeline, PipelineSettings
 from estimator.mavlink import publish
+from estimator.mavlink.autopilot_lock import AutopilotLock
 from estimator.mavlink.config import ServiceConfig
 from estimator.mavlink.link import MavlinkLink, open_link, parse_url
+from estimator.mavlink.signing import LinkSigning, load_key
+from estimator.mavlink.state_file import StateKeeper
 from estimator.physics.vehicle import Vehicle
 from estimator.telemetry.decode import SKIP_COUNTERS, USED_MESSAGE_IDS, TelemetryDecoder
 from estimator.telemetry.plausibility import pack_voltage_problem
@@ -73,6 +82,7 @@ class Service:
             own=(config.system_id, OWN_COMPONENT),
             limits=vehicle.input_limits(),
         )
+        self.lock = AutopilotLock(target, (config.system_id, OWN_COMPONENT))
         self.latest: Estimate | None = None
         self.stale = False
         self.internal_errors = 0
@@ -87,6 +97,11 @@ class Service:
         self._streams_ok = False
         self._logged: dict[str, tuple[int, float]] = {}  # counter → (value, wall s) logged
         self._event_logged_s: dict[str, float] = {}
+        self.state: StateKeeper | None = None
+        if config.state_file:
+            self.state = StateKeeper(
+                config.state_file, config.state_max_age_s, config.state_period_s, self.pipeline
+            )
         # BATTERY_STATUS.battery_remaining is a share of a full pack's usable energy.
         self._full_usable_wh = float(self.pipeline.pack.usable_energy_wh(1.0))
 
@@ -102,12 +117,26 @@ class Service:
                 loop.add_signal_handler(sig, stop.set)
                 installed.append(sig)
         cfg = self.config
+        key = load_key(cfg.signing_key_file) if cfg.signing_key_file else None
+
+        def signing(link_id: int) -> LinkSigning | None:
+            return None if key is None else LinkSigning(key, link_id, cfg.require_signing)
+
         self.link = await open_link(
-            cfg.connect, source_system=cfg.system_id, message_ids=USED_MESSAGE_IDS
+            cfg.connect,
+            source_system=cfg.system_id,
+            message_ids=USED_MESSAGE_IDS,
+            signing=signing(0),
         )
+        if self.lock.locked is not None:
+            self.link.set_peer(self.lock.locked)
+        if self.state is not None:
+            self.state.load()
         try:
-            for url in cfg.publish:
-                self.outputs.append(await open_link(url, source_system=cfg.system_id))
+            for i, url in enumerate(cfg.publish, start=1):
+                self.outputs.append(
+                    await open_link(url, source_system=cfg.system_id, signing=signing(i))
+                )
             if cfg.json.startswith("udp:"):
                 addr = parse_url("udpout:" + cfg.json[4:])
                 self._json_udp, _ = await loop.create_datagram_endpoint(
@@ -116,10 +145,11 @@ class Service:
             elif cfg.json == "-":
                 self._json_pipe = await _stdout_transport()
             log.info(
-                "started: autopilot link %s, %d output(s), vehicle %s",
+                "started: autopilot link %s, %d output(s), vehicle %s, signing %s",
                 cfg.connect,
                 len(self.outputs),
                 self.pipeline.vehicle.name,
+                "off" if key is None else "required" if cfg.require_signing else "on",
             )
             self.link.set_listener(self._on_messages)
             gc.freeze()  # start-up objects (modules, codecs) leave the collector's scans
@@ -128,6 +158,8 @@ class Service:
                 loop.create_task(self._heartbeat_loop()),
                 *(loop.create_task(_drain(out)) for out in self.outputs),
             ]
+            if self.state is not None:
+                tasks.append(loop.create_task(self.state.run(lambda: self.decoder.target)))
             await stop.wait()
             for task in tasks:
                 task.cancel()
@@ -136,6 +168,8 @@ class Service:
                     await task
             if (last := self.pipeline.flush()) is not None:  # the samples of the open period
                 self._deliver(last, loop.time())
+            if self.state is not None:
+                self.state.save(self.decoder.target)
         finally:
             for link in [self.link, *self.outputs]:
                 await link.close()
@@ -153,9 +187,14 @@ class Service:
         out: dict[str, int] = {}
         if self.link is not None:
             out.update({f"link_{k}": v for k, v in self.link.counts.items()})
+            if self.link.signing is not None:
+                out.update({f"signing_{k}": v for k, v in self.link.signing.rejected.items()})
+        out.update({f"autopilot_{k}": v for k, v in self.lock.counts.items()})
         out.update({f"decode_{k}": v for k, v in self.decoder.counts.items()})
         out.update({f"pipeline_{k}": v for k, v in self.pipeline.counts.items()})
         out.update(internal_errors=self.internal_errors, json_dropped=self.json_dropped)
+        if self.state is not None:
+            out.update(state_writes=self.state.writes, state_write_errors=self.state.write_errors)
         return out
 
     # -- receive ----------------------------------------------------------------------------
@@ -163,28 +202,40 @@ class Service:
     def _on_messages(self, messages: list[mavlink.MAVLink_message]) -> None:
         """Link listener: handle each message as its datagram arrives."""
         now_s = asyncio.get_running_loop().time()
-        for msg in messages:
-            try:
-                self._handle(msg, now_s)
-            except Exception as exc:  # never die on one message: log it, count, go on
-                self.internal_errors += 1
-                if self.internal_errors <= 10 or self.internal_errors % 1000 == 0:
-                    log.error(
-                        "internal error #%d on %s skipped: %r",
-                        self.internal_errors,
-                        msg.get_type(),
-                        exc,
-                    )
+        for received in messages:
+            lock = self.lock
+            before = (lock.candidate, lock.locked)
+            admitted = lock.admit(received, now_s)
+            if (lock.candidate, lock.locked) != before:
+                self._autopilot_changed(now_s)
+            for msg in admitted:
+                try:
+                    self._handle(msg, now_s)
+                except Exception as exc:  # never die on one message: log it, count, go on
+                    self.internal_errors += 1
+                    if self.internal_errors <= 10 or self.internal_errors % 1000 == 0:
+                        log.error(
+                            "internal error #%d on %s skipped: %r",
+                            self.internal_errors,
+                            msg.get_type(),
+                            exc,
+                        )
+
+    def _autopilot_changed(self, now_s: float) -> None:
+        """A new candidate or lock: answer only it, ask it for telemetry."""
+        chosen = self.lock.locked or self.lock.candidate
+        self.decoder.target = self.lock.locked
+        if self.link is not None:
+            self.link.set_peer(chosen)
+        if chosen is not None:
+            self._request_streams(now_s)
 
     def _handle(self, msg: mavlink.MAVLink_message, now_s: float) -> None:
-        had_target = self.decoder.target is not None
         counts = self.decoder.counts
         reboots, jumps = counts["reboots"], counts["clock_jumps"]
         samples = self.decoder.decode(msg)
-        if not had_target and self.decoder.target is not None:
-            log.info("autopilot found: system %d component %d", *self.decoder.target)
-            self._request_streams(now_s)
         if counts["reboots"] != reboots:
+            self.lock.recheck(now_s)
             self._log_throttled(
                 "reboots",
                 now_s,
@@ -193,8 +244,7 @@ class Service:
                 counts["reboots"],
             )
             self._streams_ok = False
-            if now_s - self._last_request_s >= REQUEST_RETRY_S:  # forged reboots: throttled
-                self._request_streams(now_s)
+            self._request_streams(now_s)
         if counts["clock_jumps"] != jumps:
             self._log_throttled(
                 "clock_jumps",
@@ -205,6 +255,9 @@ class Service:
             )
         if not samples:
             return
+        if self.state is not None and self.state.saved is not None:
+            assert self.decoder.target is not None
+            self.state.resume(self.decoder.target, self.decoder.clock_s)
         self._last_rx_s = now_s
         if self.stale:
             self.stale = False
@@ -215,7 +268,8 @@ class Service:
             if estimate is not None:
                 self._deliver(estimate, now_s)
         if not was_initialized and self.pipeline.energy.initialized:
-            log.info("energy initialized: SoC %.0f %%", 100 * self.pipeline.energy.soc)
+            how = "continued" if self.pipeline.counts["resumed"] else "initialized"
+            log.info("energy %s: SoC %.0f %%", how, 100 * self.pipeline.energy.soc)
             battery = next(s for s in samples if isinstance(s, BatterySample))
             cells = self.pipeline.vehicle.battery.cells
             if (problem := pack_voltage_problem(battery.voltage_v, cells)) is not None:
@@ -231,11 +285,19 @@ class Service:
             log.info("telemetry flowing: estimating, %s", mode)
 
     def _request_streams(self, now_s: float) -> None:
-        """REQUEST_DATA_STREAM (ArduPilot) and SET_MESSAGE_INTERVAL (both stacks)."""
-        if not self.config.request_streams or self.link is None or self.decoder.target is None:
+        """REQUEST_DATA_STREAM (ArduPilot) and SET_MESSAGE_INTERVAL (both stacks) to the
+        autopilot (or the candidate), at most once per REQUEST_RETRY_S whatever asks (new
+        candidates, reboots, forged ones included)."""
+        target = self.lock.locked or self.lock.candidate
+        if (
+            not self.config.request_streams
+            or self.link is None
+            or target is None
+            or now_s - self._last_request_s < REQUEST_RETRY_S
+        ):
             return
         self._last_request_s = now_s
-        sysid, compid = self.decoder.target
+        sysid, compid = target
         mav, cfg = self.link.mav, self.config
         for stream, rate in (
             (mavlink.MAV_DATA_STREAM_POSITION, cfg.velocity_rate_hz),
@@ -326,9 +388,11 @@ class Service:
         loop = asyncio.get_running_loop()
         while True:
             estimate = self._current()
-            for link in [*self.outputs, self.link]:
-                if link is not None:
-                    link.send(publish.heartbeat(link, estimate))
+            links = list(self.outputs)
+            if self.link is not None and self.config.heartbeat_to_autopilot:
+                links.append(self.link)
+            for link in links:
+                link.send(publish.heartbeat(link, estimate))
             self._watchdog(loop.time())
             await asyncio.sleep(1.0)
 
@@ -339,11 +403,9 @@ class Service:
             log.warning("link silent for %.1f s: estimates marked stale", silent_s)
             if self.config.publish_rate_hz == 0 and (estimate := self._current()) is not None:
                 self._publish(estimate)
-        if (
-            not self._streams_ok
-            and self.decoder.target is not None
-            and now_s - self._last_request_s >= REQUEST_RETRY_S
-        ):
+        if self.lock.tick(now_s):
+            self._autopilot_changed(now_s)
+        if not self._streams_ok:
             self._request_streams(now_s)
         skipped = {k: self.decoder.counts[k] for k in SKIP_COUNTERS if self.decoder.counts[k]}
         self._log_count(
@@ -354,8 +416,20 @@ class Service:
         )
         if self.link is None:
             return
-        for key, what in (("bad_frames", "bad frames"), ("dropped", "messages dropped (flood)")):
+        for key, what in (
+            ("bad_frames", "bad frames"),
+            ("dropped", "messages dropped (flood)"),
+            ("foreign_peer", "datagrams with the autopilot's ids from another address"),
+        ):
             self._log_count(key, self.link.counts[key], now_s, f"{what} so far (input skipped)")
+        if self.link.signing is not None:
+            rejected = self.link.signing.rejected
+            self._log_count(
+                "signing",
+                sum(rejected.values()),
+                now_s,
+                f"frames rejected by signing so far ({_format_counts(dict(rejected))})",
+            )
 
     def _log_count(self, key: str, value: int, now_s: float, what: str) -> None:
         """Warn "<value> <what>" when the counter moved, at most once per COUNTER_LOG_S."""

@@ -38,6 +38,7 @@ from pathlib import Path
 from typing import Any, BinaryIO
 
 import numpy as np
+from pymavlink.dialects.v20 import common as mavlink
 from rich import box
 from rich.console import Console, Group
 from rich.live import Live
@@ -67,7 +68,7 @@ CRUISE_HEADING_DEG = 45.0
 ENDURANCE_CHECKS_S = (10.0, 30.0, 60.0, 120.0)
 #: Seconds of simulated flight between two history rows of the live table.
 TABLE_ROW_EVERY_S = 30.0
-#: Wall seconds to wait for the daemon's first HEARTBEAT (it reconnects every second).
+#: Wall seconds to wait for the daemon's first frame (it reconnects every second).
 DAEMON_WAIT_S = 20.0
 #: Wall seconds between checks whether the daemon has caught up after playback.
 POLL_S = 0.05
@@ -81,17 +82,27 @@ Row = dict[str, Any]
 
 
 async def wait_for_daemon(link: MavlinkLink, timeout_s: float = DAEMON_WAIT_S) -> None:
-    """Return once a HEARTBEAT of component 191 arrives on ``link`` (TimeoutError if not)."""
+    """Send an autopilot's HEARTBEAT once a second on ``link`` until a frame of component
+    191 arrives (the daemon's stream requests, or its HEARTBEAT when configured to send one
+    to the autopilot); TimeoutError if none does."""
+    heartbeat = link.mav.heartbeat_encode(
+        mavlink.MAV_TYPE_QUADROTOR,
+        mavlink.MAV_AUTOPILOT_ARDUPILOTMEGA,
+        0,
+        0,
+        mavlink.MAV_STATE_STANDBY,
+    )
     async with asyncio.timeout(timeout_s):
         while True:
-            received = await link.recv()
-            if not received and link.closed:
-                raise ConnectionError("link closed before the daemon connected")
-            if any(
-                m.get_type() == "HEARTBEAT" and m.get_srcComponent() == OWN_COMPONENT
-                for m in received
-            ):
-                return
+            link.send(heartbeat)
+            with contextlib.suppress(TimeoutError):
+                async with asyncio.timeout(1.0):
+                    while True:
+                        received = await link.recv()
+                        if not received and link.closed:
+                            raise ConnectionError("link closed before the daemon connected")
+                        if any(m.get_srcComponent() == OWN_COMPONENT for m in received):
+                            return
 
 
 async def serve_flight(

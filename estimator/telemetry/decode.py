@@ -104,15 +104,22 @@ class FrameParser:
     """Bytes in, MAVLink messages out; bad frames are counted, never raised.
 
     With ``message_ids``, whole frames of other ids are dropped by their header before
-    pymavlink sees them (counted in ``skipped_frames``; their checksum is not verified):
-    the walk goes frame by frame from the chunk's start while each frame begins with a
-    MAVLink magic byte and lies whole in the chunk. What follows is parsed as it is
-    (garbage: pymavlink resynchronizes and counts it); with ``stream`` (TCP, serial) a
-    frame cut by the end of the chunk is held and completed by the next one.
+    pymavlink sees them (counted in ``skipped_frames``; their checksum and signature are not
+    verified): the walk goes frame by frame from the chunk's start while each frame begins
+    with a MAVLink magic byte and lies whole in the chunk. What follows is parsed as it is
+    (garbage: pymavlink resynchronizes and counts it); with ``stream`` (TCP, serial) a frame
+    cut by the end of the chunk is held and completed by the next one. ``codec``: a pymavlink
+    codec to parse with (e.g. one that checks signatures); frames it rejects for their
+    signature are counted by its signing state, not as bad frames.
     """
 
-    def __init__(self, message_ids: frozenset[int] | None = None, stream: bool = False) -> None:
-        self._codec = mavlink.MAVLink(None)
+    def __init__(
+        self,
+        message_ids: frozenset[int] | None = None,
+        stream: bool = False,
+        codec: mavlink.MAVLink | None = None,
+    ) -> None:
+        self._codec = codec or mavlink.MAVLink(None)
         self._codec.robust_parsing = True
         self._message_ids = message_ids
         self._stream = stream
@@ -134,7 +141,7 @@ class FrameParser:
         good = []
         for msg in parsed:
             if isinstance(msg, mavlink.MAVLink_bad_data):
-                self.bad_frames += 1
+                self.bad_frames += msg.reason != "Invalid signature"
             else:
                 good.append(msg)
         return good
@@ -247,15 +254,13 @@ class TelemetryDecoder:
 
     def decode(self, msg: mavlink.MAVLink_message) -> list[Sample]:
         """Decode one message into zero or more samples."""
-        source = (msg.get_srcSystem(), msg.get_srcComponent())
-        if isinstance(msg, mavlink.MAVLink_unknown):  # pymavlink leaves its header unset
-            source = _frame_source(bytes(msg.get_msgbuf()))
+        source = message_source(msg)
         if source == self.own:
             self.counts["own"] += 1
             return []
         kind = msg.get_type()
         if self.target is None:
-            if kind == "HEARTBEAT" and _is_autopilot(msg):
+            if kind == "HEARTBEAT" and is_autopilot(msg):
                 self.target = source
             else:
                 self.counts["before_autopilot"] += 1
@@ -448,8 +453,18 @@ class TelemetryDecoder:
         return sample
 
 
-def _is_autopilot(msg: mavlink.MAVLink_message) -> bool:
+def is_autopilot(msg: mavlink.MAVLink_message) -> bool:
+    """A HEARTBEAT of an autopilot (not MAV_AUTOPILOT_INVALID) of a vehicle type (not a
+    ground station, companion computer, gimbal, ADS-B receiver or camera)."""
     return bool(msg.autopilot != mavlink.MAV_AUTOPILOT_INVALID and msg.type not in _NOT_AUTOPILOTS)
+
+
+def message_source(msg: mavlink.MAVLink_message) -> tuple[int, int]:
+    """(system, component) that sent ``msg`` (also for a message of an unknown type, whose
+    header pymavlink leaves unset)."""
+    if isinstance(msg, mavlink.MAVLink_unknown):
+        return _frame_source(bytes(msg.get_msgbuf()))
+    return msg.get_srcSystem(), msg.get_srcComponent()
 
 
 def _frame_source(frame: bytes) -> tuple[int, int]:
