@@ -9,7 +9,7 @@ import shutil
 import subprocess
 import sys
 from collections.abc import Iterator
-from datetime import UTC, datetime, timedelta
+from datetime import UTC, date, datetime, timedelta
 from pathlib import Path
 
 import pyarrow as pa
@@ -137,6 +137,8 @@ def test_trends_give_a_slope_per_vehicle_and_per_pack_and_a_mass_ratio() -> None
     assert slope is not None and slope[0] == pytest.approx(9.0)
     assert by[("pack", "P1", "capacity_ah")].slope_per_30d()[0] == pytest.approx(-0.15)  # type: ignore[index]
     assert "mass ×1.066" in hover.line()  # (165/150)^(2/3)
+    window = fleet_trends(to_table(rows), since=date(2016, 3, 21), until=date(2016, 4, 10))
+    assert window.dated == 3  # days 20, 30 and 40
 
 
 def test_inputs_expand_globs_and_reject_directories(tmp_path: Path) -> None:

@@ -117,11 +117,22 @@ class FleetTrends:
         }
 
 
-def fleet_trends(table: pa.Table) -> FleetTrends:
-    """The trends of a results table (see the module docstring)."""
+def fleet_trends(
+    table: pa.Table, since: date | None = None, until: date | None = None
+) -> FleetTrends:
+    """The trends of a results table (see the module docstring), over the flights started on
+    or after ``since`` and on or before ``until`` (UTC dates; None: no bound)."""
     rows = table.to_pylist()
     ok = [r for r in rows if r["status"] == "ok"]
-    dated = _one_per_log([r for r in ok if r["start_utc"] is not None])
+    dated = _one_per_log(
+        [
+            r
+            for r in ok
+            if r["start_utc"] is not None
+            and (since is None or r["start_utc"].date() >= since)
+            and (until is None or r["start_utc"].date() <= until)
+        ]
+    )
     series: list[Series] = []
     for kind, key in (("vehicle", _vehicle_key), ("pack", _pack_key)):
         groups: dict[str, list[dict[str, Any]]] = {}

@@ -1,6 +1,6 @@
 """``uav-energy fleet {replay,fit,residuals} PATH|GLOB… [--scheduler tcp://HOST:8786]
 [--workers N] [--out results.parquet] [--vehicle F] [--report DIR]`` and
-``uav-energy fleet trends results.parquet --report DIR``.
+``uav-energy fleet trends results.parquet --report DIR [--since DAY] [--until DAY]``.
 
 Many logs on a dask.distributed cluster (:mod:`estimator.analysis.fleet`): a LocalCluster of
 ``--workers`` processes by default, or the scheduler at ``--scheduler``. One Parquet row per
@@ -15,6 +15,7 @@ from __future__ import annotations
 import argparse
 import os
 import sys
+from datetime import date
 from pathlib import Path
 from typing import Any
 
@@ -60,6 +61,8 @@ def register(subparsers: argparse._SubParsersAction[argparse.ArgumentParser]) ->
     t = modes.add_parser("trends", help="trends across dates from a results file")
     t.add_argument("results", type=Path, metavar="FILE.parquet")
     t.add_argument("--report", type=Path, required=True, metavar="DIR")
+    t.add_argument("--since", type=_day, metavar="YYYY-MM-DD", help="flights from this day")
+    t.add_argument("--until", type=_day, metavar="YYYY-MM-DD", help="flights to this day")
     t.set_defaults(func=run_trends)
 
 
@@ -121,18 +124,27 @@ def run_trends(args: argparse.Namespace) -> int:
 
     if read_table(args.results) is None:
         raise UserError(f"no such file: {args.results}")
-    _report(args.results, args.report)
+    _report(args.results, args.report, args.since, args.until)
     return 0
 
 
-def _report(results: Path, directory: Path) -> None:
+def _day(text: str) -> date:
+    try:
+        return date.fromisoformat(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected a date YYYY-MM-DD, got {text!r}") from None
+
+
+def _report(
+    results: Path, directory: Path, since: date | None = None, until: date | None = None
+) -> None:
     from estimator.analysis.fleet_table import read_table
     from estimator.analysis.fleet_trends import fleet_trends
     from estimator.reports.fleet_report import write_report
 
     table = read_table(results)
     assert table is not None  # written by this run or checked by the caller
-    trends = fleet_trends(table)
+    trends = fleet_trends(table, since, until)
     write_report(trends, directory, f"Fleet trends: {results.name}")
     for line in trends.lines():
         print(line)
