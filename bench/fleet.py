@@ -7,12 +7,14 @@ June–August IRIS+ vehicle file for the IRIS+ logs):
    cruise; seeds 0–49), each written as a tlog on 20 different days (the stamps differ, so
    do the content hashes; the replay work is the same as for 1,000 flights), generated once
    on two dask workers and cached in ``$XDG_CACHE_HOME/uav-energy/fleet-logs-v2`` (about
-   100 kB each);
+   50 kB each);
 2. the 73 IRIS+ logs in ``../shared/data/iris_quadcopter_logs`` (skipped when absent).
 
 Per set and worker count: wall time of the run (the cluster already started; its start-up
-printed apart), logs per second, and the speed-up 1 → 2 workers as a ratio. Every run writes
-a fresh results file (no resume). Run: ``python -m bench.fleet``.
+printed apart), logs per second, the per-log worker time summed (it grows when other
+processes take the CPUs: the machine's load average before each run is printed), and the
+speed-up 1 → 2 workers as a ratio. Every run writes a fresh results file (no resume).
+Run: ``python -m bench fleet`` (or ``make bench``, which runs every bench).
 """
 
 from __future__ import annotations
@@ -22,6 +24,9 @@ import sys
 import tempfile
 import time
 from pathlib import Path
+
+import pyarrow.compute as pc
+import pyarrow.parquet as pq
 
 from estimator.analysis.fleet import connect, run_fleet
 from estimator.analysis.fleet_flight import FleetJob
@@ -78,15 +83,20 @@ def measure(name: str, logs: list[Path], vehicle: Vehicle) -> None:
     print(f"  {name}: {len(logs)} logs, {size_mb:.0f} MB, fleet replay")
     wall: dict[int, float] = {}
     for workers in WORKERS:
+        load = os.getloadavg()[0]
         start = time.perf_counter()
         with connect(None, workers) as client, tempfile.TemporaryDirectory() as tmp:
             startup_s = time.perf_counter() - start
-            counts = run_fleet(client, logs, FleetJob("replay", vehicle), Path(tmp) / "r.parquet")
+            out = Path(tmp) / "r.parquet"
+            counts = run_fleet(client, logs, FleetJob("replay", vehicle), out)
+            task_s = pc.sum(pq.read_table(out, columns=["wall_s"])["wall_s"]).as_py()
         wall[workers] = counts.wall_s
         print(
             f"    {workers} worker(s): {counts.wall_s:6.1f} s  "
             f"({len(logs) / counts.wall_s:6.1f} logs/s, {counts.ok} ok, {counts.failed} failed; "
-            f"cluster start {startup_s:.1f} s)"
+            f"cluster start {startup_s:.1f} s)\n"
+            f"      per-log work summed {task_s:.1f} s, workers busy "
+            f"{100 * task_s / (counts.wall_s * workers):.0f} %, load average before {load:.1f}"
         )
     print(f"    speed-up 1 → 2 workers: {wall[1] / wall[2]:.2f}×")
 
