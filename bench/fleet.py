@@ -11,9 +11,10 @@ June–August IRIS+ vehicle file for the IRIS+ logs):
 2. the 73 IRIS+ logs in ``../shared/data/iris_quadcopter_logs`` (skipped when absent).
 
 Per set and worker count: wall time of the run (the cluster already started; its start-up
-printed apart), logs per second, the per-log worker time summed (it grows when other
-processes take the CPUs: the machine's load average before each run is printed), and the
-speed-up 1 → 2 workers as a ratio. Every run writes a fresh results file (no resume).
+printed apart), logs per second, the per-log worker time summed, wall-clock and CPU (wall
+grows over CPU when the workers wait for a CPU: the machine's load average before each run is
+printed), and the speed-up 1 → 2 workers as a ratio. Every run writes a fresh results file
+(no resume).
 Run: ``python -m bench fleet`` (or ``make bench``, which runs every bench).
 """
 
@@ -89,13 +90,14 @@ def measure(name: str, logs: list[Path], vehicle: Vehicle) -> None:
             startup_s = time.perf_counter() - start
             out = Path(tmp) / "r.parquet"
             counts = run_fleet(client, logs, FleetJob("replay", vehicle), out)
-            task_s = pc.sum(pq.read_table(out, columns=["wall_s"])["wall_s"]).as_py()
+            rows = pq.read_table(out, columns=["wall_s", "cpu_s"])
+            task_s, cpu_s = (pc.sum(rows[c]).as_py() for c in ("wall_s", "cpu_s"))
         wall[workers] = counts.wall_s
         print(
             f"    {workers} worker(s): {counts.wall_s:6.1f} s  "
             f"({len(logs) / counts.wall_s:6.1f} logs/s, {counts.ok} ok, {counts.failed} failed; "
             f"cluster start {startup_s:.1f} s)\n"
-            f"      per-log work summed {task_s:.1f} s, workers busy "
+            f"      per-log work summed {task_s:.1f} s (CPU {cpu_s:.1f} s), workers busy "
             f"{100 * task_s / (counts.wall_s * workers):.0f} %, load average before {load:.1f}"
         )
     print(f"    speed-up 1 → 2 workers: {wall[1] / wall[2]:.2f}×")

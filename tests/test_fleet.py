@@ -88,7 +88,8 @@ def test_resume_skips_logs_whose_content_is_already_in_the_results(
     shutil.copy(logs[0], renamed)
     counts = run_fleet(client, [*logs, renamed], job, out)
     # 3 done before, the renamed copy is done too (same hash); 4 new, 2 of them failing
-    assert (counts.already_done, counts.ok, counts.failed) == (4, 2, 2)
+    errors = pq.read_table(out, columns=["error"]).column("error").to_pylist()
+    assert (counts.already_done, counts.ok, counts.failed) == (4, 2, 2), errors
     assert pq.read_table(out).num_rows == 7
     again = run_fleet(client, logs, job, out, retry_failed=True)
     assert (again.already_done, again.failed, again.ok) == (5, 2, 0)

@@ -136,7 +136,9 @@ def run_fleet(
     last_flush = time.perf_counter()
     try:
         if todo:
-            job_future = client.scatter(job, broadcast=True)
+            # a fresh key per run: an equal job's key from a previous run may still be
+            # being released on the scheduler
+            job_future = client.scatter(job, broadcast=True, hash=False)
             futures = client.map(
                 flight_row, list(todo.values()), list(todo), job=job_future, pure=False
             )

@@ -67,7 +67,7 @@ def file_sha256(path: str | Path) -> str:
 
 def flight_row(path: str, sha256: str, job: FleetJob) -> dict[str, Any]:
     """The row of one log (see the module docstring); never raises for a bad log."""
-    start = time.perf_counter()
+    start, start_cpu = time.perf_counter(), time.process_time()
     row: dict[str, Any] = {
         "path": path,
         "sha256": sha256,
@@ -87,6 +87,7 @@ def flight_row(path: str, sha256: str, job: FleetJob) -> dict[str, Any]:
     except Exception as exc:  # a bug or a log no reader expected: recorded, the run goes on
         row.update(status="failed", error=failure_reason(exc))
     row["wall_s"] = time.perf_counter() - start
+    row["cpu_s"] = time.process_time() - start_cpu
     return row
 
 

@@ -57,7 +57,8 @@ COLUMNS: tuple[tuple[str, pa.DataType, str], ...] = (
     ("residual_noise_floor_w", pa.float64(), "residuals: noise floor, W"),
     ("residual_effects", pa.string(), "residuals: effects found, '; '-separated"),
     ("residual_mass_delta_kg", pa.float64(), "residuals: mass effect found, kg"),
-    ("wall_s", pa.float64(), "worker time for this log, s"),
+    ("wall_s", pa.float64(), "worker wall-clock time for this log, s"),
+    ("cpu_s", pa.float64(), "worker CPU time for this log (less than wall_s: waiting), s"),
 )
 SCHEMA = pa.schema([(name, kind) for name, kind, _ in COLUMNS])
 
