@@ -28,6 +28,7 @@ COMMANDS = {
     "sim": "fly a simulated multirotor over MAVLink (hidden effects optional)",
     "fit": "fit the power model to flight logs",
     "residuals": "find the effects the power model lacks from flight logs",
+    "fleet": "replay, fit or residuals over many logs on a dask cluster; trends by date",
     "experiments": "reproduce the paper's experiments on the built-in vehicle",
     "sitl-record": "fly scenarios in ArduCopter SITL and record tlog, DataFlash and truth",
     "plan": "energy of a mission file per leg, totals and feasibility, in wind and payload",

@@ -159,11 +159,15 @@ def replay_stream(
     settings: PipelineSettings | None = None,
     samples: Iterable[Sample] | None = None,
     on_sample: Callable[[int], None] | None = None,
+    pipeline: Pipeline | None = None,
 ) -> FlightReplay:
-    """Replay one opened log through a fresh pipeline. ``samples`` replaces the stream as the
-    source of samples (e.g. a paced view of it); counters still come from ``stream``."""
+    """Replay one opened log through a fresh pipeline (or ``pipeline``, fresh, whose final
+    state the caller reads). ``samples`` replaces the stream as the source of samples (e.g. a
+    paced or observed view of it); counters still come from ``stream``."""
     estimates, power, count = run(
-        stream if samples is None else samples, Pipeline(vehicle, settings), on_sample
+        stream if samples is None else samples,
+        Pipeline(vehicle, settings) if pipeline is None else pipeline,
+        on_sample,
     )
     return FlightReplay(
         name=name,

@@ -110,6 +110,9 @@ class SampleStream(Iterator[Sample]):
     plausibility and time checks skipped, by reason; ``bad_frames``: corrupt records;
     ``truncated``: the file ended in the middle of a record (everything before the damage was
     read). ``velocity_source`` names the logged vertical velocity (for warnings).
+    Where the log has them (tlogs): ``start_unix_s``, the first record's receive time (s since
+    the Unix epoch, UTC); ``autopilot``, the (system id, component id) decoded; ``pack_id``, the
+    pack's serial number (else its device name) from SMART_BATTERY_INFO. None otherwise.
     """
 
     def __init__(self, path: Path, fmt: str, samples: Iterable[Sample]) -> None:
@@ -120,6 +123,9 @@ class SampleStream(Iterator[Sample]):
         self.truncated = False
         self.checks: Counter[str] = Counter()
         self.velocity_source = "vertical velocity"
+        self.start_unix_s: float | None = None
+        self.autopilot: tuple[int, int] | None = None
+        self.pack_id: str | None = None
         self.sanity = SanityRecorder()
         self._it = iter(samples)
 

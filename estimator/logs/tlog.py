@@ -18,6 +18,8 @@ import struct
 from collections.abc import Iterator
 from pathlib import Path
 
+from pymavlink.dialects.v20.common import MAVLink_message
+
 from estimator.errors import UserError
 from estimator.logs import SampleStream
 from estimator.telemetry.decode import USED_MESSAGE_IDS, FrameParser, TelemetryDecoder
@@ -30,6 +32,8 @@ _V1_OVERHEAD = 8  # STX len seq sys comp msgid + crc16
 _V2_OVERHEAD = 12  # STX len incompat compat seq sys comp msgid[3] + crc16
 _V2_SIGNATURE = 13
 _SIGNED_FLAG = 0x01
+#: SMART_BATTERY_INFO (MAVLink 2): the pack's identity, read for ``SampleStream.pack_id``.
+_SMART_BATTERY_INFO = 370
 #: A resync candidate's stamp must lie within this distance (µs) of the last good stamp.
 _RESYNC_WINDOW_US = 3600 * 1_000_000
 
@@ -44,6 +48,7 @@ def iter_samples(path: Path, limits: InputLimits | None = None) -> SampleStream:
     if len(data) <= STAMP_BYTES or data[STAMP_BYTES] not in (_STX_V1, _STX_V2):
         raise UserError(f"{path} is not a MAVLink telemetry log (no frame after the first stamp)")
     stream = SampleStream(path, "tlog", iter(()))
+    stream.start_unix_s = _stamp_us(data, 0) / 1e6
     stream._it = _records(data, stream, TelemetryDecoder(limits=limits))
     return stream
 
@@ -98,6 +103,8 @@ def _records(data: bytes, stream: SampleStream, decoder: TelemetryDecoder) -> It
             stream.truncated = True
             break
         last_good = pos
+        if msgid == _SMART_BATTERY_INFO and stream.pack_id is None:
+            stream.pack_id = _pack_id(parser.decode_frame(data[pos + STAMP_BYTES : frame_end]))
         if msgid not in used or decoder.discards(msgid, *frame_source(data, pos + STAMP_BYTES)):
             stream.skipped += 1
             pos = frame_end
@@ -112,6 +119,18 @@ def _records(data: bytes, stream: SampleStream, decoder: TelemetryDecoder) -> It
     stream.count_checks(decoder.counts)
     if decoder.velocity_type is not None:
         stream.velocity_source = f"{decoder.velocity_type}.vz"
+    stream.autopilot = decoder.target
+
+
+def _pack_id(msg: MAVLink_message | None) -> str | None:
+    """A SMART_BATTERY_INFO's serial number, else its device name; None if both are empty."""
+    if msg is None:
+        return None
+    for text in (msg.serial_number, msg.device_name):
+        value = str(text).strip("\x00 ")
+        if value:
+            return value
+    return None
 
 
 def _stamp_us(data: bytes, record: int) -> int:

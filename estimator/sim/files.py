@@ -44,17 +44,21 @@ TRUTH_COLUMNS = (
 )
 
 
-def tlog_records(run: SimRun) -> list[tuple[int, bytes]]:
-    """(Unix µs, frame bytes) per message: the tlog layout (8-byte big-endian µs + frame)."""
-    return [(round((TLOG_EPOCH_S + t) * 1e6), bytes(m.get_msgbuf())) for t, m in run.messages]
+def tlog_records(run: SimRun, epoch_s: float = TLOG_EPOCH_S) -> list[tuple[int, bytes]]:
+    """(Unix µs, frame bytes) per message: the tlog layout (8-byte big-endian µs + frame);
+    the simulated boot happens at Unix time ``epoch_s``."""
+    return [(round((epoch_s + t) * 1e6), bytes(m.get_msgbuf())) for t, m in run.messages]
 
 
-def write_tlog(run: SimRun, path: str | Path, truth_csv: bool = True) -> Path:
-    """Write the messages as a .tlog and, unless told not to, ``<stem>.truth.csv`` beside it."""
+def write_tlog(
+    run: SimRun, path: str | Path, truth_csv: bool = True, epoch_s: float = TLOG_EPOCH_S
+) -> Path:
+    """Write the messages as a .tlog (boot at Unix time ``epoch_s``) and, unless told not to,
+    ``<stem>.truth.csv`` beside it."""
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
     with path.open("wb") as fh:
-        for usec, frame in tlog_records(run):
+        for usec, frame in tlog_records(run, epoch_s):
             fh.write(struct.pack(">Q", usec) + frame)
     if truth_csv:
         write_truth_csv(run, path.with_name(path.stem + ".truth.csv"))

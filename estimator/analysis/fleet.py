@@ -1,0 +1,188 @@
+"""Many logs on a dask.distributed cluster: one row per log (:mod:`fleet_flight`) into one
+Parquet file (:mod:`fleet_table`).
+
+The client hashes every log (SHA-256 of its content), skips those whose hash the results
+file already holds for the same mode (resume) and identical files met twice in one run,
+scatters the job (mode and vehicle) to the workers once, maps :func:`flight_row` over the
+rest and gathers rows as they complete. A worker that dies on a log gives that log a failed
+row, like a log that cannot be read. The results file is rewritten atomically every
+:data:`FLUSH_S` and at the end (also on Ctrl-C), so an interrupted run resumes where it
+stopped. Workers must see the logs at the same absolute paths (a shared file system).
+"""
+
+from __future__ import annotations
+
+import glob
+import logging
+import time
+from collections.abc import Callable, Iterator, Sequence
+from contextlib import contextmanager
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import pyarrow as pa
+from distributed import Client, LocalCluster, as_completed
+
+from estimator.analysis.fleet_flight import FleetJob, failure_reason, file_sha256, flight_row
+from estimator.analysis.fleet_table import done_keys, read_table, to_table, without, write_table
+from estimator.errors import UserError
+
+#: Seconds between rewrites of the results file during a run.
+FLUSH_S = 10.0
+#: Seconds to wait for a scheduler given by address.
+CONNECT_TIMEOUT_S = 5.0
+_GLOB_CHARS = frozenset("*?[")
+
+
+@dataclass
+class FleetRun:
+    """Counts of one run: logs given, processed (ok / failed), skipped as already in the
+    results file, skipped as duplicates of another log in this run; wall time, s."""
+
+    logs: int = 0
+    ok: int = 0
+    failed: int = 0
+    already_done: int = 0
+    duplicates: int = 0
+    wall_s: float = 0.0
+
+    def as_dict(self) -> dict[str, Any]:
+        return dict(self.__dict__)
+
+
+def expand_inputs(patterns: Sequence[str]) -> list[Path]:
+    """Files named or matched by glob patterns (``**`` recurses), sorted, each once."""
+    found: set[Path] = set()
+    for pattern in patterns:
+        if _GLOB_CHARS & set(pattern):
+            matches = [Path(m) for m in glob.glob(pattern, recursive=True) if Path(m).is_file()]
+            if not matches:
+                raise UserError(f"no file matches {pattern!r}")
+            found.update(m.resolve() for m in matches)
+            continue
+        path = Path(pattern)
+        if path.is_dir():
+            raise UserError(f"{path} is a directory: give files or a glob such as '{path}/**/*'")
+        if not path.is_file():
+            raise UserError(f"no such file: {path}")
+        found.add(path.resolve())
+    return sorted(found)
+
+
+@contextmanager
+def connect(scheduler: str | None, workers: int) -> Iterator[Client]:
+    """A client of the scheduler at ``scheduler`` (e.g. ``tcp://host:8786``), or of a new
+    LocalCluster of ``workers`` processes with one thread each (no dashboard)."""
+    if scheduler is not None:
+        try:
+            client = Client(scheduler, timeout=f"{CONNECT_TIMEOUT_S}s")
+        except (OSError, TimeoutError, ValueError) as exc:
+            reason = failure_reason(exc)
+            raise UserError(f"cannot reach the dask scheduler at {scheduler} ({reason})") from None
+        with client:
+            yield client
+        return
+    if workers < 1:
+        raise UserError("--workers must be at least 1")
+    with (
+        LocalCluster(
+            n_workers=workers,
+            threads_per_worker=1,
+            processes=True,
+            dashboard_address=None,
+            silence_logs=logging.ERROR,
+        ) as cluster,
+        Client(cluster) as client,
+    ):
+        yield client
+
+
+def run_fleet(
+    client: Client,
+    paths: Sequence[Path],
+    job: FleetJob,
+    out: Path,
+    retry_failed: bool = False,
+    on_total: Callable[[int], None] | None = None,
+    on_row: Callable[[dict[str, Any]], None] | None = None,
+) -> FleetRun:
+    """Process ``paths`` on ``client``'s cluster into ``out`` (see the module docstring).
+    ``on_total(n)`` is told how many logs will be processed, ``on_row(row)`` each row."""
+    start = time.perf_counter()
+    counts = FleetRun(logs=len(paths))
+    existing = read_table(out)
+    done = done_keys(existing, job.mode, retry_failed)
+    todo: dict[str, str] = {}  # hash → path
+    rows: list[dict[str, Any]] = []
+    for path in paths:
+        try:
+            digest = file_sha256(path)
+        except OSError as exc:
+            rows.append(_failed(str(path), None, job, f"cannot read {path}: {exc.strerror}"))
+            continue
+        if digest in done:
+            counts.already_done += 1
+        elif digest in todo:
+            counts.duplicates += 1
+        else:
+            todo[digest] = str(path)
+    if existing is not None and retry_failed:
+        existing = without(existing, job.mode, set(todo))
+    if on_total is not None:
+        on_total(len(todo) + len(rows))
+    for row in rows:
+        _count(counts, row, on_row)
+    last_flush = time.perf_counter()
+    try:
+        if todo:
+            # a fresh key per run: an equal job's key from a previous run may still be
+            # being released on the scheduler
+            job_future = client.scatter(job, broadcast=True, hash=False)
+            futures = client.map(
+                flight_row, list(todo.values()), list(todo), job=job_future, pure=False
+            )
+            keys = {f.key: (p, h) for f, p, h in zip(futures, todo.values(), todo, strict=True)}
+            for future in as_completed(futures):
+                try:
+                    row = future.result()
+                except Exception as exc:  # the worker died or the task could not run
+                    name, digest = keys[future.key]
+                    row = _failed(name, digest, job, failure_reason(exc))
+                future.release()
+                rows.append(row)
+                _count(counts, row, on_row)
+                if time.perf_counter() - last_flush > FLUSH_S:
+                    _flush(out, existing, rows)
+                    last_flush = time.perf_counter()
+    finally:
+        _flush(out, existing, rows)
+    counts.wall_s = time.perf_counter() - start
+    return counts
+
+
+def _failed(path: str, digest: str | None, job: FleetJob, reason: str) -> dict[str, Any]:
+    return {
+        "path": path,
+        "sha256": digest,
+        "mode": job.mode,
+        "vehicle": job.vehicle.name,
+        "status": "failed",
+        "error": reason,
+    }
+
+
+def _count(
+    counts: FleetRun, row: dict[str, Any], on_row: Callable[[dict[str, Any]], None] | None
+) -> None:
+    if row["status"] == "ok":
+        counts.ok += 1
+    else:
+        counts.failed += 1
+    if on_row is not None:
+        on_row(row)
+
+
+def _flush(out: Path, existing: pa.Table | None, rows: list[dict[str, Any]]) -> None:
+    new = to_table(rows)
+    write_table(out, new if existing is None else pa.concat_tables([existing, new]))
