@@ -290,9 +290,7 @@ class EnergyFilter:
         voltage = ResistanceFilter(self.pack, self.settings)
         voltage.restore(state["resistance"])
         anchor = state["anchor_power_w"]
-        kf = KalmanFilter(dim_x=2, dim_z=1)
-        kf.x, kf.P = x, p
-        self._kf, self.voltage = kf, voltage
+        self._kf, self.voltage = LinearKalman(x, p), voltage
         self._time_s = _finite(state["time_s"], 0.0, math.inf)
         self._soc_ref = _finite(state["soc_ref"], 0.0, 1.0)
         self._offset_sigma_wh = _finite(state["offset_sigma_wh"], 0.0, math.inf)
