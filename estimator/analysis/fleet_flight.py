@@ -162,12 +162,12 @@ def fit_columns(path: Path, job: FleetJob) -> dict[str, Any]:
 def residual_columns(path: Path, job: FleetJob) -> dict[str, Any]:
     """The residual analysis of this flight against the vehicle file."""
     result = analyze(load_flights([path], job.fmt), job.vehicle, ResidualOptions())
-    mass = [s.effect for s in result.selected if s.name == "mass"]
+    mass = [e for e in result.effects if e.name == "mass"]
     return {
         "residual_rmse_before_w": result.rmse_w(False),
         "residual_rmse_after_w": result.rmse_w(True),
         "residual_noise_floor_w": result.noise_floor_w,
-        "residual_effects": "; ".join(s.as_dict()["description"] for s in result.selected),
+        "residual_effects": "; ".join(d["description"] for d in result.summary()["effects"]),
         "residual_mass_delta_kg": float(mass[0].params["delta_kg"]) if mass else None,
     }
 

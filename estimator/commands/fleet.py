@@ -20,9 +20,9 @@ from pathlib import Path
 from typing import Any
 
 from rich.console import Console
-from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeElapsedColumn
 
 from estimator.analysis.fleet_flight import MODES
+from estimator.commands.progress import logs_progress
 
 DEFAULT_OUT = Path("results.parquet")
 
@@ -75,15 +75,7 @@ def run(args: argparse.Namespace) -> int:
     paths = expand_inputs(args.inputs)
     job = FleetJob(args.fleet_mode, vehicle)
     console = Console(file=sys.stderr)
-    progress = Progress(
-        TextColumn(f"fleet {args.fleet_mode}"),
-        BarColumn(),
-        MofNCompleteColumn(),
-        TimeElapsedColumn(),
-        console=console,
-        transient=True,
-        disable=not console.is_terminal,
-    )
+    progress = logs_progress(console, f"fleet {args.fleet_mode}")
     task = progress.add_task("logs", total=None)
 
     def on_row(row: dict[str, Any]) -> None:

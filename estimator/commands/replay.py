@@ -27,16 +27,13 @@ from typing import Any
 
 from rich.console import Console
 from rich.progress import (
-    BarColumn,
-    MofNCompleteColumn,
     Progress,
     TaskID,
-    TextColumn,
-    TimeElapsedColumn,
 )
 from rich.table import Table
 
 from estimator.analysis.replay import FlightReplay, Summary, replay_stream, summarize
+from estimator.commands.progress import logs_progress
 from estimator.errors import UserError
 from estimator.estimation.pipeline import Estimate, PipelineSettings
 from estimator.logs import FORMATS, iter_samples
@@ -217,15 +214,7 @@ def _replay_one(
 
 def _progress(console: Console, n_logs: int) -> Progress:
     """Logs done of all, and the current log's samples; only on a terminal (stderr)."""
-    progress = Progress(
-        TextColumn("{task.description}"),
-        BarColumn(),
-        MofNCompleteColumn(),
-        TimeElapsedColumn(),
-        console=console,
-        transient=True,
-        disable=not console.is_terminal,
-    )
+    progress = logs_progress(console)
     progress.add_task("logs", total=n_logs)
     return progress
 

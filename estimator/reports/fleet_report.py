@@ -20,7 +20,7 @@ import matplotlib.pyplot as plt
 import numpy as np
 
 from estimator.analysis.fleet_trends import METRICS, FleetTrends
-from estimator.errors import UserError
+from estimator.reports.output_dir import make_report_dir
 
 _FIGURE = "trends.png"
 
@@ -28,10 +28,7 @@ _FIGURE = "trends.png"
 def write_report(trends: FleetTrends, out_dir: Path, title: str) -> Path:
     """Write the plot, ``summary.md`` and ``summary.json`` into ``out_dir``; return the
     summary's path."""
-    try:
-        out_dir.mkdir(parents=True, exist_ok=True)
-    except OSError as exc:
-        raise UserError(f"cannot create report directory {out_dir}: {exc.strerror}") from None
+    make_report_dir(out_dir)
     _plot(trends, title).savefig(out_dir / _FIGURE, dpi=110)
     plt.close("all")
     lines = [

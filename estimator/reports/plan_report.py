@@ -19,16 +19,13 @@ import numpy as np
 from matplotlib.collections import LineCollection
 
 from estimator.analysis.mission_energy import MissionEnergy
-from estimator.errors import UserError
+from estimator.reports.output_dir import make_report_dir
 
 
 def write_report(result: MissionEnergy, out_dir: Path, title: str) -> Path:
     """Write ``route.png``, ``energy.png`` and ``summary.md`` into ``out_dir``; return the
     summary's path."""
-    try:
-        out_dir.mkdir(parents=True, exist_ok=True)
-    except OSError as exc:
-        raise UserError(f"cannot create report directory {out_dir}: {exc.strerror}") from None
+    make_report_dir(out_dir)
     for name, fig in (
         ("route", _plot_route(result, title)),
         ("energy", _plot_energy(result, title)),

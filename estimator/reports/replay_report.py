@@ -19,15 +19,12 @@ import numpy as np
 from matplotlib.axes import Axes
 
 from estimator.analysis.replay import FlightReplay, Summary, summarize
-from estimator.errors import UserError
+from estimator.reports.output_dir import make_report_dir
 
 
 def write_report(flights: Sequence[FlightReplay], out_dir: Path, vehicle_name: str) -> Path:
     """Write the plots and ``summary.md`` into ``out_dir``; return the summary's path."""
-    try:
-        out_dir.mkdir(parents=True, exist_ok=True)
-    except OSError as exc:
-        raise UserError(f"cannot create report directory {out_dir}: {exc.strerror}") from None
+    make_report_dir(out_dir)
     lines = [
         "# Replay report",
         "",
