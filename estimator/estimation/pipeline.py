@@ -44,8 +44,9 @@ from dataclasses import dataclass, field, fields
 import numpy as np
 
 from estimator.estimation.airborne import AirborneGate, Phase
-from estimator.estimation.fusion import EnergyFilter, FusionSettings
+from estimator.estimation.fusion import EnergyEstimate, EnergyFilter, FusionSettings
 from estimator.estimation.online_effects import OnlineEffects, TrackerReading
+from estimator.estimation.return_home import ReturnHome, ReturnInputs, ReturnSettings
 from estimator.physics.battery import PackModel
 from estimator.physics.effects import (
     Climb,
@@ -59,6 +60,10 @@ from estimator.physics.vehicle import Vehicle
 from estimator.telemetry.samples import (
     ArmedSample,
     BatterySample,
+    HomeSample,
+    MissionCurrentSample,
+    MissionSample,
+    PositionSample,
     RebootSample,
     Sample,
     VelocitySample,
@@ -97,7 +102,8 @@ class PipelineSettings:
     published once flying readings (:mod:`estimator.estimation.airborne`) have been fused for this
     long
     (s, sample clock): the bias then rests on them, not on its prior (a payload carried from
-    take-off puts the measured power 30–40 % above the model's)."""
+    take-off puts the measured power 30–40 % above the model's). return_home: the return
+    and mission figures (:mod:`estimator.estimation.return_home`)."""
 
     kinematics: KinematicsSettings = field(default_factory=KinematicsSettings)
     fusion: FusionSettings = field(default_factory=FusionSettings)
@@ -107,6 +113,7 @@ class PipelineSettings:
     estimate_period_s: float = 1.0
     track_period_s: float = 2.0
     endurance_valid_after_s: float = 2.0
+    return_home: ReturnSettings = field(default_factory=ReturnSettings)
 
 
 @dataclass(frozen=True, slots=True)
@@ -128,6 +135,13 @@ class Estimate:
     model's
     scale is learnt only in flight. Publishers do not give the endurance figures before
     (:mod:`estimator.mavlink.publish`).
+    home_distance_m, rth_*, margin_*, pnr_s, mission_*, rth_flags: the return home and the
+    mission (:mod:`estimator.estimation.return_home`): distance to home over ground (m), the
+    electrical energy (Wh) and time (s) of the return, the margin (usable energy above the
+    reserve left after it, Wh), the point of no return (s until the margin is 0 at the current
+    power), the energy of the rest of the mission and the return after it (Wh), and whether it
+    leaves the reserve (None: unknown); NaN with a bit of ``rth_flags`` set when an input is
+    missing (:data:`~estimator.estimation.return_home.FLAG_NAMES`).
     """
 
     time_s: float
@@ -157,6 +171,17 @@ class Estimate:
     vme_endurance_sigma_s: float = math.nan
     range_vmr_sigma_m: float = math.nan
     endurance_valid: bool = True
+    home_distance_m: float = math.nan
+    rth_energy_wh: float = math.nan
+    rth_sigma_wh: float = math.nan
+    rth_time_s: float = math.nan
+    margin_wh: float = math.nan
+    margin_sigma_wh: float = math.nan
+    pnr_s: float = math.nan
+    mission_energy_wh: float = math.nan
+    mission_sigma_wh: float = math.nan
+    mission_feasible: bool | None = None
+    rth_flags: int = 0
 
     def as_dict(self) -> dict[str, float | bool | None]:
         return {name: getattr(self, name) for name in _ESTIMATE_FIELDS}
@@ -257,6 +282,8 @@ class Pipeline:
         self._steady_power_w = 0.0
         self._time_s: float | None = None  # newest sample time (ordering)
         self._loss_factor = 1.0
+        #: Position, home and mission for the return figures of each estimate.
+        self.returning = ReturnHome(vehicle, self.settings.return_home)
         self._refresh_speeds()
 
     # -- power: every prediction goes through predict_power_w ----------------------------------
@@ -389,6 +416,9 @@ class Pipeline:
             return self._reboot(sample)
         elif isinstance(sample, WindSample):
             return None  # the autopilot's wind is a channel of the offline residual analysis
+        elif isinstance(sample, PositionSample | HomeSample | MissionSample | MissionCurrentSample):
+            self.returning.take(sample)
+            return None
         else:
             self.counts["unknown_sample"] += 1
             return None
@@ -444,6 +474,7 @@ class Pipeline:
         self._state = None
         self._armed = None
         self._battery = None
+        self.returning.restart()
         if self.energy.initialized:
             self.energy.rebase(sample.time_s)
             self._resistance_time_s = sample.time_s
@@ -617,6 +648,29 @@ class Pipeline:
             self._refresh_speeds()
             self._speeds_time_s = time_s
 
+    def _return_inputs(self, est: EnergyEstimate, steady_w: float) -> ReturnInputs:
+        """The state the return figures rest on (:mod:`estimator.estimation.return_home`)."""
+        settings = self.settings.return_home
+        if self.online is not None:
+            sigma = self.online.sigma
+            wind_sigma = (sigma["wind_n_mps"], sigma["wind_e_mps"])
+            mass_sigma_kg = sigma["mass_kg"]
+        else:
+            wind_sigma = (settings.untracked_wind_sigma_mps,) * 2
+            mass_sigma_kg = settings.untracked_mass_sigma_fraction * self.vehicle.mass_kg
+        return ReturnInputs(
+            effects=self.effects,
+            wind_sigma_ne_mps=wind_sigma,
+            mass_sigma_kg=mass_sigma_kg,
+            bias=est.bias,
+            bias_sigma=est.bias_sigma,
+            energy_wh=est.energy_wh,
+            energy_sigma_wh=est.energy_sigma_wh,
+            loss_factor=self._loss_factor,
+            steady_power_w=steady_w,
+            flying=self.endurance_valid,
+        )
+
     def _emit(self, time_s: float) -> Estimate:
         est = self.energy.estimate()
         state = self._state
@@ -628,6 +682,7 @@ class Pipeline:
         battery = self._battery
         stale = battery is None or time_s - battery.time_s > self.settings.battery_stale_s
         voltage = self.energy.voltage
+        back = self.returning.figures(time_s, self._return_inputs(est, steady_w))
         estimate = Estimate(
             time_s=time_s,
             speed_mps=0.0 if state is None else state.speed_mps,
@@ -656,6 +711,17 @@ class Pipeline:
             vme_endurance_sigma_s=vme_sigma_s,
             range_vmr_sigma_m=self.v_mr_mps * vmr_sigma_s,
             endurance_valid=self.endurance_valid,
+            home_distance_m=back.home_distance_m,
+            rth_energy_wh=back.energy_wh,
+            rth_sigma_wh=back.sigma_wh,
+            rth_time_s=back.time_s,
+            margin_wh=back.margin_wh,
+            margin_sigma_wh=back.margin_sigma_wh,
+            pnr_s=back.pnr_s,
+            mission_energy_wh=back.mission_energy_wh,
+            mission_sigma_wh=back.mission_sigma_wh,
+            mission_feasible=back.mission_feasible,
+            rth_flags=back.flags,
         )
         self.last = estimate
         self.counts["estimates"] += 1

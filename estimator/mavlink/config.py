@@ -43,6 +43,13 @@ class ServiceConfig:
     of
     keeping the vehicle file's values for the whole flight.
     log_level: debug, info, warning or error.
+    return_alt_m: height over home (m) the return flies at (ArduPilot's RTL_ALT; 15 m).
+    warning_margin_pct / critical_margin_pct: STATUSTEXT WARNING / CRITICAL to the ground
+    stations when the return margin (energy above the reserve after the return) falls below
+    this share (%) of a full pack's usable energy; hysteresis_pct: it must rise this much above
+    the threshold before the next crossing warns again.  statustext_to_autopilot: also send
+    those STATUSTEXTs on the connect link.  download_mission: read the autopilot's mission
+    (MAVLink mission protocol, read-only) for the mission energy.
     fusion: noise figures overriding :class:`~estimator.estimation.fusion.FusionSettings` defaults
     (the ``[fusion]`` table), as (name, value) pairs.
     """
@@ -65,15 +72,24 @@ class ServiceConfig:
     vehicle: str = ""
     track_effects: bool = True
     log_level: str = "info"
+    return_alt_m: float = 15.0
+    warning_margin_pct: float = 15.0
+    critical_margin_pct: float = 5.0
+    hysteresis_pct: float = 2.0
+    statustext_to_autopilot: bool = False
+    download_mission: bool = True
     fusion: tuple[tuple[str, float], ...] = ()
 
     def pipeline_settings(self) -> PipelineSettings:
         """The pipeline's settings this configuration asks for."""
         from estimator.estimation.fusion import FusionSettings
         from estimator.estimation.pipeline import PipelineSettings
+        from estimator.estimation.return_home import ReturnSettings
 
         return PipelineSettings(
-            fusion=FusionSettings(**dict(self.fusion)), track_effects=self.track_effects
+            fusion=FusionSettings(**dict(self.fusion)),
+            track_effects=self.track_effects,
+            return_home=ReturnSettings(return_alt_m=self.return_alt_m),
         )
 
     @property
@@ -101,6 +117,12 @@ _KEYS = {
     ("vehicle", "file"): "vehicle",
     ("vehicle", "track_effects"): "track_effects",
     ("log", "level"): "log_level",
+    ("return", "alt_m"): "return_alt_m",
+    ("return", "warning_margin_pct"): "warning_margin_pct",
+    ("return", "critical_margin_pct"): "critical_margin_pct",
+    ("return", "hysteresis_pct"): "hysteresis_pct",
+    ("return", "statustext_to_autopilot"): "statustext_to_autopilot",
+    ("return", "download_mission"): "download_mission",
 }
 
 
@@ -205,6 +227,14 @@ def validate(config: ServiceConfig) -> None:
             raise UserError(f"config '{name}' must be in [0, 100] Hz (0: every estimate)")
     if config.stale_after_s <= 0:
         raise UserError("config 'stale_after_s' must be > 0")
+    if not 0 <= config.return_alt_m <= 1000:
+        raise UserError("config 'return_alt_m' must be in [0, 1000] m")
+    if not config.critical_margin_pct <= config.warning_margin_pct <= 100:
+        raise UserError(
+            "config 'critical_margin_pct' ≤ 'warning_margin_pct' ≤ 100 % of the usable energy"
+        )
+    if not 0 <= config.hysteresis_pct <= 50:
+        raise UserError("config 'hysteresis_pct' must be in [0, 50] %")
     if config.json not in ("", "-") and not config.json.startswith("udp:"):
         raise UserError(f"config 'json' must be '', '-' or udp:HOST:PORT, got {config.json!r}")
     if config.json.startswith("udp:"):

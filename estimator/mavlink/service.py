@@ -6,6 +6,12 @@ BATTERY_STATUS at the configured rate), heartbeat + watchdog (1 Hz: our HEARTBEA
 detection, stream requests until telemetry flows, counters of bad input), and a drain per
 output link. Wall clock is used only for these timers; the estimates run on the autopilot's
 clock.
+Return home and mission (:mod:`estimator.estimation.return_home` computes them in the pipeline):
+HOME_POSITION is requested (MAV_CMD_REQUEST_MESSAGE) when none has arrived
+:data:`HOME_REQUEST_AFTER_S` after the first position, at most once per
+:data:`HOME_REQUEST_RETRY_S`; the mission is read (:mod:`estimator.mavlink.mission_download`)
+and handed to the pipeline as a :class:`MissionSample`; margin crossings become STATUSTEXT
+(:mod:`estimator.mavlink.margin_alerts`) on the ``--publish`` links.
 One log line per event: autopilot found, streams requested, energy initialized (with a
 warning when the pack voltage does not fit the vehicle file's cell count), model-only mode,
 reboot or clock jump, link silent (stale) / resumed, bad frames, floods and input skipped as
@@ -29,10 +35,13 @@ from estimator.estimation.pipeline import Estimate, Pipeline, PipelineSettings
 from estimator.mavlink import publish
 from estimator.mavlink.config import ServiceConfig
 from estimator.mavlink.link import MavlinkLink, open_link, parse_url
+from estimator.mavlink.margin_alerts import MarginAlerts
+from estimator.mavlink.mission_download import MESSAGE_TYPES as MISSION_MESSAGES
+from estimator.mavlink.mission_download import MissionDownload
 from estimator.physics.vehicle import Vehicle
 from estimator.telemetry.decode import SKIP_COUNTERS, TelemetryDecoder
 from estimator.telemetry.plausibility import pack_voltage_problem
-from estimator.telemetry.samples import BatterySample
+from estimator.telemetry.samples import BatterySample, MissionItem, MissionSample
 
 log = logging.getLogger("uav_energy.service")
 
@@ -43,6 +52,10 @@ REQUEST_RETRY_S = 5.0
 COUNTER_LOG_S = 10.0
 #: JSON lines waiting for a slow stdout reader beyond this are dropped (counted).
 JSON_BUFFER_LIMIT_BYTES = 1 << 20
+#: Wall seconds after the first position without HOME_POSITION before it is requested, and
+#: between requests.
+HOME_REQUEST_AFTER_S = 3.0
+HOME_REQUEST_RETRY_S = 10.0
 _STREAMS = (
     (mavlink.MAVLINK_MSG_ID_GLOBAL_POSITION_INT, "velocity"),
     (mavlink.MAVLINK_MSG_ID_LOCAL_POSITION_NED, "velocity"),
@@ -88,6 +101,16 @@ class Service:
         self._event_logged_s: dict[str, float] = {}
         # BATTERY_STATUS.battery_remaining is a share of a full pack's usable energy.
         self._full_usable_wh = float(self.pipeline.pack.usable_energy_wh(1.0))
+        per_pct_wh = self._full_usable_wh / 100.0
+        self.alerts = MarginAlerts(
+            config.warning_margin_pct * per_pct_wh,
+            config.critical_margin_pct * per_pct_wh,
+            config.hysteresis_pct * per_pct_wh,
+        )
+        self.mission: MissionDownload | None = None
+        self._first_position_s: float | None = None
+        self._home_requested_s = -1e9
+        self.home_requests = 0
 
     # -- lifecycle --------------------------------------------------------------------------
 
@@ -152,7 +175,10 @@ class Service:
             out.update({f"link_{k}": v for k, v in self.link.counts.items()})
         out.update({f"decode_{k}": v for k, v in self.decoder.counts.items()})
         out.update({f"pipeline_{k}": v for k, v in self.pipeline.counts.items()})
+        if self.mission is not None:
+            out.update({f"mission_{k}": v for k, v in self.mission.counts.items()})
         out.update(internal_errors=self.internal_errors, json_dropped=self.json_dropped)
+        out.update(home_requests=self.home_requests, alerts_sent=self.alerts.sent)
         return out
 
     # -- receive ----------------------------------------------------------------------------
@@ -181,6 +207,9 @@ class Service:
         if not had_target and self.decoder.target is not None:
             log.info("autopilot found: system %d component %d", *self.decoder.target)
             self._request_streams(now_s)
+            self._start_mission(self.decoder.target)
+        if self.mission is not None and msg.get_type() in MISSION_MESSAGES:
+            self.mission.on_message(msg, now_s)
         if counts["reboots"] != reboots:
             self._log_throttled(
                 "reboots",
@@ -227,6 +256,42 @@ class Service:
             mode = "model only (no current sensor)" if self.latest.model_only else "fused"
             log.info("telemetry flowing: estimating, %s", mode)
 
+    def _start_mission(self, target: tuple[int, int]) -> None:
+        """The mission download for this autopilot (read-only; off by configuration)."""
+        link = self.link
+        if not self.config.download_mission or link is None:
+            return
+        own = (self.config.system_id, OWN_COMPONENT)
+        self.mission = MissionDownload(link.send, link.mav, own, target, self._mission_read)
+
+    def _mission_read(self, items: tuple[MissionItem, ...]) -> None:
+        """A downloaded mission into the pipeline, on the autopilot's clock."""
+        self.pipeline.process(MissionSample(self.decoder.clock_s or 0.0, items))
+
+    def _request_home(self, now_s: float) -> None:
+        """MAV_CMD_REQUEST_MESSAGE(HOME_POSITION) while positions come and no home does."""
+        returning = self.pipeline.returning
+        if returning.position is None or returning.home is not None:
+            return
+        if self._first_position_s is None:
+            self._first_position_s = now_s
+        waited_s = now_s - self._first_position_s
+        if waited_s < HOME_REQUEST_AFTER_S or now_s - self._home_requested_s < HOME_REQUEST_RETRY_S:
+            return
+        if self.link is None or self.decoder.target is None:
+            return
+        self._home_requested_s = now_s
+        self.home_requests += 1
+        msg_id = mavlink.MAVLINK_MSG_ID_HOME_POSITION
+        sysid, compid = self.decoder.target
+        self.link.send(
+            self.link.mav.command_long_encode(
+                sysid, compid, mavlink.MAV_CMD_REQUEST_MESSAGE, 0, msg_id, 0, 0, 0, 0, 0, 0
+            )
+        )
+        if self.home_requests == 1:
+            log.info("no HOME_POSITION %.0f s after the first position: requested", waited_s)
+
     def _request_streams(self, now_s: float) -> None:
         """REQUEST_DATA_STREAM (ArduPilot) and SET_MESSAGE_INTERVAL (both stacks)."""
         if not self.config.request_streams or self.link is None or self.decoder.target is None:
@@ -272,6 +337,10 @@ class Service:
     def _deliver(self, estimate: Estimate, now_s: float) -> None:
         """A new estimate: keep it for the publish loop, send it now where configured."""
         self.latest = estimate
+        if (alert := self.alerts.update(estimate)) is not None:
+            log.warning("%s", alert.text)
+            for link in self._ground_links(self.config.statustext_to_autopilot):
+                link.send(publish.statustext(link, alert.severity, alert.text))
         if self.config.publish_rate_hz == 0:
             self._publish(estimate)
         if self.config.json and (
@@ -281,12 +350,15 @@ class Service:
             self._last_json_s = now_s
             self._write_json(estimate)
 
+    def _ground_links(self, to_autopilot: bool) -> list[MavlinkLink]:
+        """The ``--publish`` links, and the autopilot link when ``to_autopilot``."""
+        if to_autopilot and self.link is not None:
+            return [*self.outputs, self.link]
+        return list(self.outputs)
+
     def _publish(self, estimate: Estimate) -> None:
         cfg = self.config
-        targets = list(self.outputs)
-        if cfg.values_to_autopilot and self.link is not None:
-            targets.append(self.link)
-        for link in targets:
+        for link in self._ground_links(cfg.values_to_autopilot):
             for msg in publish.named_values(link, estimate):
                 link.send(msg)
             if link is not self.link or cfg.battery_status_to_autopilot:
@@ -342,6 +414,9 @@ class Service:
             and now_s - self._last_request_s >= REQUEST_RETRY_S
         ):
             self._request_streams(now_s)
+        self._request_home(now_s)
+        if self.mission is not None:
+            self.mission.tick(now_s)
         skipped = {k: self.decoder.counts[k] for k in SKIP_COUNTERS if self.decoder.counts[k]}
         self._log_count(
             "implausible",
