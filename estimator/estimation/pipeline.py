@@ -137,7 +137,8 @@ class Estimate:
     (:mod:`estimator.mavlink.publish`).
     home_distance_m, rth_*, margin_*, pnr_s, mission_*, rth_flags: the return home and the
     mission (:mod:`estimator.estimation.return_home`): distance to home over ground (m), the
-    electrical energy (Wh) and time (s) of the return, the margin (usable energy above the
+    electrical energy (Wh) and time (s) of the return, the ground speed home (m/s) and the
+    wind assumed (m/s, from °), the margin (usable energy above the
     reserve left after it, Wh), the point of no return (s until the margin is 0 at the current
     power), the energy of the rest of the mission and the return after it (Wh), and whether it
     leaves the reserve (None: unknown); NaN with a bit of ``rth_flags`` set when an input is
@@ -175,6 +176,9 @@ class Estimate:
     rth_energy_wh: float = math.nan
     rth_sigma_wh: float = math.nan
     rth_time_s: float = math.nan
+    rth_speed_mps: float = math.nan
+    rth_wind_mps: float = math.nan
+    rth_wind_from_deg: float = math.nan
     margin_wh: float = math.nan
     margin_sigma_wh: float = math.nan
     pnr_s: float = math.nan
@@ -650,7 +654,7 @@ class Pipeline:
 
     def _return_inputs(self, est: EnergyEstimate, steady_w: float) -> ReturnInputs:
         """The state the return figures rest on (:mod:`estimator.estimation.return_home`)."""
-        settings = self.settings.return_home
+        settings, state = self.settings.return_home, self._state
         if self.online is not None:
             sigma = self.online.sigma
             wind_sigma = (sigma["wind_n_mps"], sigma["wind_e_mps"])
@@ -659,6 +663,8 @@ class Pipeline:
             wind_sigma = (settings.untracked_wind_sigma_mps,) * 2
             mass_sigma_kg = settings.untracked_mass_sigma_fraction * self.vehicle.mass_kg
         return ReturnInputs(
+            time_s=self._time_s or 0.0,
+            velocity_ne_mps=(0.0, 0.0) if state is None else (state.vn_mps, state.ve_mps),
             effects=self.effects,
             wind_sigma_ne_mps=wind_sigma,
             mass_sigma_kg=mass_sigma_kg,
@@ -715,6 +721,9 @@ class Pipeline:
             rth_energy_wh=back.energy_wh,
             rth_sigma_wh=back.sigma_wh,
             rth_time_s=back.time_s,
+            rth_speed_mps=back.speed_mps,
+            rth_wind_mps=back.wind_mps,
+            rth_wind_from_deg=back.wind_from_deg,
             margin_wh=back.margin_wh,
             margin_sigma_wh=back.margin_sigma_wh,
             pnr_s=back.pnr_s,

@@ -29,10 +29,26 @@ exception.
 from __future__ import annotations
 
 import math
-from collections.abc import Sequence
-from dataclasses import dataclass, replace
+from dataclasses import dataclass
 
+from estimator.estimation.online_effects import wind_from_vector
 from estimator.physics.effects import Effect, Mass, Wind
+from estimator.physics.route_energy import (
+    DEFAULT_CLIMB_RATE_MPS,
+    DEFAULT_DESCENT_RATE_MPS,
+    DEFAULT_MAX_GROUND_SPEED_MPS,
+    MIN_GROUND_SPEED_MPS,
+    UNCERTAINTY_SOURCES,
+    Conditions,
+    InfeasibleTrack,
+    RouteEnergy,
+    RouteVehicle,
+    hover_energy,
+    landing_energy,
+    leg_energy,
+    sum_energies,
+    vertical_energy,
+)
 from estimator.physics.vehicle import Vehicle
 from estimator.telemetry.samples import (
     HomeSample,
@@ -40,6 +56,7 @@ from estimator.telemetry.samples import (
     MissionItem,
     MissionSample,
     PositionSample,
+    WindSample,
 )
 
 FLAG_NO_HOME, FLAG_NO_POSITION, FLAG_NO_MISSION, FLAG_NOT_FLYING = 1, 2, 4, 8
@@ -50,7 +67,8 @@ FLAG_NAMES = {
     FLAG_NOT_FLYING: "not flying",
 }
 _EARTH_RADIUS_M = 6_371_008.8
-ReturnSample = PositionSample | HomeSample | MissionSample | MissionCurrentSample
+ReturnSample = PositionSample | HomeSample | MissionSample | MissionCurrentSample | WindSample
+WIND_SOURCES = ("tracked", "autopilot")
 
 
 @dataclass(frozen=True, slots=True)
@@ -58,26 +76,56 @@ class ReturnSettings:
     """return_alt_m: height over home (m) the return flies at least (ArduPilot RTL_ALT).
     return_speed_mps: 0 = the wind-optimal airspeed; else the ground speed the autopilot
     returns at (ArduPilot RTL_SPEED / WPNAV_SPEED, PX4 MPC_XY_CRUISE), m/s.
+    max_airspeed_mps: the fastest the vehicle flies through the air (its lean-angle limit; the
+    wind-optimal search stays below it), m/s. max_ground_speed_mps: the fastest return ground
+    speed the autopilot accepts (ArduCopter RTL_SPEED ≤ 20 m/s), m/s.
+    accel_mps2: the autopilot's horizontal acceleration (ArduCopter WPNAV_ACCEL), m/s²: the
+    stop from the current velocity and the leg's speed ramps.
+    climb_rate_mps / descent_rate_mps: vertical speeds of the climb and of the landing above
+    land_alt_low_m (ArduCopter WPNAV_SPEED_UP / _DN, m/s); land_speed_mps below it (LAND_SPEED);
+    loiter_s: hover over home before the descent (RTL_LOIT_TIME); touchdown_s: hover power
+    until the motors stop.
     rate_time_constant_s: smoothing of the return energy's rate of change (s).
+    wind_source: "tracked" (the wind in use: the online tracker's once identified, else the
+    vehicle file's) or "autopilot" (the autopilot's own estimate, WIND / WIND_COV, with 1σ
+    ``autopilot_wind_sigma_mps`` per component, while one is at most
+    ``autopilot_wind_max_age_s`` old; else the tracked one): a vehicle whose power hardly
+    shows the wind (ArduCopter SITL's quad) but whose autopilot estimates it from drag.
     untracked_wind_sigma_mps / untracked_mass_sigma_fraction: wind (m/s) and mass (share of
     the vehicle's) 1σ when the online tracker is off."""
 
     return_alt_m: float = 15.0
     return_speed_mps: float = 0.0
+    max_airspeed_mps: float = 12.0
+    max_ground_speed_mps: float = DEFAULT_MAX_GROUND_SPEED_MPS
+    accel_mps2: float = 2.5
+    climb_rate_mps: float = DEFAULT_CLIMB_RATE_MPS
+    descent_rate_mps: float = DEFAULT_DESCENT_RATE_MPS
+    loiter_s: float = 5.0
+    land_alt_low_m: float = 10.0
+    land_speed_mps: float = 0.5
+    touchdown_s: float = 2.0
     rate_time_constant_s: float = 10.0
+    wind_source: str = "tracked"
+    autopilot_wind_sigma_mps: float = 1.0
+    autopilot_wind_max_age_s: float = 10.0
     untracked_wind_sigma_mps: float = 1.0
     untracked_mass_sigma_fraction: float = 0.05
 
 
 @dataclass(frozen=True, slots=True)
 class ReturnInputs:
-    """The estimator's state at one estimate. effects: those in use (wind, mass, …);
-    wind_sigma_ne_mps: 1σ of the wind's north and east components (m/s); mass_sigma_kg;
-    bias and its 1σ (measured / model power); energy_wh and its 1σ: usable energy above the
-    reserve; loss_factor: chemical over terminal energy (OCV/V); steady_power_w: terminal
-    power of the current steady flight (W, bias applied); flying: the estimate rests on flight
-    (endurance valid)."""
+    """The estimator's state at one estimate (sample clock ``time_s``, ground velocity
+    ``velocity_ne_mps`` north/east m/s).
 
+    effects: those in use (wind, mass, …); wind_sigma_ne_mps: 1σ of the wind's north and east
+    components (m/s); mass_sigma_kg; bias and its 1σ (measured / model power); energy_wh and
+    its 1σ: usable energy above the reserve; loss_factor: chemical over terminal energy
+    (OCV/V); steady_power_w: terminal power of the current steady flight (W, bias applied);
+    flying: the estimate rests on flight (endurance valid)."""
+
+    time_s: float
+    velocity_ne_mps: tuple[float, float]
     effects: tuple[Effect, ...]
     wind_sigma_ne_mps: tuple[float, float]
     mass_sigma_kg: float
@@ -92,7 +140,9 @@ class ReturnInputs:
 
 @dataclass(frozen=True, slots=True)
 class ReturnFigures:
-    """Distance to home (m), return energy (Wh, electrical) with 1σ and time (s), margin above
+    """Distance to home (m), return energy (Wh, electrical) with 1σ, time (s) and the ground
+    speed of its leg home (m/s: the wind-optimal one, or the configured) and the wind it
+    assumes (m/s, from ° clockwise from north), margin above
     the reserve after the return (Wh) with 1σ, point of no return (s), rest of the mission +
     return (Wh) with 1σ and its feasibility (None unknown), flags (bits of FLAG_NAMES)."""
 
@@ -100,6 +150,9 @@ class ReturnFigures:
     energy_wh: float = math.nan
     sigma_wh: float = math.nan
     time_s: float = math.nan
+    speed_mps: float = math.nan
+    wind_mps: float = math.nan
+    wind_from_deg: float = math.nan
     margin_wh: float = math.nan
     margin_sigma_wh: float = math.nan
     pnr_s: float = math.nan
@@ -130,12 +183,13 @@ class ReturnHome:
     mission and the item flown; and the return energy's recent rate of change."""
 
     def __init__(self, vehicle: Vehicle, settings: ReturnSettings | None = None) -> None:
-        self.vehicle = vehicle
+        self._vehicle = RouteVehicle.from_vehicle(vehicle)
         self.settings = settings or ReturnSettings()
         self.position: PositionSample | None = None
         self.home: HomeSample | None = None
         self.mission: tuple[MissionItem, ...] | None = None
         self.current_seq: int | None = None
+        self.autopilot_wind: WindSample | None = None
         self._last: tuple[float, float] | None = None  # (time s, return energy Wh)
         self._rate_wh_per_s = 0.0
 
@@ -146,6 +200,8 @@ class ReturnHome:
             self.home = sample
         elif isinstance(sample, MissionSample):
             self.mission = sample.items
+        elif isinstance(sample, WindSample):
+            self.autopilot_wind = sample
         else:
             self.current_seq = sample.seq
 
@@ -169,8 +225,9 @@ class ReturnHome:
             position.lat_deg, position.lon_deg, home.lat_deg, home.lon_deg
         )
         alt_m = 0.0 if position.alt_m is None else position.alt_m
-        energy_wh, time_leg_s, sigma_wh = self._return_energy(
-            distance_m, bearing_rad, alt_m, inputs
+        conditions = self.conditions(inputs)
+        energy_wh, time_leg_s, sigma_wh, speed_mps = self._return_energy(
+            distance_m, bearing_rad, alt_m, conditions, inputs
         )
         margin_wh = inputs.energy_wh - energy_wh * inputs.loss_factor
         margin_sigma_wh = math.hypot(inputs.energy_sigma_wh, sigma_wh * inputs.loss_factor)
@@ -180,6 +237,9 @@ class ReturnHome:
             energy_wh=energy_wh,
             sigma_wh=sigma_wh,
             time_s=time_leg_s,
+            speed_mps=speed_mps,
+            wind_mps=conditions.wind_speed_mps,
+            wind_from_deg=conditions.wind_from_deg,
             margin_wh=margin_wh,
             margin_sigma_wh=margin_sigma_wh,
             pnr_s=pnr_s,
@@ -204,43 +264,113 @@ class ReturnHome:
         return margin_wh / drain if drain > 0 else math.inf
 
     def _return_energy(
-        self, distance_m: float, bearing_rad: float, alt_m: float, inputs: ReturnInputs
-    ) -> tuple[float, float, float]:
-        """Electrical energy (Wh, bias applied), time (s) and 1σ (Wh) of the return."""
-        energy, time_s = self._leg(distance_m, bearing_rad, alt_m, inputs.effects)
-        wind = next((e for e in inputs.effects if isinstance(e, Wind)), Wind())
-        along = (math.cos(bearing_rad), math.sin(bearing_rad))
-        across = (-along[1], along[0])
-        sn, se = inputs.wind_sigma_ne_mps
-        spread = [energy * inputs.bias_sigma]
-        for u in (along, across):
-            sigma = math.hypot(u[0] * sn, u[1] * se)
-            moved = _moved_wind(wind, u[0] * sigma, u[1] * sigma)
-            spread.append(
-                self._leg(distance_m, bearing_rad, alt_m, _with(inputs.effects, moved))[0] - energy
-            )
-        mass = next((e for e in inputs.effects if isinstance(e, Mass)), Mass())
-        heavier = replace(mass, delta_kg=mass.delta_kg + inputs.mass_sigma_kg)
-        spread.append(
-            self._leg(distance_m, bearing_rad, alt_m, _with(inputs.effects, heavier))[0] - energy
+        self,
+        distance_m: float,
+        bearing_rad: float,
+        alt_m: float,
+        conditions: Conditions,
+        inputs: ReturnInputs,
+    ) -> tuple[float, float, float, float]:
+        """Electrical energy (Wh, bias applied), time (s), 1σ (Wh) and leg ground speed (m/s)
+        of the return."""
+        return_energy, speed_mps = self.route(
+            distance_m, math.degrees(bearing_rad), alt_m, conditions, inputs.velocity_ne_mps
         )
-        return inputs.bias * energy, time_s, inputs.bias * math.sqrt(sum(x * x for x in spread))
+        model_wh = return_energy.energy_wh
+        sens = dict(zip(UNCERTAINTY_SOURCES, return_energy.sensitivity_wh, strict=True))
+        spread = (model_wh * inputs.bias_sigma, sens["wind_n"], sens["wind_e"], sens["payload"])
+        sigma_wh = inputs.bias * math.sqrt(sum(x * x for x in spread))
+        return inputs.bias * model_wh, return_energy.time_s, sigma_wh, speed_mps
 
-    def _leg(
-        self, distance_m: float, bearing_rad: float, alt_m: float, effects: Sequence[Effect]
-    ) -> tuple[float, float]:
-        """Model energy (Wh) and time (s) of the return with these effects."""
-        raise NotImplementedError  # route_energy (branch plan)
+    def conditions(self, inputs: ReturnInputs) -> Conditions:
+        """Wind and payload of the return with their 1σ: the effects in use (the tracker's
+        σ, the larger component's), or the autopilot's wind (``wind_source``)."""
+        wind = next((e for e in inputs.effects if isinstance(e, Wind)), Wind())
+        mass = next((e for e in inputs.effects if isinstance(e, Mass)), Mass())
+        speed, from_deg, sigma = wind.speed_mps, wind.from_deg, max(inputs.wind_sigma_ne_mps)
+        reported = self.autopilot_wind
+        s = self.settings
+        if (
+            s.wind_source == "autopilot"
+            and reported is not None
+            and inputs.time_s - reported.time_s <= s.autopilot_wind_max_age_s
+        ):
+            theirs = wind_from_vector(reported.wind_n_mps, reported.wind_e_mps)
+            speed, from_deg = theirs.speed_mps, theirs.from_deg
+            sigma = s.autopilot_wind_sigma_mps
+        return Conditions(
+            wind_speed_mps=speed,
+            wind_from_deg=from_deg,
+            payload_kg=mass.delta_kg,
+            wind_sigma_mps=sigma,
+            payload_sigma_kg=inputs.mass_sigma_kg,
+        )
+
+    def route(
+        self,
+        distance_m: float,
+        track_deg: float,
+        alt_m: float,
+        conditions: Conditions,
+        velocity_ne_mps: tuple[float, float] = (0.0, 0.0),
+    ) -> tuple[RouteEnergy, float]:
+        """The return (:mod:`estimator.physics.route_energy`, model energy before the bias) from
+        a ground velocity ``velocity_ne_mps`` (m/s): stop, climb in place to the return height,
+        the leg home with its speed ramps, the loiter over home, the landing; and the leg's
+        ground speed (m/s). Stop and ramps are held at hover power for the time they add
+        (``accel_mps2``); the distance flown away while stopping is added to the leg."""
+        s = self.settings
+        height_m = max(alt_m, s.return_alt_m)
+        vn, ve = velocity_ne_mps
+        rad = math.radians(track_deg)
+        stop_s = math.hypot(vn, ve) / s.accel_mps2
+        away_mps = max(-(vn * math.cos(rad) + ve * math.sin(rad)), 0.0)
+        distance_m += away_mps * stop_s / 2.0
+        speed = s.return_speed_mps if s.return_speed_mps > 0 else None
+        try:
+            leg = leg_energy(
+                self._vehicle,
+                conditions,
+                distance_m=distance_m,
+                track_deg=track_deg,
+                ground_speed_mps=speed,
+                max_airspeed_mps=s.max_airspeed_mps,
+                max_ground_speed_mps=s.max_ground_speed_mps,
+            )
+        except InfeasibleTrack:  # no headway within the airspeed limit: crawl (a lower bound)
+            leg = leg_energy(
+                self._vehicle,
+                conditions,
+                distance_m=distance_m,
+                track_deg=track_deg,
+                ground_speed_mps=MIN_GROUND_SPEED_MPS,
+            )
+        ramps_s = _ramp_time_s(leg.distance_m, leg.ground_speed_mps, s.accel_mps2)
+        total = sum_energies(
+            [
+                hover_energy(self._vehicle, conditions, stop_s + ramps_s),
+                vertical_energy(self._vehicle, conditions, height_m - alt_m, s.climb_rate_mps),
+                leg,
+                hover_energy(self._vehicle, conditions, s.loiter_s),
+                landing_energy(
+                    self._vehicle,
+                    conditions,
+                    height_m,
+                    s.descent_rate_mps,
+                    final_height_m=s.land_alt_low_m,
+                    final_rate_mps=s.land_speed_mps,
+                    touchdown_s=s.touchdown_s,
+                ),
+            ]
+        )
+        return total, leg.ground_speed_mps
 
 
-def _moved_wind(wind: Wind, dn_mps: float, de_mps: float) -> Wind:
-    from estimator.estimation.online_effects import wind_from_vector
-
-    wn, we = wind.vector_ne_mps()
-    return wind_from_vector(wn + dn_mps, we + de_mps)
-
-
-def _with(effects: Sequence[Effect], effect: Effect) -> tuple[Effect, ...]:
-    """``effects`` with ``effect`` in place of the one of its type (or added)."""
-    kept = [e for e in effects if type(e) is not type(effect)]
-    return (effect, *kept)
+def _ramp_time_s(distance_m: float, speed_mps: float, accel_mps2: float) -> float:
+    """Time (s) a leg of ``distance_m`` from rest to rest at ``accel_mps2`` takes beyond
+    ``distance_m / speed_mps`` (trapezoid, or triangle when too short to reach the speed)."""
+    if distance_m <= 0 or speed_mps <= 0:
+        return 0.0
+    if distance_m >= speed_mps**2 / accel_mps2:
+        return speed_mps / accel_mps2
+    return 2.0 * math.sqrt(distance_m / accel_mps2) - distance_m / speed_mps

@@ -44,6 +44,10 @@ class ServiceConfig:
     keeping the vehicle file's values for the whole flight.
     log_level: debug, info, warning or error.
     return_alt_m: height over home (m) the return flies at (ArduPilot's RTL_ALT; 15 m).
+    return_speed_mps: the autopilot's return ground speed (m/s; 0: the wind-optimal one, which
+    the ground station may then set as RTL_SPEED). max_airspeed_mps: the vehicle's fastest
+    airspeed (lean-angle limit), max_ground_speed_mps: the autopilot's fastest return speed.
+    return_wind: "tracked" (the online tracker's wind) or "autopilot" (its WIND / WIND_COV).
     warning_margin_pct / critical_margin_pct: STATUSTEXT WARNING / CRITICAL to the ground
     stations when the return margin (energy above the reserve after the return) falls below
     this share (%) of a full pack's usable energy; hysteresis_pct: it must rise this much above
@@ -73,6 +77,10 @@ class ServiceConfig:
     track_effects: bool = True
     log_level: str = "info"
     return_alt_m: float = 15.0
+    return_speed_mps: float = 0.0
+    max_airspeed_mps: float = 12.0
+    max_ground_speed_mps: float = 20.0
+    return_wind: str = "tracked"
     warning_margin_pct: float = 15.0
     critical_margin_pct: float = 5.0
     hysteresis_pct: float = 2.0
@@ -89,7 +97,13 @@ class ServiceConfig:
         return PipelineSettings(
             fusion=FusionSettings(**dict(self.fusion)),
             track_effects=self.track_effects,
-            return_home=ReturnSettings(return_alt_m=self.return_alt_m),
+            return_home=ReturnSettings(
+                return_alt_m=self.return_alt_m,
+                return_speed_mps=self.return_speed_mps,
+                max_airspeed_mps=self.max_airspeed_mps,
+                max_ground_speed_mps=self.max_ground_speed_mps,
+                wind_source=self.return_wind,
+            ),
         )
 
     @property
@@ -118,6 +132,10 @@ _KEYS = {
     ("vehicle", "track_effects"): "track_effects",
     ("log", "level"): "log_level",
     ("return", "alt_m"): "return_alt_m",
+    ("return", "speed_mps"): "return_speed_mps",
+    ("return", "max_airspeed_mps"): "max_airspeed_mps",
+    ("return", "max_ground_speed_mps"): "max_ground_speed_mps",
+    ("return", "wind"): "return_wind",
     ("return", "warning_margin_pct"): "warning_margin_pct",
     ("return", "critical_margin_pct"): "critical_margin_pct",
     ("return", "hysteresis_pct"): "hysteresis_pct",
@@ -229,6 +247,13 @@ def validate(config: ServiceConfig) -> None:
         raise UserError("config 'stale_after_s' must be > 0")
     if not 0 <= config.return_alt_m <= 1000:
         raise UserError("config 'return_alt_m' must be in [0, 1000] m")
+    if not 0 <= config.return_speed_mps <= 50:
+        raise UserError("config 'return_speed_mps' must be in [0, 50] m/s (0: wind-optimal)")
+    for name in ("max_airspeed_mps", "max_ground_speed_mps"):
+        if not 1 <= getattr(config, name) <= 50:
+            raise UserError(f"config '{name}' must be in [1, 50] m/s")
+    if config.return_wind not in ("tracked", "autopilot"):
+        raise UserError("config 'return_wind' must be 'tracked' or 'autopilot'")
     if not config.critical_margin_pct <= config.warning_margin_pct <= 100:
         raise UserError(
             "config 'critical_margin_pct' ≤ 'warning_margin_pct' ≤ 100 % of the usable energy"

@@ -57,6 +57,7 @@ NAMED_VALUES: dict[str, tuple[str, Callable[[Estimate], float]]] = {
     "RTH_WH": ("Wh to return home and land", lambda e: e.rth_energy_wh),
     "RTH_SIG": ("Wh, 1σ of RTH_WH", lambda e: e.rth_sigma_wh),
     "RTH_S": ("s to return home and land", lambda e: e.rth_time_s),
+    "RTH_VG": ("m/s, ground speed home of least energy", lambda e: e.rth_speed_mps),
     "MARGIN_WH": ("Wh above the reserve after the return", lambda e: e.margin_wh),
     "MARGIN_SIG": ("Wh, 1σ of MARGIN_WH", lambda e: e.margin_sigma_wh),
     "PNR_S": ("s to the point of no return", lambda e: e.pnr_s),

@@ -39,7 +39,7 @@ from estimator.mavlink.margin_alerts import MarginAlerts
 from estimator.mavlink.mission_download import MESSAGE_TYPES as MISSION_MESSAGES
 from estimator.mavlink.mission_download import MissionDownload
 from estimator.physics.vehicle import Vehicle
-from estimator.telemetry.decode import SKIP_COUNTERS, TelemetryDecoder
+from estimator.telemetry.decode import ARDUPILOT_WIND_ID, SKIP_COUNTERS, TelemetryDecoder
 from estimator.telemetry.plausibility import pack_voltage_problem
 from estimator.telemetry.samples import BatterySample, MissionItem, MissionSample
 
@@ -61,6 +61,8 @@ _STREAMS = (
     (mavlink.MAVLINK_MSG_ID_LOCAL_POSITION_NED, "velocity"),
     (mavlink.MAVLINK_MSG_ID_SYS_STATUS, "battery"),
     (mavlink.MAVLINK_MSG_ID_BATTERY_STATUS, "battery"),
+    (ARDUPILOT_WIND_ID, "battery"),  # the autopilot's wind, for the return (WIND, ArduPilot)
+    (mavlink.MAVLINK_MSG_ID_WIND_COV, "battery"),  # (PX4)
 )
 
 
