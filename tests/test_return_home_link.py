@@ -338,3 +338,93 @@ def test_unknown_stale_or_grounded_margins_raise_nothing_and_keep_the_level() ->
     ):
         assert alerts.update(quiet) is None
     assert alerts.level == 1
+
+
+# -- ground-station clients ------------------------------------------------------------------------
+
+
+async def test_pymavlink_and_mavsdk_clients_get_the_return_values_and_the_warning(
+    flight: Messages,
+) -> None:
+    """Home 2 km east of the flight: the return figures published as NAMED_VALUE_FLOAT equal
+    the pipeline's replay of the same messages, and a margin below the warning threshold
+    (here: any margin under 100 % of a full pack) reaches both clients as one STATUSTEXT
+    WARNING from component 191 — on the --publish links only, never towards the autopilot."""
+    from mavsdk.asyncio import ComponentType, Configuration, Mavsdk
+    from mavsdk.asyncio.plugins.mavlink_direct import MavlinkDirectAsync
+    from test_service import free_udp_port, listen, play, replay
+
+    far_home = home(HOME[0], HOME[1] + 2000.0 / (111_319.5 * math.cos(math.radians(HOME[0]))))
+    far_home.pack(_ENC)
+    messages = [m for _, m in flight]
+    messages.insert(20, far_home)
+    expected = replay(messages)
+    assert expected[-1].endurance_valid and expected[-1].rth_energy_wh > 0
+    client, client_port, transport = await listen()
+    sdk_port = free_udp_port()
+    config = ServiceConfig(
+        publish=(f"udpout:127.0.0.1:{client_port}", f"udpout:127.0.0.1:{sdk_port}"),
+        publish_rate_hz=0.0,
+        stale_after_s=30.0,
+        warning_margin_pct=100.0,
+        critical_margin_pct=0.0,
+        download_mission=False,
+    )
+    sdk_config = Configuration.create_with_component_type(ComponentType.GROUND_STATION)
+    async with Mavsdk(sdk_config) as sdk, running(config) as (service, sender):
+        to_autopilot = MissionServer(sender, items=0, silent=True)  # records what it is sent
+        await sdk.add_any_connection(f"udpin://127.0.0.1:{sdk_port}")
+        await play(sender, messages[:20])
+        system = None
+        async with asyncio.timeout(10):
+            while system is None:
+                systems = await sdk.get_systems()
+                system = systems[0] if systems else None
+                await asyncio.sleep(0.05)
+        direct = MavlinkDirectAsync(system)
+        sdk_seen: dict[str, list[dict]] = {"NAMED_VALUE_FLOAT": [], "STATUSTEXT": []}
+
+        async def collect(kind: str) -> None:
+            import json
+
+            async for msg in direct.subscribe_message(kind):
+                sdk_seen[kind].append(json.loads(msg.fields_json) | {"comp": msg.component_id})
+
+        tasks = [asyncio.create_task(collect(kind)) for kind in sdk_seen]
+        await asyncio.sleep(0.5)
+        await play(sender, messages[20:])
+        await wait_for(lambda: service.pipeline.counts["estimates"] == len(expected))
+        await wait_for(lambda: sdk_seen["STATUSTEXT"] and len(client.of_type("STATUSTEXT")))
+        await asyncio.sleep(0.3)
+        for task in tasks:
+            task.cancel()
+        to_autopilot.task.cancel()
+    transport.close()
+
+    by_ms = {round(e.time_s * 1000): e for e in expected}
+    last_ms = max(client.named("RTH_WH"))
+    last = by_ms[last_ms]
+    assert last.home_distance_m == pytest.approx(2000.0, rel=0.05)
+    for name, value in (
+        ("HOME_M", last.home_distance_m),
+        ("RTH_WH", last.rth_energy_wh),
+        ("RTH_SIG", last.rth_sigma_wh),
+        ("RTH_VG", last.rth_speed_mps),
+        ("MARGIN_WH", last.margin_wh),
+        ("PNR_S", last.pnr_s),
+        ("RTH_FLAGS", float(last.rth_flags)),
+    ):
+        assert client.named(name)[last_ms] == pytest.approx(value, rel=1e-6), name
+    assert last.rth_flags == 4  # no mission (download off); home, position, flying
+    texts = client.of_type("STATUSTEXT")
+    assert len(texts) == 1 and texts[0].severity == mavlink.MAV_SEVERITY_WARNING
+    assert texts[0].get_srcComponent() == 191 and texts[0].text.startswith("RTH warning")
+    sdk_texts = sdk_seen["STATUSTEXT"]
+    assert len(sdk_texts) == 1 and sdk_texts[0]["comp"] == 191
+    assert sdk_texts[0]["severity"] == mavlink.MAV_SEVERITY_WARNING
+    sdk_rth = [m for m in sdk_seen["NAMED_VALUE_FLOAT"] if m["name"] == "RTH_WH"]
+    assert sdk_rth and sdk_rth[-1]["value"] == pytest.approx(
+        by_ms[sdk_rth[-1]["time_boot_ms"]].rth_energy_wh, rel=1e-6
+    )
+    assert not to_autopilot.kinds("STATUSTEXT")
+    assert not to_autopilot.kinds("NAMED_VALUE_FLOAT")

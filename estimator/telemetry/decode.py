@@ -320,9 +320,11 @@ class TelemetryDecoder:
             # the frame's stamp was judged with its velocity: its position goes with it
             if not any(isinstance(s, VelocitySample) and s.time_s == t for s in out):
                 return out
-        elif (clock_s := self._time.clock.time_s) is None or abs(
-            t - clock_s
-        ) > POSITION_STAMP_TOLERANCE_S:
+        elif (
+            (clock_s := self._time.clock.time_s) is None
+            or abs(t - clock_s) > POSITION_STAMP_TOLERANCE_S
+            or velocity_problem(VelocitySample(t, *v, alt_m), self.limits) is not None
+        ):  # counted as duplicate_velocity_source: its stamp and values must be believable
             return out
         position = self._lat_lon(msg.lat, msg.lon, "position")
         if position is not None:
