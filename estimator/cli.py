@@ -29,6 +29,7 @@ COMMANDS = {
     "residuals": "find the effects the power model lacks from flight logs",
     "experiments": "reproduce the paper's experiments on the built-in vehicle",
     "sitl-record": "fly scenarios in ArduCopter SITL and record tlog, DataFlash and truth",
+    "plan": "energy of a mission file per leg, totals and feasibility, in wind and payload",
 }
 
 

@@ -22,8 +22,8 @@ from estimator.sitl.truth_check import FlightScore, FlightTruth, score_summary
 REPO = Path(__file__).resolve().parent.parent
 RECORDINGS = REPO / "replay" / "sitl"
 VEHICLE = REPO / "config" / "vehicles" / "ardupilot_sitl_quad.toml"
-#: Flown for the endurance to the reserve, not for effects.
-NOT_SCORED = {"battery_reserve"}
+#: Flown for the endurance to the reserve, not for effects; AUTO missions (their own test).
+NOT_SCORED = {"battery_reserve", "missions"}
 KNOWN_WRONG = {
     "heavy_quad": "SITL scales the whole hover current with mass; the model's mass law scales "
     "the induced part only, so +1 kg reads as +1.64 kg",

@@ -2,7 +2,11 @@
 
 Each scenario (estimator/sitl/scenarios.py; ``all`` for every one) is flown in a fresh SITL
 (scratch directory, free instance) and written to ``DIR/<scenario>/``: ``flight.tlog``,
-``truth.json`` and, for the scenarios that log it, ``flight.BIN``. See docs/sitl.md.
+``truth.json`` and, for the scenarios that log it, ``flight.BIN``. ``--mission FILE`` flies
+a mission file (.plan or .waypoints) in AUTO instead, optionally in a wind (``--wind``) and
+with the gripper's load (``--gripper``), into ``DIR/<name>/`` with a copy of the file (the
+name is the file's directory when it is called ``mission.*``). See docs/sitl.md and
+docs/plan.md.
 """
 
 from __future__ import annotations
@@ -21,7 +25,12 @@ def register(subparsers: argparse._SubParsersAction[argparse.ArgumentParser]) ->
         description="Fly flight scenarios (wind, payload, battery, airframes) in ArduCopter "
         "SITL and record each one's tlog, DataFlash log and truth.json.",
     )
-    p.add_argument("scenarios", nargs="+", metavar="SCENARIO", help="scenario names, or all")
+    p.add_argument("scenarios", nargs="*", metavar="SCENARIO", help="scenario names, or all")
+    p.add_argument("--mission", metavar="FILE", help="fly this mission file in AUTO instead")
+    p.add_argument(
+        "--wind", metavar="SPEED@FROM_DEG", help="with --mission: wind, m/s @ degrees (from)"
+    )
+    p.add_argument("--gripper", action="store_true", help="with --mission: carry 1 kg")
     p.add_argument("--out", type=Path, required=True, metavar="DIR", help="output directory")
     p.add_argument("--speedup", default="10", metavar="N", help="SITL speedup (default 10)")
     p.add_argument("--binary", type=Path, metavar="FILE", help="arducopter SITL binary")
@@ -29,13 +38,31 @@ def register(subparsers: argparse._SubParsersAction[argparse.ArgumentParser]) ->
 
 
 def run(args: argparse.Namespace) -> int:
+    from estimator.commands.sim import _pair
+    from estimator.logs.mission_files import load_mission
     from estimator.sitl.recorder import record
-    from estimator.sitl.scenarios import SCENARIOS
+    from estimator.sitl.scenarios import SCENARIOS, Scenario, mission_scenario
 
-    names = list(SCENARIOS) if args.scenarios == ["all"] else args.scenarios
-    unknown = [n for n in names if n not in SCENARIOS]
-    if unknown:
-        raise UserError(f"unknown scenario {unknown[0]!r}; known: all, {', '.join(SCENARIOS)}")
+    scenarios: list[Scenario]
+    if args.mission is not None:
+        if args.scenarios:
+            raise UserError("give scenario names or --mission, not both")
+        load_mission(args.mission).legs()  # a bad file fails here, before SITL starts
+        wind = None if args.wind is None else _pair(args.wind, "--wind", "SPEED@FROM_DEG")
+        if wind is not None and not 0 <= wind[0] <= 30:
+            raise UserError("--wind speed must be between 0 and 30 m/s")
+        scenarios = [mission_scenario(args.mission, wind, args.gripper)]
+    else:
+        if args.wind is not None or args.gripper:
+            raise UserError("--wind and --gripper go with --mission")
+        if not args.scenarios:
+            raise UserError("name a scenario (or all), or give --mission FILE")
+        names = list(SCENARIOS) if args.scenarios == ["all"] else args.scenarios
+        unknown = [n for n in names if n not in SCENARIOS]
+        if unknown:
+            known = ", ".join(SCENARIOS)
+            raise UserError(f"unknown scenario {unknown[0]!r}; known: all, {known}")
+        scenarios = [SCENARIOS[n] for n in names]
     try:
         speedup = float(args.speedup)
     except ValueError:
@@ -44,9 +71,10 @@ def run(args: argparse.Namespace) -> int:
         raise UserError(f"--speedup must be in (0, 100], got {args.speedup!r}")
     if args.binary is not None and not args.binary.is_file():
         raise UserError(f"--binary {args.binary} is not a file")
-    for name in names:
+    for scenario in scenarios:
+        name = scenario.name
         started = time.monotonic()
-        truth = record(SCENARIOS[name], args.out / name, speedup, args.binary)
+        truth = record(scenario, args.out / name, speedup, args.binary)
         ev = truth.events
         flown = ev.get("landed_s", math.nan) - ev.get("takeoff_s", math.nan)
         print(

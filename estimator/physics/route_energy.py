@@ -2,8 +2,9 @@
 
 Pure functions of a :class:`RouteVehicle` (the vehicle file's power model, mass and effects) and
 :class:`Conditions` (wind, payload and their uncertainty). Power comes from the project's one
-prediction, :func:`~estimator.physics.effects.predict_power_w`, at a constant velocity (no
-acceleration): every segment is flown at one steady state.
+prediction, :func:`~estimator.physics.effects.predict_power_w`, piecewise: each phase of a
+segment at one velocity with its mean acceleration (steady, unless :class:`Kinematics` adds
+the speed changes).
 
 Conventions: positions and velocities NED (north, east, down), horizontal tracks in degrees
 clockwise from north; the wind follows :class:`~estimator.physics.effects.Wind`: ``speed_mps``
@@ -61,6 +62,8 @@ MIN_GROUND_SPEED_MPS = 0.2
 #: Finite-difference step of the sensitivities, in units of each source's 1σ.
 _STEP_SIGMAS = 0.05
 _J_PER_WH = 3600.0
+#: Energy per metre (J/m) standing for "beyond the airspeed limit" in the speed search.
+_OUT_OF_RANGE = 1e12
 
 
 class InfeasibleTrack(ValueError):
@@ -186,12 +189,16 @@ def steady_power_w(
     vn_mps: FloatArray | float,
     ve_mps: FloatArray | float,
     vd_mps: FloatArray | float = 0.0,
+    an_mps2: FloatArray | float = 0.0,
+    ae_mps2: FloatArray | float = 0.0,
 ) -> FloatArray:
-    """Electrical power (W) at constant ground velocity (NED, m/s; arrays broadcast)."""
-    vn, ve, vd = np.broadcast_arrays(
-        np.atleast_1d(np.asarray(vn_mps, dtype=float)),
-        np.atleast_1d(np.asarray(ve_mps, dtype=float)),
-        np.atleast_1d(np.asarray(vd_mps, dtype=float)),
+    """Electrical power (W) at ground velocity (NED, m/s) and horizontal acceleration (NED,
+    m/s²; 0: steady flight); arrays broadcast."""
+    vn, ve, vd, an, ae = np.broadcast_arrays(
+        *(
+            np.atleast_1d(np.asarray(x, dtype=float))
+            for x in (vn_mps, ve_mps, vd_mps, an_mps2, ae_mps2)
+        )
     )
     zeros = np.zeros(vn.shape)
     state = FlightState(
@@ -199,8 +206,8 @@ def steady_power_w(
         vn_mps=vn.copy(),
         ve_mps=ve.copy(),
         vd_mps=vd.copy(),
-        an_mps2=zeros,
-        ae_mps2=zeros,
+        an_mps2=an.copy(),
+        ae_mps2=ae.copy(),
         alt_m=np.full(vn.shape, np.nan),
         voltage_v=np.full(vn.shape, np.nan),
     )
@@ -248,16 +255,31 @@ def _with_wind_ne(conditions: Conditions, wn_mps: float, we_mps: float) -> Condi
     return replace(conditions, wind_speed_mps=math.hypot(wn_mps, we_mps), wind_from_deg=from_deg)
 
 
+@dataclass(frozen=True)
+class _Phase:
+    """A piece of flight at one mean state: velocity NED (m/s), horizontal acceleration NED
+    (m/s²), duration (s)."""
+
+    vn_mps: float
+    ve_mps: float
+    vd_mps: float
+    duration_s: float
+    an_mps2: float = 0.0
+    ae_mps2: float = 0.0
+
+
 def _energy_with_sensitivity(
-    vehicle: RouteVehicle,
-    conditions: Conditions,
-    phases: Sequence[tuple[float, float, float, float]],
+    vehicle: RouteVehicle, conditions: Conditions, phases: Sequence[_Phase]
 ) -> tuple[float, tuple[float, ...]]:
-    """Energy (Wh) of steady phases (vn, ve, vd m/s, duration s) and its 1σ sensitivities."""
-    vn, ve, vd, dur = (np.array(col, dtype=float) for col in zip(*phases, strict=True))
+    """Energy (Wh) of ``phases`` and its 1σ sensitivities (:data:`UNCERTAINTY_SOURCES`)."""
+    cols = {
+        name: np.array([getattr(ph, name) for ph in phases], dtype=float)
+        for name in ("vn_mps", "ve_mps", "vd_mps", "an_mps2", "ae_mps2", "duration_s")
+    }
+    dur = cols.pop("duration_s")
 
     def energy_wh(v: RouteVehicle, c: Conditions) -> float:
-        return float(np.sum(steady_power_w(v, c, vn, ve, vd) * dur) / _J_PER_WH)
+        return float(np.sum(steady_power_w(v, c, **cols) * dur) / _J_PER_WH)
 
     nominal = energy_wh(vehicle, conditions)
     slopes = np.zeros(len(UNCERTAINTY_SOURCES))
@@ -289,25 +311,31 @@ def optimal_speed(
     *,
     max_ground_speed_mps: float = DEFAULT_MAX_GROUND_SPEED_MPS,
     max_airspeed_mps: float = DEFAULT_MAX_AIRSPEED_MPS,
+    along_track: bool = False,
 ) -> SpeedChoice:
     """The ground speed along ``track_deg`` with the least energy per metre over ground, with
     ground speed in [:data:`MIN_GROUND_SPEED_MPS`, max_ground_speed_mps] and airspeed at most
-    ``max_airspeed_mps``; in still air this is the model's V_mr. InfeasibleTrack when no
-    ground speed in range keeps the airspeed within its limit."""
+    ``max_airspeed_mps`` (its component along the track when ``along_track``, see
+    :func:`reachable_ground_speed_mps`); in still air this is the model's V_mr.
+    InfeasibleTrack when no ground speed in range keeps the airspeed within its limit."""
     wn, we = conditions.wind_ne_mps()
     un, ue = math.cos(math.radians(track_deg)), math.sin(math.radians(track_deg))
 
     def airspeed(vg: FloatArray) -> FloatArray:
         return np.asarray(np.hypot(vg * un - wn, vg * ue - we), dtype=float)
 
+    def within(vg: FloatArray) -> FloatArray:
+        limited = vg - (wn * un + we * ue) if along_track else airspeed(vg)
+        return np.asarray(limited <= max_airspeed_mps)
+
     def cost(vg: FloatArray) -> FloatArray:
         vn, ve = _velocity_ne(track_deg, vg)
         per_m = steady_power_w(vehicle, conditions, vn, ve) / vg
-        return np.asarray(np.where(airspeed(vg) <= max_airspeed_mps, per_m, np.inf))
+        return np.asarray(np.where(within(vg), per_m, _OUT_OF_RANGE))
 
     lo, hi = MIN_GROUND_SPEED_MPS, max(max_ground_speed_mps, MIN_GROUND_SPEED_MPS)
     grid = np.linspace(lo, hi, 601)
-    if not np.any(airspeed(grid) <= max_airspeed_mps):
+    if not np.any(within(grid)):
         raise InfeasibleTrack(
             f"a {conditions.wind_speed_mps:g} m/s wind from {conditions.wind_from_deg:g}° allows "
             f"no ground speed along {track_deg:.0f}° within {max_airspeed_mps:g} m/s airspeed"
@@ -318,6 +346,48 @@ def optimal_speed(
 
 
 # -- segments ------------------------------------------------------------------------------------
+
+
+def reachable_ground_speed_mps(
+    conditions: Conditions, track_deg: float, max_airspeed_mps: float, along_track: bool = False
+) -> float:
+    """The fastest ground speed along ``track_deg`` at ``max_airspeed_mps`` in the wind (m/s;
+    0 when the wind allows no headway). ``along_track``: the limit holds for the airspeed's
+    component along the track only (a multicopter facing its track whose limit is forward
+    drag, as ArduCopter SITL's quad), so a crosswind costs no ground speed."""
+    wn, we = conditions.wind_ne_mps()
+    un, ue = math.cos(math.radians(track_deg)), math.sin(math.radians(track_deg))
+    along, across = wn * un + we * ue, -wn * ue + we * un
+    if along_track:
+        return max(along + max_airspeed_mps, 0.0)
+    if abs(across) >= max_airspeed_mps:
+        return 0.0
+    return max(along + math.sqrt(max_airspeed_mps**2 - across**2), 0.0)
+
+
+@dataclass(frozen=True)
+class Kinematics:
+    """How the autopilot changes speed: horizontal ``accel_mps2`` (m/s²) with ``jerk_mps3``
+    (m/s³; None: no jerk limit), vertical ``vertical_accel_mps2`` (m/s²). A speed change of Δv
+    takes Δv/a + a/j when Δv ≥ a²/j, else 2 sqrt(Δv/j) (a jerk-limited S-curve), and is
+    flown at the mean speed with the mean acceleration (so eq. (2)'s kinetic term and the
+    file's ``acceleration`` effect count the kinetic energy gained and lost)."""
+
+    accel_mps2: float
+    jerk_mps3: float | None = None
+    vertical_accel_mps2: float | None = None
+
+    def ramp_s(self, dv_mps: float, vertical: bool = False) -> float:
+        """Time (s) to change speed by ``dv_mps``."""
+        dv = abs(dv_mps)
+        if vertical:
+            return dv / self.vertical_accel_mps2 if self.vertical_accel_mps2 else 0.0
+        jerk = self.jerk_mps3
+        if jerk is None or jerk <= 0:
+            return dv / self.accel_mps2
+        if dv >= self.accel_mps2**2 / jerk:
+            return dv / self.accel_mps2 + self.accel_mps2 / jerk
+        return 2.0 * math.sqrt(dv / jerk)
 
 
 def leg_energy(
@@ -332,13 +402,22 @@ def leg_energy(
     descent_rate_mps: float = DEFAULT_DESCENT_RATE_MPS,
     max_ground_speed_mps: float = DEFAULT_MAX_GROUND_SPEED_MPS,
     max_airspeed_mps: float = DEFAULT_MAX_AIRSPEED_MPS,
+    kinematics: Kinematics | None = None,
+    start_speed_mps: float = 0.0,
+    end_speed_mps: float = 0.0,
+    along_track: bool = False,
 ) -> RouteEnergy:
     """A straight leg of ``distance_m`` over ground along ``track_deg`` while changing height by
-    ``climb_m`` (m, + up), at ``ground_speed_mps`` (None: :func:`optimal_speed`).
+    ``climb_m`` (m, + up), at ``ground_speed_mps`` (None: :func:`optimal_speed`), never faster
+    than ``max_airspeed_mps`` allows in the wind.
 
     Horizontal and vertical motion run together, as a multicopter's waypoint controller flies a
-    sloped leg: the leg takes the longer of distance / ground speed and |climb| / vertical rate
-    (``climb_rate_mps`` up, ``descent_rate_mps`` down), both at a constant velocity.
+    sloped leg: the leg takes the longer of the horizontal and the vertical time (``climb_rate_mps``
+    up, ``descent_rate_mps`` down; the horizontal speed is lowered to match). Without
+    ``kinematics`` the whole leg is flown at one speed; with it the leg speeds up from
+    ``start_speed_mps`` and slows to ``end_speed_mps`` (m/s: 0 to stop at its end, more to
+    round a corner), the cruise speed lowered when the leg is too short to reach it.
+    ``along_track``: the airspeed limit holds along the track (:func:`reachable_ground_speed_mps`).
     """
     if distance_m < 0 or not math.isfinite(distance_m):
         raise ValueError("distance must be finite and ≥ 0")
@@ -349,36 +428,147 @@ def leg_energy(
             track_deg,
             max_ground_speed_mps=max_ground_speed_mps,
             max_airspeed_mps=max_airspeed_mps,
+            along_track=along_track,
         ).ground_speed_mps
     if ground_speed_mps <= 0:
         raise ValueError("ground speed must be > 0")
     rate_mps = climb_rate_mps if climb_m >= 0 else descent_rate_mps
     if rate_mps <= 0:
         raise ValueError("vertical rates must be > 0")
-    time_s = max(distance_m / ground_speed_mps, abs(climb_m) / rate_mps)
+    if distance_m > 0:
+        reachable = reachable_ground_speed_mps(conditions, track_deg, max_airspeed_mps, along_track)
+        if reachable <= 0:
+            raise InfeasibleTrack(
+                f"a {conditions.wind_speed_mps:g} m/s wind from {conditions.wind_from_deg:g}° "
+                f"allows no headway along {track_deg:.0f}° within {max_airspeed_mps:g} m/s airspeed"
+            )
+        ground_speed_mps = min(ground_speed_mps, reachable)
+    vertical_s = abs(climb_m) / rate_mps
+    if kinematics is not None and climb_m:
+        vertical_s += kinematics.ramp_s(rate_mps, vertical=True)
+    ends = (min(start_speed_mps, ground_speed_mps), min(end_speed_mps, ground_speed_mps))
+    cruise = ground_speed_mps
+    if _profile_s(distance_m, cruise, ends, kinematics) < vertical_s:  # the climb sets the pace
+        cruise = _speed_for_time(distance_m, vertical_s, ends, kinematics)
+    pieces = _profile(distance_m, cruise, ends, kinematics)
+    time_s = max(sum(d for _, _, d in pieces), vertical_s)
     if time_s <= 0:
-        return _segment(vehicle, conditions, "leg", 0.0, track_deg, 0.0, 0.0)
-    return _segment(
-        vehicle, conditions, "leg", distance_m / time_s, track_deg, climb_m / time_s, time_s
-    )
+        return _result(vehicle, conditions, "leg", [], 0.0, 0.0, 0.0)
+    rad = math.radians(track_deg)
+    vd = -climb_m / time_s
+    phases = [
+        _Phase(v * math.cos(rad), v * math.sin(rad), vd, d, a * math.cos(rad), a * math.sin(rad))
+        for v, a, d in pieces
+    ]
+    if time_s > sum(ph.duration_s for ph in phases):  # waiting on the climb, in place
+        phases.append(_Phase(0.0, 0.0, vd, time_s - sum(ph.duration_s for ph in phases)))
+    return _result(vehicle, conditions, "leg", phases, distance_m, climb_m, cruise, track_deg)
+
+
+def _profile(
+    distance_m: float,
+    cruise_mps: float,
+    ends: tuple[float, float],
+    kinematics: Kinematics | None,
+) -> list[tuple[float, float, float]]:
+    """(mean speed m/s, acceleration m/s², duration s) of the speed-up, cruise and slow-down
+    of a leg; the cruise speed lowered (bisection) when the leg is too short for it."""
+    if distance_m <= 0 or cruise_mps <= 0:
+        return []
+    if kinematics is None:
+        return [(cruise_mps, 0.0, distance_m / cruise_mps)]
+
+    def ramps(v: float) -> tuple[float, float, float, float]:
+        t1, t3 = kinematics.ramp_s(v - ends[0]), kinematics.ramp_s(v - ends[1])
+        return t1, t3, 0.5 * (v + ends[0]) * t1, 0.5 * (v + ends[1]) * t3
+
+    v = cruise_mps
+    t1, t3, d1, d3 = ramps(v)
+    if d1 + d3 > distance_m:
+        lo, hi = 0.0, v
+        for _ in range(50):
+            mid = 0.5 * (lo + hi)
+            lo, hi = (mid, hi) if sum(ramps(mid)[2:]) <= distance_m else (lo, mid)
+        v = lo
+        t1, t3, d1, d3 = ramps(v)
+        scale = distance_m / (d1 + d3) if d1 + d3 > 0 else 0.0
+        t1, t3, d1, d3 = t1 * scale, t3 * scale, d1 * scale, d3 * scale
+    out = []
+    if t1 > 0:
+        out.append((d1 / t1, (v - ends[0]) / t1, t1))
+    if distance_m - d1 - d3 > 0 and v > 0:
+        out.append((v, 0.0, (distance_m - d1 - d3) / v))
+    if t3 > 0:
+        out.append((d3 / t3, (ends[1] - v) / t3, t3))
+    return out
+
+
+def _profile_s(
+    distance_m: float, cruise_mps: float, ends: tuple[float, float], kin: Kinematics | None
+) -> float:
+    return sum(d for _, _, d in _profile(distance_m, cruise_mps, ends, kin))
+
+
+def _speed_for_time(
+    distance_m: float, time_s: float, ends: tuple[float, float], kin: Kinematics | None
+) -> float:
+    """The cruise speed (m/s) that flies the leg in ``time_s`` (bisection; time falls with
+    speed)."""
+    lo, hi = 1e-3, distance_m / max(time_s, 1e-9) * 4.0 + 1.0
+    for _ in range(60):
+        mid = 0.5 * (lo + hi)
+        lo, hi = (lo, mid) if _profile_s(distance_m, mid, ends, kin) <= time_s else (mid, hi)
+    return hi
 
 
 def hover_energy(vehicle: RouteVehicle, conditions: Conditions, duration_s: float) -> RouteEnergy:
     """Holding position for ``duration_s`` (s): airspeed is the wind speed."""
     if duration_s < 0:
         raise ValueError("duration must be ≥ 0")
-    return _segment(vehicle, conditions, "hover", 0.0, 0.0, 0.0, duration_s)
+    return _result(vehicle, conditions, "hover", [_Phase(0.0, 0.0, 0.0, duration_s)], 0, 0, 0)
 
 
 def vertical_energy(
-    vehicle: RouteVehicle, conditions: Conditions, climb_m: float, rate_mps: float
+    vehicle: RouteVehicle,
+    conditions: Conditions,
+    climb_m: float,
+    rate_mps: float,
+    *,
+    kinematics: Kinematics | None = None,
 ) -> RouteEnergy:
-    """Climbing (``climb_m`` > 0) or descending in place at ``rate_mps`` (m/s, > 0)."""
+    """Climbing (``climb_m`` > 0) or descending in place at ``rate_mps`` (m/s, > 0); with
+    ``kinematics``, from and to rest at its vertical acceleration."""
     if rate_mps <= 0:
         raise ValueError("vertical rate must be > 0")
-    time_s = abs(climb_m) / rate_mps
-    vz = math.copysign(rate_mps, climb_m) if climb_m else 0.0
-    return _segment(vehicle, conditions, "vertical", 0.0, 0.0, vz, time_s)
+    return _result(
+        vehicle,
+        conditions,
+        "vertical",
+        _vertical_phases(climb_m, rate_mps, kinematics),
+        0.0,
+        climb_m,
+        0.0,
+    )
+
+
+def _vertical_phases(climb_m: float, rate_mps: float, kin: Kinematics | None) -> list[_Phase]:
+    """A vertical move as (speed-up, steady, slow-down) phases at their mean rates; the
+    rate lowered when the move is too short to reach it."""
+    if climb_m == 0:
+        return []
+    sign = -1.0 if climb_m > 0 else 1.0  # NED: climbing is negative down-velocity
+    height = abs(climb_m)
+    ramp = kin.ramp_s(rate_mps, vertical=True) if kin is not None else 0.0
+    if ramp <= 0:
+        return [_Phase(0.0, 0.0, sign * rate_mps, height / rate_mps)]
+    accel = rate_mps / ramp
+    rate = min(rate_mps, math.sqrt(height * accel))  # triangular when too short
+    ramp = rate / accel
+    steady_m = height - rate * ramp
+    phases = [_Phase(0.0, 0.0, sign * rate / 2, ramp), _Phase(0.0, 0.0, sign * rate / 2, ramp)]
+    if steady_m > 0:
+        phases.insert(1, _Phase(0.0, 0.0, sign * rate, steady_m / rate))
+    return phases
 
 
 def landing_energy(
@@ -390,57 +580,56 @@ def landing_energy(
     final_height_m: float = 0.0,
     final_rate_mps: float | None = None,
     touchdown_s: float = 0.0,
+    kinematics: Kinematics | None = None,
 ) -> RouteEnergy:
     """Landing from ``height_m`` (m above the ground): down to ``final_height_m`` at
     ``descent_rate_mps``, the rest at ``final_rate_mps`` (m/s; None: the same rate), then
     ``touchdown_s`` (s) at hover power until the motors stop (ArduCopter's LAND: WPNAV_SPEED_DN
-    above LAND_ALT_LOW, then LAND_SPEED)."""
+    above LAND_ALT_LOW, then LAND_SPEED); with ``kinematics``, the first descent starts from
+    rest at its vertical acceleration."""
     if height_m < 0 or descent_rate_mps <= 0:
         raise ValueError("landing needs a height ≥ 0 and a descent rate > 0")
     slow_rate = descent_rate_mps if final_rate_mps is None else final_rate_mps
     if slow_rate <= 0:
         raise ValueError("final descent rate must be > 0")
     fast_m = max(height_m - final_height_m, 0.0)
-    slow_m = height_m - fast_m
+    ramp_s = kinematics.ramp_s(descent_rate_mps, vertical=True) if kinematics else 0.0
+    ramp_s = min(ramp_s, 2.0 * fast_m / descent_rate_mps)  # starting from rest
     phases = [
-        (0.0, 0.0, descent_rate_mps, fast_m / descent_rate_mps),
-        (0.0, 0.0, slow_rate, slow_m / slow_rate),
-        (0.0, 0.0, 0.0, max(touchdown_s, 0.0)),
+        _Phase(0.0, 0.0, descent_rate_mps / 2, ramp_s),
+        _Phase(
+            0.0, 0.0, descent_rate_mps, (fast_m - descent_rate_mps * ramp_s / 2) / descent_rate_mps
+        ),
+        _Phase(0.0, 0.0, slow_rate, (height_m - fast_m) / slow_rate),
+        _Phase(0.0, 0.0, 0.0, max(touchdown_s, 0.0)),
     ]
-    energy_wh, sens = _energy_with_sensitivity(vehicle, conditions, phases)
-    time_s = sum(p[3] for p in phases)
-    return RouteEnergy(
-        kind="landing",
-        distance_m=0.0,
-        climb_m=-height_m,
-        time_s=time_s,
-        ground_speed_mps=0.0,
-        airspeed_mps=conditions.wind_speed_mps,
-        power_w=energy_wh * _J_PER_WH / time_s if time_s > 0 else 0.0,
-        energy_wh=energy_wh,
-        sensitivity_wh=sens,
-    )
+    return _result(vehicle, conditions, "landing", phases, 0.0, -height_m, 0.0)
 
 
-def _segment(
+def _result(
     vehicle: RouteVehicle,
     conditions: Conditions,
     kind: str,
+    phases: Sequence[_Phase],
+    distance_m: float,
+    climb_m: float,
     ground_speed_mps: float,
-    track_deg: float,
-    climb_rate_mps: float,
-    time_s: float,
+    track_deg: float = 0.0,
 ) -> RouteEnergy:
-    """One steady segment: horizontal ground speed along a track and a vertical rate (+ up)."""
+    """A segment's energy, time and sensitivities from its phases; ``ground_speed_mps`` along
+    ``track_deg`` is its cruise (for the airspeed)."""
+    phases = [ph for ph in phases if ph.duration_s > 0]
+    time_s = sum(ph.duration_s for ph in phases)
+    if phases:
+        energy_wh, sens = _energy_with_sensitivity(vehicle, conditions, phases)
+    else:
+        energy_wh, sens = 0.0, (0.0,) * len(UNCERTAINTY_SOURCES)
     vn, ve = _velocity_ne(track_deg, ground_speed_mps)
-    energy_wh, sens = _energy_with_sensitivity(
-        vehicle, conditions, [(float(vn), float(ve), -climb_rate_mps, time_s)]
-    )
     wn, we = conditions.wind_ne_mps()
     return RouteEnergy(
         kind=kind,
-        distance_m=ground_speed_mps * time_s,
-        climb_m=climb_rate_mps * time_s,
+        distance_m=distance_m,
+        climb_m=climb_m,
         time_s=time_s,
         ground_speed_mps=ground_speed_mps,
         airspeed_mps=float(math.hypot(float(vn) - wn, float(ve) - we)),

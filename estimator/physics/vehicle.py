@@ -2,7 +2,7 @@
 
 Layout (all sections but ``[effects]`` required)::
 
-    [vehicle]        name, mass_kg
+    [vehicle]        name, mass_kg, max_airspeed_mps (optional: the fastest it flies, m/s)
     [model]          c1, c2, c3, c4, c5        (electrical power at the battery, W)
     [model.stderr]   c1, c2, c3, c4, c5        (1σ, same units; optional)
     [battery]        capacity_ah, cells, reserve_fraction
@@ -52,6 +52,8 @@ class Vehicle:
     battery: BatterySpec
     model_stderr: dict[str, float] = field(default_factory=dict)
     effects: dict[str, dict[str, Any]] = field(default_factory=dict)
+    #: The highest airspeed the vehicle reaches (m/s; None: not known), e.g. at its tilt limit.
+    max_airspeed_mps: float | None = None
 
     def input_limits(self) -> InputLimits:
         """Plausibility limits of telemetry for this vehicle's pack (cells) and hover power."""
@@ -62,7 +64,15 @@ class Vehicle:
         if self.model_stderr:
             model["stderr"] = dict(self.model_stderr)
         doc: dict[str, Any] = {
-            "vehicle": {"name": self.name, "mass_kg": self.mass_kg},
+            "vehicle": {
+                "name": self.name,
+                "mass_kg": self.mass_kg,
+                **(
+                    {"max_airspeed_mps": self.max_airspeed_mps}
+                    if self.max_airspeed_mps is not None
+                    else {}
+                ),
+            },
             "model": model,
             "battery": {
                 "capacity_ah": self.battery.capacity_ah,
@@ -107,6 +117,11 @@ def vehicle_from_toml(doc: dict[str, Any], where: str = "vehicle file") -> Vehic
     stderr_doc = model.get("stderr", {})
     stderr = {n: _number(stderr_doc, n, f"{where} [model.stderr]") for n in stderr_doc}
     mass_kg = _number(vehicle, "mass_kg", f"{where} [vehicle]", positive=True)
+    max_airspeed = (
+        _number(vehicle, "max_airspeed_mps", f"{where} [vehicle]", positive=True)
+        if "max_airspeed_mps" in vehicle
+        else None
+    )
     spec = BatterySpec(
         capacity_ah=_number(battery, "capacity_ah", f"{where} [battery]", positive=True),
         cells=int(_number(battery, "cells", f"{where} [battery]", positive=True)),
@@ -125,6 +140,7 @@ def vehicle_from_toml(doc: dict[str, Any], where: str = "vehicle file") -> Vehic
         battery=spec,
         model_stderr=stderr,
         effects=effects,
+        max_airspeed_mps=max_airspeed,
     )
 
 

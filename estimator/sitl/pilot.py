@@ -20,6 +20,7 @@ from pymavlink import mavutil
 from pymavlink.dialects.v20 import ardupilotmega as mavlink
 
 from estimator.errors import UserError
+from estimator.logs.mission_files import MissionItem
 
 #: Wall seconds without any message from the autopilot that mean SITL has stopped.
 STALL_WALL_S = 60.0
@@ -267,6 +268,26 @@ class Pilot:
     ) -> None:
         """Upload a mission: (command, frame, param1, param2, lat_deg, lon_deg, alt_m) per
         item; item 0 is home (ArduPilot overwrites it)."""
+        self.upload_items(
+            [
+                MissionItem(seq, cmd, frame, (p1, p2, 0.0, 0.0), lat, lon, alt, f"item {seq}")
+                for seq, (cmd, frame, p1, p2, lat, lon, alt) in enumerate(items)
+            ]
+        )
+
+    def upload_items(self, items: Sequence[MissionItem], attempts: int = 10) -> None:
+        """Upload mission items with the MISSION_ITEM_INT protocol (item 0 is home). NaN
+        params (a .plan's nulls) go as NaN, MAVLink's "unset"; a NaN position as 0, 0. An
+        autopilot still starting answers MAV_MISSION_NO_SPACE: retried every 2 s of its
+        clock."""
+        for _ in range(attempts):
+            if self._upload_once(items) != mavlink.MAV_MISSION_NO_SPACE:
+                return
+            self.hold(2.0)
+        raise UserError(f"SITL refused the mission (MISSION_ACK type {self.mission_ack})")
+
+    def _upload_once(self, items: Sequence[MissionItem]) -> int | None:
+        """One upload; the MISSION_ACK type when it is NO_SPACE, else UserError if refused."""
         self.mission_requests.clear()
         self.mission_ack = None
         self.conn.mav.mission_count_send(*AUTOPILOT, len(items), 0)
@@ -274,23 +295,29 @@ class Pilot:
 
         def serve() -> None:
             while self.mission_requests:
-                seq = self.mission_requests.pop(0)
-                cmd, frame, p1, p2, lat, lon, alt = items[seq]
+                item = items[self.mission_requests.pop(0)]
                 self.conn.mav.mission_item_int_send(
-                    *AUTOPILOT, seq, frame, cmd, 0, 1, p1, p2, 0, 0,
-                    round(lat * 1e7), round(lon * 1e7), alt, 0,
+                    *AUTOPILOT, item.seq, item.frame, item.command, 0, 1, *item.params,
+                    _e7(item.lat_deg), _e7(item.lon_deg), item.alt_m, 0,
                 )  # fmt: skip
-                sent.add(seq)
+                sent.add(item.seq)
 
         self.wait_for(lambda: self.mission_ack is not None, 30.0, "mission upload", serve)
+        if self.mission_ack == mavlink.MAV_MISSION_NO_SPACE and not sent:
+            return self.mission_ack
         if self.mission_ack != mavlink.MAV_MISSION_ACCEPTED or len(sent) != len(items):
             raise UserError(f"SITL refused the mission (MISSION_ACK type {self.mission_ack})")
+        return self.mission_ack
 
     def land(self, timeout_s: float = 120.0) -> None:
         """LAND and wait until the autopilot disarms on the ground; after 5 s on the ground
         disarm it (ArduCopter's land detector may not see a landing in SITL's wind)."""
         self.set_mode("LAND")
         self.wait_for(lambda: self.state.alt_m < 0.3, timeout_s, "landing")
+        self.wait_disarmed()
+
+    def wait_disarmed(self) -> None:
+        """Wait until the autopilot, on the ground, disarms; force it after 5 s there."""
         on_ground_s = self.state.boot_s
 
         def force() -> None:
@@ -300,3 +327,8 @@ class Pilot:
                 )
 
         self.wait_for(lambda: not self.state.armed, 30.0, "disarming", self.every(1.0, force))
+
+
+def _e7(deg: float) -> int:
+    """Degrees as MISSION_ITEM_INT's 1e-7 degree integers (NaN: 0, "here")."""
+    return round(deg * 1e7) if math.isfinite(deg) else 0

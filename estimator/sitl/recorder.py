@@ -22,6 +22,7 @@ from typing import Any
 from pymavlink.dialects.v20 import ardupilotmega as mavlink
 
 from estimator.errors import UserError
+from estimator.logs.mission_files import M_PER_DEG, load_mission
 from estimator.sitl.launch import (
     HOME,
     SitlOptions,
@@ -34,6 +35,7 @@ from estimator.sitl.pilot import Pilot
 from estimator.sitl.scenarios import (
     GRIPPER_LOAD_KG,
     GRIPPER_STRING_M,
+    AutoMission,
     Circle,
     Goto,
     Grip,
@@ -51,8 +53,6 @@ from estimator.sitl.scenarios import (
 AIRBORNE_M = 1.0
 #: Longest flight to the reserve (s of the autopilot's clock).
 MAX_FLIGHT_S = 3600.0
-#: Metres per degree of latitude (spherical Earth, for mission waypoints near home).
-M_PER_DEG = 111_319.5
 
 
 @dataclass
@@ -126,7 +126,8 @@ class Flight:
         for step in self.scenario.steps:
             self.step(step)
         self.landing = True
-        p.land()
+        if p.state.armed:
+            p.land()
         self.truth.event("disarmed_s", self.now_s)
         p.hold(2.0)
         for kind in ("wind", "payload"):
@@ -156,6 +157,8 @@ class Flight:
             self.gripped = step.grab
         elif isinstance(step, LegsToReserve):
             self._to_reserve(step)
+        elif isinstance(step, AutoMission):
+            self._auto_mission(step)
 
     def _goto(self, step: Goto) -> None:
         p = self.pilot
@@ -221,6 +224,28 @@ class Flight:
             "mission",
         )
         p.set_mode("GUIDED")
+
+    def _auto_mission(self, step: AutoMission) -> None:
+        """Upload the file's items, arm in GUIDED, MISSION_START (AUTO from the ground) and
+        wait until the mission has landed the vehicle and it disarmed."""
+        p = self.pilot
+        mission = load_mission(step.path)
+        legs = mission.legs()
+        if legs[-1].kind not in ("land", "rtl"):
+            raise UserError(f"{step.path}: an AUTO flight's mission must end with LAND or RTL")
+        p.upload_items(mission.items)
+        p.arm_guided()
+        p.command(mavlink.MAV_CMD_MISSION_START, 0, 0)
+        self.truth.event("mission_start_s", self.now_s)
+        p.wait_for(lambda: p.state.alt_m > AIRBORNE_M, 60.0, "mission take-off")
+        self.landing = True
+
+        def landed() -> bool:
+            return not p.state.armed or p.state.alt_m < 0.3
+
+        p.wait_for(landed, MAX_FLIGHT_S, "mission to its landing")
+        if p.state.armed:
+            p.wait_disarmed()
 
     def _wind(self, step: SetWind) -> None:
         p, t = self.pilot, self.truth
@@ -297,10 +322,20 @@ def record(
             finally:
                 pilot.close()
         logs = sorted((work / "logs").glob("*.BIN"), key=lambda f: f.stat().st_mtime)
+        for step in scenario.steps:
+            if isinstance(step, AutoMission):
+                _copy_mission(Path(step.path), out_dir)
         if scenario.dataflash and logs:
             shutil.copyfile(logs[-1], out_dir / "flight.BIN")
     (out_dir / "truth.json").write_text(json.dumps(truth.as_dict(), indent=1) + "\n")
     return truth
+
+
+def _copy_mission(path: Path, out_dir: Path) -> None:
+    """The flown mission file beside the recording, as ``mission.<suffix>``."""
+    target = out_dir / f"mission{path.suffix}"
+    if not target.exists() or not target.samefile(path):
+        shutil.copyfile(path, target)
 
 
 def _battery_truth(scenario: Scenario) -> dict[str, Any]:

@@ -5,7 +5,8 @@ autopilot's clock): :class:`Takeoff`, :class:`Hover`, :class:`Leg` (GUIDED veloc
 :class:`Goto` (GUIDED position), :class:`Circle` (GUIDED position + velocity + acceleration
 along a circle), :class:`Mission` (AUTO), :class:`SetWind` (SIM_WIND_SPD/SIM_WIND_DIR),
 :class:`Grip` (the simulated servo gripper), :class:`LegsToReserve` (out-and-back legs until
-the pack reaches its reserve). Every flight ends with LAND.
+the pack reaches its reserve), :class:`AutoMission` (a mission file in AUTO). Every flight
+ends with LAND (an AUTO mission that lands by itself ends there).
 
 Payload: ArduPilot's SITL servo gripper (SIM_GRPS_*) holds a 1.0 kg load once it closes on
 the ground; the load's mass is added to the multicopter's (``MultiCopter::gross_mass``) from
@@ -17,6 +18,7 @@ SIM_WIND_DIR is the direction it blows from.
 from __future__ import annotations
 
 from dataclasses import dataclass, field
+from pathlib import Path
 from typing import Any
 
 #: The servo gripper on output 9, as SITL's gripper model expects it.
@@ -115,7 +117,18 @@ class LegsToReserve:
     reserve_fraction: float = 0.2
 
 
-Step = Takeoff | Hover | Leg | Goto | Circle | Mission | SetWind | Grip | LegsToReserve
+@dataclass(frozen=True)
+class AutoMission:
+    """The mission file ``path`` (QGroundControl .plan or ArduPilot .waypoints) uploaded with
+    MISSION_ITEM_INT and flown in AUTO from the ground (armed in GUIDED, then
+    MAV_CMD_MISSION_START) until the autopilot has landed and disarmed."""
+
+    path: str
+
+
+Step = (
+    Takeoff | Hover | Leg | Goto | Circle | Mission | SetWind | Grip | LegsToReserve | AutoMission
+)
 
 
 @dataclass(frozen=True)
@@ -240,3 +253,24 @@ SCENARIOS: dict[str, Scenario] = {
         ),
     )
 }
+
+
+def mission_scenario(
+    path: str, wind: tuple[float, float] | None = None, gripper: bool = False
+) -> Scenario:
+    """A flight of the mission file ``path`` in AUTO, named after the file's directory (or
+    its stem for a file at the top), in a wind (m/s, from °) set before take-off, carrying the
+    gripper's load from take-off when ``gripper``."""
+    file = Path(path)
+    name = file.parent.name if file.stem == "mission" else file.stem
+    steps: list[Step] = []
+    parts = []
+    if wind is not None:
+        steps.append(SetWind(*wind))
+        parts.append(f"wind {wind[0]:g} m/s from {wind[1]:03.0f}°")
+    if gripper:
+        steps += [Grip(True), Hover(3)]
+        parts.append(f"{GRIPPER_LOAD_KG:g} kg gripper payload")
+    steps.append(AutoMission(str(file)))
+    description = f"AUTO mission {file.name}" + (f", {', '.join(parts)}" if parts else "")
+    return Scenario(name, description, tuple(steps))

@@ -1,0 +1,107 @@
+"""Predicted against measured energy of recorded AUTO missions (``replay/sitl/missions/``).
+
+A recording directory holds ``flight.tlog``, ``truth.json`` and the flown ``mission.plan`` or
+``mission.waypoints`` (``uav-energy sitl-record --mission``). Measured energy: V·I of the
+battery telemetry (SYS_STATUS voltage × BATTERY_STATUS current, as the log readers pair
+them), integrated by trapezoids from the mission start (MAV_CMD_MISSION_START accepted) to
+the disarm after landing. Predicted: :func:`~estimator.analysis.mission_energy.mission_energy`
+on the mission file with the wind and payload of the truth, and the PX4-style estimate beside.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from estimator.analysis.mission_energy import FlightSettings, MissionEnergy, mission_energy
+from estimator.errors import UserError
+from estimator.logs import load_flights
+from estimator.logs.mission_files import load_mission
+from estimator.physics.route_energy import Conditions
+from estimator.physics.vehicle import Vehicle
+
+
+@dataclass(frozen=True)
+class MissionCheck:
+    """One recorded mission: predicted (± 1σ) and PX4-style energy (Wh) and time (s) against
+    the measured."""
+
+    name: str
+    predicted_wh: float
+    predicted_sigma_wh: float
+    px4_wh: float
+    measured_wh: float
+    predicted_time_s: float
+    px4_time_s: float
+    measured_time_s: float
+
+    @property
+    def error_pct(self) -> float:
+        return 100.0 * (self.predicted_wh - self.measured_wh) / self.measured_wh
+
+    @property
+    def px4_error_pct(self) -> float:
+        return 100.0 * (self.px4_wh - self.measured_wh) / self.measured_wh
+
+
+def measured_energy(tlog: Path, start_s: float, end_s: float) -> tuple[float, float]:
+    """Battery energy (Wh) and duration (s) between ``start_s`` and ``end_s`` of the
+    autopilot's clock in ``tlog``."""
+    flights = load_flights([tlog])
+    if not flights:
+        raise UserError(f"{tlog}: no battery telemetry")
+    f = max(flights, key=len)
+    inside = (f.time_s >= start_s) & (f.time_s <= end_s) & np.isfinite(f.power_w)
+    t, p = f.time_s[inside], f.power_w[inside]
+    if len(t) < 2:
+        raise UserError(f"{tlog}: no battery readings between {start_s:g} and {end_s:g} s")
+    return float(np.trapezoid(p, t) / 3600.0), float(t[-1] - t[0])
+
+
+def truth_conditions(truth: dict, wind_sigma_mps: float = 0.0) -> Conditions:
+    """Wind and payload a recording's truth switched on (the first of each)."""
+    wind = next((e for e in truth.get("effects", []) if e["effect"] == "wind"), None)
+    payload = next((e for e in truth.get("effects", []) if e["effect"] == "payload"), None)
+    return Conditions(
+        wind_speed_mps=float(wind["speed_mps"]) if wind else 0.0,
+        wind_from_deg=float(wind["from_deg"]) if wind else 0.0,
+        payload_kg=float(payload["mass_kg"]) if payload else 0.0,
+        wind_sigma_mps=wind_sigma_mps,
+    )
+
+
+def predict_recording(
+    directory: Path, vehicle: Vehicle, settings: FlightSettings | None = None
+) -> MissionEnergy:
+    """The plan of a recording's mission file in its truth's wind and payload."""
+    files = sorted(directory.glob("mission.*"))
+    if not files:
+        raise UserError(f"{directory}: no mission.plan or mission.waypoints")
+    truth = json.loads((directory / "truth.json").read_text())
+    legs = load_mission(files[0]).legs()
+    return mission_energy(legs, vehicle, truth_conditions(truth), settings or FlightSettings())
+
+
+def check_recording(
+    directory: Path, vehicle: Vehicle, settings: FlightSettings | None = None
+) -> MissionCheck:
+    """Predicted against measured for one recording directory."""
+    truth = json.loads((directory / "truth.json").read_text())
+    events = truth["events"]
+    start, end = events.get("mission_start_s", math.nan), events.get("disarmed_s", math.nan)
+    measured_wh, measured_s = measured_energy(directory / "flight.tlog", start, end)
+    plan = predict_recording(directory, vehicle, settings)
+    return MissionCheck(
+        name=directory.name,
+        predicted_wh=plan.total.energy_wh,
+        predicted_sigma_wh=plan.total.energy_sigma_wh,
+        px4_wh=plan.px4.energy_wh,
+        measured_wh=measured_wh,
+        predicted_time_s=plan.total.time_s,
+        px4_time_s=plan.px4.time_s,
+        measured_time_s=measured_s,
+    )
