@@ -16,7 +16,6 @@ from estimator.estimation.return_home import (
     ReturnHome,
     ReturnInputs,
     ReturnSettings,
-    _ramp_time_s,
     distance_bearing,
 )
 from estimator.physics.effects import Wind
@@ -126,15 +125,15 @@ def test_the_autopilot_wind_is_used_when_asked_and_fresh() -> None:
     assert stale.wind_mps == 0.0
 
 
-def test_speed_ramps_and_the_stop_add_time() -> None:
-    assert _ramp_time_s(1000.0, 10.0, 2.5) == pytest.approx(4.0)
-    short = _ramp_time_s(10.0, 10.0, 2.5)  # never reaches 10 m/s: a triangle
-    assert short == pytest.approx(2 * math.sqrt(10.0 / 2.5) - 1.0)
+def test_stopping_a_flight_away_from_home_adds_its_time_and_distance() -> None:
     resting = returning(at(500.0)).figures(10.0, inputs())
     fleeing = returning(at(500.0)).figures(10.0, inputs(velocity_ne_mps=(10.0, 0.0)))
-    assert fleeing.time_s == pytest.approx(
-        resting.time_s + 4.0 + 20.0 / resting.speed_mps, rel=0.05
-    )
+    stop_s = 10.0 / 2.5 + 2.5 / 1.0  # WPNAV_ACCEL, WPNAV_JERK
+    extra_s = stop_s + 10.0 * stop_s / 2 / resting.speed_mps
+    assert fleeing.time_s == pytest.approx(resting.time_s + extra_s, rel=0.02)
+    assert fleeing.energy_wh > resting.energy_wh
+    towards = returning(at(500.0)).figures(10.0, inputs(velocity_ne_mps=(-10.0, 0.0)))
+    assert towards.time_s == pytest.approx(resting.time_s + stop_s, rel=0.02)
 
 
 def test_point_of_no_return_from_the_drain_and_the_growth_of_the_return() -> None:

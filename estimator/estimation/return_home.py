@@ -36,11 +36,13 @@ from estimator.physics.effects import Effect, Mass, Wind
 from estimator.physics.route_energy import (
     DEFAULT_CLIMB_RATE_MPS,
     DEFAULT_DESCENT_RATE_MPS,
+    DEFAULT_MAX_AIRSPEED_MPS,
     DEFAULT_MAX_GROUND_SPEED_MPS,
     MIN_GROUND_SPEED_MPS,
     UNCERTAINTY_SOURCES,
     Conditions,
     InfeasibleTrack,
+    Kinematics,
     RouteEnergy,
     RouteVehicle,
     hover_energy,
@@ -77,10 +79,16 @@ class ReturnSettings:
     return_speed_mps: 0 = the wind-optimal airspeed; else the ground speed the autopilot
     returns at (ArduPilot RTL_SPEED / WPNAV_SPEED, PX4 MPC_XY_CRUISE), m/s.
     max_airspeed_mps: the fastest the vehicle flies through the air (its lean-angle limit; the
-    wind-optimal search stays below it), m/s. max_ground_speed_mps: the fastest return ground
-    speed the autopilot accepts (ArduCopter RTL_SPEED ≤ 20 m/s), m/s.
-    accel_mps2: the autopilot's horizontal acceleration (ArduCopter WPNAV_ACCEL), m/s²: the
-    stop from the current velocity and the leg's speed ramps.
+    wind-optimal search stays below it), m/s; None: the vehicle file's ``max_airspeed_mps``,
+    else :data:`~estimator.physics.route_energy.DEFAULT_MAX_AIRSPEED_MPS`.
+    airspeed_along_track: that limit holds for the airspeed along the track (a multicopter
+    facing its track; :func:`~estimator.physics.route_energy.reachable_ground_speed_mps`).
+    max_ground_speed_mps: the fastest return ground speed the autopilot accepts (ArduCopter
+    RTL_SPEED ≤ 20 m/s), m/s.
+    accel_mps2, jerk_mps3, vertical_accel_mps2: how the autopilot changes speed (ArduCopter
+    WPNAV_ACCEL, WPNAV_JERK, WPNAV_ACCEL_Z): the stop from the current velocity and the speed
+    ramps (:class:`~estimator.physics.route_energy.Kinematics`). pause_s: RTL's pause in
+    place before it turns home (2 s, measured in SITL by the mission-energy work).
     climb_rate_mps / descent_rate_mps: vertical speeds of the climb and of the landing above
     land_alt_low_m (ArduCopter WPNAV_SPEED_UP / _DN, m/s); land_speed_mps below it (LAND_SPEED);
     loiter_s: hover over home before the descent (RTL_LOIT_TIME); touchdown_s: hover power
@@ -96,15 +104,19 @@ class ReturnSettings:
 
     return_alt_m: float = 15.0
     return_speed_mps: float = 0.0
-    max_airspeed_mps: float = 12.0
+    max_airspeed_mps: float | None = None
+    airspeed_along_track: bool = True
     max_ground_speed_mps: float = DEFAULT_MAX_GROUND_SPEED_MPS
     accel_mps2: float = 2.5
+    jerk_mps3: float = 1.0
+    vertical_accel_mps2: float = 1.0
+    pause_s: float = 2.0
     climb_rate_mps: float = DEFAULT_CLIMB_RATE_MPS
     descent_rate_mps: float = DEFAULT_DESCENT_RATE_MPS
     loiter_s: float = 5.0
     land_alt_low_m: float = 10.0
     land_speed_mps: float = 0.5
-    touchdown_s: float = 2.0
+    touchdown_s: float = 0.0
     rate_time_constant_s: float = 10.0
     wind_source: str = "tracked"
     autopilot_wind_sigma_mps: float = 1.0
@@ -185,6 +197,9 @@ class ReturnHome:
     def __init__(self, vehicle: Vehicle, settings: ReturnSettings | None = None) -> None:
         self._vehicle = RouteVehicle.from_vehicle(vehicle)
         self.settings = settings or ReturnSettings()
+        self._max_airspeed_mps = float(
+            self.settings.max_airspeed_mps or vehicle.max_airspeed_mps or DEFAULT_MAX_AIRSPEED_MPS
+        )
         self.position: PositionSample | None = None
         self.home: HomeSample | None = None
         self.mission: tuple[MissionItem, ...] | None = None
@@ -315,62 +330,44 @@ class ReturnHome:
         velocity_ne_mps: tuple[float, float] = (0.0, 0.0),
     ) -> tuple[RouteEnergy, float]:
         """The return (:mod:`estimator.physics.route_energy`, model energy before the bias) from
-        a ground velocity ``velocity_ne_mps`` (m/s): stop, climb in place to the return height,
-        the leg home with its speed ramps, the loiter over home, the landing; and the leg's
-        ground speed (m/s). Stop and ramps are held at hover power for the time they add
-        (``accel_mps2``); the distance flown away while stopping is added to the leg."""
+        a ground velocity ``velocity_ne_mps`` (m/s): stop and pause in place (at hover power;
+        the distance flown away while stopping is added to the leg), climb in place to the
+        return height, the leg home with the autopilot's speed ramps, the loiter over home, the
+        landing; and the leg's cruise ground speed (m/s)."""
         s = self.settings
+        rv, k = self._vehicle, Kinematics(s.accel_mps2, s.jerk_mps3, s.vertical_accel_mps2)
         height_m = max(alt_m, s.return_alt_m)
         vn, ve = velocity_ne_mps
         rad = math.radians(track_deg)
-        stop_s = math.hypot(vn, ve) / s.accel_mps2
+        stop_s = k.ramp_s(math.hypot(vn, ve))
         away_mps = max(-(vn * math.cos(rad) + ve * math.sin(rad)), 0.0)
         distance_m += away_mps * stop_s / 2.0
+        limits = {
+            "max_airspeed_mps": self._max_airspeed_mps,
+            "max_ground_speed_mps": s.max_ground_speed_mps,
+            "along_track": s.airspeed_along_track,
+        }
         speed = s.return_speed_mps if s.return_speed_mps > 0 else None
         try:
             leg = leg_energy(
-                self._vehicle,
-                conditions,
-                distance_m=distance_m,
-                track_deg=track_deg,
-                ground_speed_mps=speed,
-                max_airspeed_mps=s.max_airspeed_mps,
-                max_ground_speed_mps=s.max_ground_speed_mps,
-            )
+                rv, conditions, distance_m=distance_m, track_deg=track_deg,
+                ground_speed_mps=speed, kinematics=k, **limits,  # type: ignore[arg-type]
+            )  # fmt: skip
         except InfeasibleTrack:  # no headway within the airspeed limit: crawl (a lower bound)
             leg = leg_energy(
-                self._vehicle,
-                conditions,
-                distance_m=distance_m,
-                track_deg=track_deg,
+                rv, conditions, distance_m=distance_m, track_deg=track_deg,
                 ground_speed_mps=MIN_GROUND_SPEED_MPS,
-            )
-        ramps_s = _ramp_time_s(leg.distance_m, leg.ground_speed_mps, s.accel_mps2)
+            )  # fmt: skip
         total = sum_energies(
             [
-                hover_energy(self._vehicle, conditions, stop_s + ramps_s),
-                vertical_energy(self._vehicle, conditions, height_m - alt_m, s.climb_rate_mps),
+                hover_energy(rv, conditions, stop_s + s.pause_s),
+                vertical_energy(rv, conditions, height_m - alt_m, s.climb_rate_mps, kinematics=k),
                 leg,
-                hover_energy(self._vehicle, conditions, s.loiter_s),
+                hover_energy(rv, conditions, s.loiter_s),
                 landing_energy(
-                    self._vehicle,
-                    conditions,
-                    height_m,
-                    s.descent_rate_mps,
-                    final_height_m=s.land_alt_low_m,
-                    final_rate_mps=s.land_speed_mps,
-                    touchdown_s=s.touchdown_s,
+                    rv, conditions, height_m, s.descent_rate_mps, final_height_m=s.land_alt_low_m,
+                    final_rate_mps=s.land_speed_mps, touchdown_s=s.touchdown_s, kinematics=k,
                 ),
             ]
-        )
+        )  # fmt: skip
         return total, leg.ground_speed_mps
-
-
-def _ramp_time_s(distance_m: float, speed_mps: float, accel_mps2: float) -> float:
-    """Time (s) a leg of ``distance_m`` from rest to rest at ``accel_mps2`` takes beyond
-    ``distance_m / speed_mps`` (trapezoid, or triangle when too short to reach the speed)."""
-    if distance_m <= 0 or speed_mps <= 0:
-        return 0.0
-    if distance_m >= speed_mps**2 / accel_mps2:
-        return speed_mps / accel_mps2
-    return 2.0 * math.sqrt(distance_m / accel_mps2) - distance_m / speed_mps

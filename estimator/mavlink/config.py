@@ -46,7 +46,8 @@ class ServiceConfig:
     return_alt_m: height over home (m) the return flies at (ArduPilot's RTL_ALT; 15 m).
     return_speed_mps: the autopilot's return ground speed (m/s; 0: the wind-optimal one, which
     the ground station may then set as RTL_SPEED). max_airspeed_mps: the vehicle's fastest
-    airspeed (lean-angle limit), max_ground_speed_mps: the autopilot's fastest return speed.
+    airspeed (lean-angle limit; 0: the vehicle file's), max_ground_speed_mps: the autopilot's
+    fastest return speed.
     return_wind: "tracked" (the online tracker's wind) or "autopilot" (its WIND / WIND_COV).
     warning_margin_pct / critical_margin_pct: STATUSTEXT WARNING / CRITICAL to the ground
     stations when the return margin (energy above the reserve after the return) falls below
@@ -78,7 +79,7 @@ class ServiceConfig:
     log_level: str = "info"
     return_alt_m: float = 15.0
     return_speed_mps: float = 0.0
-    max_airspeed_mps: float = 12.0
+    max_airspeed_mps: float = 0.0
     max_ground_speed_mps: float = 20.0
     return_wind: str = "tracked"
     warning_margin_pct: float = 15.0
@@ -100,7 +101,7 @@ class ServiceConfig:
             return_home=ReturnSettings(
                 return_alt_m=self.return_alt_m,
                 return_speed_mps=self.return_speed_mps,
-                max_airspeed_mps=self.max_airspeed_mps,
+                max_airspeed_mps=self.max_airspeed_mps or None,
                 max_ground_speed_mps=self.max_ground_speed_mps,
                 wind_source=self.return_wind,
             ),
@@ -249,9 +250,10 @@ def validate(config: ServiceConfig) -> None:
         raise UserError("config 'return_alt_m' must be in [0, 1000] m")
     if not 0 <= config.return_speed_mps <= 50:
         raise UserError("config 'return_speed_mps' must be in [0, 50] m/s (0: wind-optimal)")
-    for name in ("max_airspeed_mps", "max_ground_speed_mps"):
-        if not 1 <= getattr(config, name) <= 50:
-            raise UserError(f"config '{name}' must be in [1, 50] m/s")
+    if not (config.max_airspeed_mps == 0 or 1 <= config.max_airspeed_mps <= 50):
+        raise UserError("config 'max_airspeed_mps' must be 0 (the vehicle file's) or in [1, 50]")
+    if not 1 <= config.max_ground_speed_mps <= 50:
+        raise UserError("config 'max_ground_speed_mps' must be in [1, 50] m/s")
     if config.return_wind not in ("tracked", "autopilot"):
         raise UserError("config 'return_wind' must be 'tracked' or 'autopilot'")
     if not config.critical_margin_pct <= config.warning_margin_pct <= 100:
