@@ -9,18 +9,26 @@ from dataclasses import replace
 import pytest
 
 from estimator.estimation.return_home import (
+    FLAG_MISSION_UNUSABLE,
     FLAG_NO_HOME,
     FLAG_NO_MISSION,
     FLAG_NO_POSITION,
     FLAG_NOT_FLYING,
+    MissionSample,
     ReturnHome,
     ReturnInputs,
     ReturnSettings,
     distance_bearing,
 )
+from estimator.logs.mission_files import MissionItem
 from estimator.physics.effects import Wind
 from estimator.physics.vehicle import default_vehicle
-from estimator.telemetry.samples import HomeSample, PositionSample, WindSample
+from estimator.telemetry.samples import (
+    HomeSample,
+    MissionCurrentSample,
+    PositionSample,
+    WindSample,
+)
 
 HOME = HomeSample(0.0, 47.0, 8.0, 400.0)
 M_PER_DEG = 111_195.0  # mean Earth radius
@@ -147,3 +155,48 @@ def test_point_of_no_return_from_the_drain_and_the_growth_of_the_return() -> Non
     assert gone.margin_wh < 0 and gone.pnr_s == 0.0
     grounded = returning(at(1000.0)).figures(10.0, inputs(flying=False))
     assert math.isnan(grounded.pnr_s) and grounded.flags & FLAG_NOT_FLYING
+
+
+def _mission(*north_m: float) -> MissionSample:
+    """ArduPilot-style: item 0 home, take-off to 20 m, waypoints north of home, RTL."""
+    items = [MissionItem(0, 16, 0, (0.0,) * 4, HOME.lat_deg, HOME.lon_deg, 400.0, "item 0")]
+    items.append(MissionItem(1, 22, 3, (0.0,) * 4, 0.0, 0.0, 20.0, "item 1"))
+    for i, n in enumerate(north_m, start=2):
+        p = at(n)
+        items.append(MissionItem(i, 16, 3, (0.0,) * 4, p.lat_deg, p.lon_deg, 20.0, f"item {i}"))
+    items.append(MissionItem(len(items), 20, 3, (0.0,) * 4, 0.0, 0.0, 0.0, "rtl"))
+    return MissionSample(0.0, tuple(items))
+
+
+def test_remaining_mission_energy_falls_as_the_mission_goes_on_and_includes_the_return() -> None:
+    from estimator.analysis.mission_energy import mission_energy
+
+    vehicle = default_vehicle()
+    r = ReturnHome(vehicle, mission_energy=lambda legs, c: mission_energy(legs, vehicle, c).total)
+    r.take(HOME)
+    r.take(at(0.0))
+    r.take(_mission(500.0, 1000.0, 1500.0))
+    r.take(MissionCurrentSample(0.0, 2))
+    start = r.figures(10.0, inputs())
+    r.take(at(1000.0))
+    r.take(MissionCurrentSample(20.0, 4))
+    later = r.figures(20.0, inputs(time_s=20.0))
+    assert start.mission_energy_wh > later.mission_energy_wh > later.energy_wh
+    assert start.mission_sigma_wh > 0 and start.mission_feasible is True
+    assert not start.flags & FLAG_NO_MISSION
+    poor = r.figures(30.0, inputs(time_s=30.0, energy_wh=1.0))
+    assert poor.mission_feasible is False
+
+
+def test_a_mission_without_navigation_items_is_flagged_not_raised() -> None:
+    from estimator.analysis.mission_energy import mission_energy
+
+    vehicle = default_vehicle()
+    r = ReturnHome(vehicle, mission_energy=lambda legs, c: mission_energy(legs, vehicle, c).total)
+    r.take(HOME)
+    r.take(at(300.0))
+    only_home = MissionItem(0, 16, 0, (0.0,) * 4, HOME.lat_deg, HOME.lon_deg, 400.0, "item 0")
+    r.take(MissionSample(0.0, (only_home, replace(only_home, seq=1, command=178))))
+    figures = r.figures(10.0, inputs())
+    assert figures.flags & FLAG_MISSION_UNUSABLE and math.isnan(figures.mission_energy_wh)
+    assert figures.mission_feasible is None and figures.energy_wh > 0

@@ -40,8 +40,8 @@ RTL_ALT_M, LOITER_S, UP_MPS, DOWN_MPS, LAND_LOW_M, LAND_MPS = 15.0, 5.0, 2.5, 1.
 TAKEOFF_M = 20.0
 #: The warm-up before the first point: east and back at 8 m/s, 25 s each.
 WARM_UP_VE_MPS, WARM_UP_S = (8.0, -8.0), 25.0
-#: The wind the daemon's return assumes: the autopilot's (SITL's quad hardly shows the wind in
-#: its power; its EKF estimates it from drag). The airspeed limit is the vehicle file's.
+#: The wind the daemon's return assumes: "tracked" (the online tracker's, the default) or
+#: "autopilot" (its EKF's, from drag). The airspeed limit is the vehicle file's.
 DAEMON_CONFIG = '[return]\nwind = "{wind}"\n'
 
 
@@ -140,7 +140,7 @@ def fly_rtl(
 
 
 def fly_points(
-    tmp_path: Path, points: tuple[tuple[str, float, float, float], ...], wind: str = "autopilot"
+    tmp_path: Path, points: tuple[tuple[str, float, float, float], ...], wind: str = "tracked"
 ) -> list[RtlPoint]:
     """Every point in one SITL run (one take-off and RTL each), with the wind set first."""
     out = []
@@ -193,7 +193,7 @@ def test_live_return_energy_is_within_10_percent_of_real_rtls_in_wind(tmp_path: 
 if __name__ == "__main__":
     out_dir = Path(sys.argv[1]) if len(sys.argv) > 1 else Path("out/rth_sitl")
     out_dir.mkdir(parents=True, exist_ok=True)
-    wind_source = sys.argv[2] if len(sys.argv) > 2 else "autopilot"
+    wind_source = sys.argv[2] if len(sys.argv) > 2 else "tracked"
     flown = fly_points(out_dir, POINTS, wind_source)
     print(table(flown))
     json.dump([asdict(p) for p in flown], sys.stdout, indent=1)

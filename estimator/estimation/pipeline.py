@@ -46,7 +46,13 @@ import numpy as np
 from estimator.estimation.airborne import AirborneGate, Phase
 from estimator.estimation.fusion import EnergyEstimate, EnergyFilter, FusionSettings
 from estimator.estimation.online_effects import OnlineEffects, TrackerReading
-from estimator.estimation.return_home import ReturnHome, ReturnInputs, ReturnSettings
+from estimator.estimation.return_home import (
+    MissionEnergyFn,
+    MissionSample,
+    ReturnHome,
+    ReturnInputs,
+    ReturnSettings,
+)
 from estimator.physics.battery import PackModel
 from estimator.physics.effects import (
     Climb,
@@ -62,7 +68,6 @@ from estimator.telemetry.samples import (
     BatterySample,
     HomeSample,
     MissionCurrentSample,
-    MissionSample,
     PositionSample,
     RebootSample,
     Sample,
@@ -236,7 +241,12 @@ class Pipeline:
     ``readings`` holds the :class:`PowerReading` of the period that the last estimate closed.
     """
 
-    def __init__(self, vehicle: Vehicle, settings: PipelineSettings | None = None) -> None:
+    def __init__(
+        self,
+        vehicle: Vehicle,
+        settings: PipelineSettings | None = None,
+        mission_energy: MissionEnergyFn | None = None,
+    ) -> None:
         self.vehicle = vehicle
         self.settings = settings or PipelineSettings()
         if not (self.settings.estimate_period_s > 0 and self.settings.track_period_s > 0):
@@ -287,7 +297,7 @@ class Pipeline:
         self._time_s: float | None = None  # newest sample time (ordering)
         self._loss_factor = 1.0
         #: Position, home and mission for the return figures of each estimate.
-        self.returning = ReturnHome(vehicle, self.settings.return_home)
+        self.returning = ReturnHome(vehicle, self.settings.return_home, mission_energy)
         self._refresh_speeds()
 
     # -- power: every prediction goes through predict_power_w ----------------------------------
@@ -385,8 +395,10 @@ class Pipeline:
 
     # -- samples ------------------------------------------------------------------------------
 
-    def process(self, sample: Sample) -> Estimate | None:
-        """Fold in one sample; return the new estimate when it closed a period."""
+    def process(self, sample: Sample | MissionSample) -> Estimate | None:
+        """Fold in one sample (or a mission read from the autopilot); return the new estimate
+        when it closed a period. ``mission_energy`` gives the rest of a mission's energy
+        (:mod:`estimator.estimation.return_home`; without it, no mission figures)."""
         if isinstance(sample, VelocitySample):
             self.counts["velocity"] += 1
             if self._out_of_order(sample.time_s, "velocity_out_of_order"):

@@ -29,9 +29,12 @@ exception.
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass, replace
 
+from estimator.errors import UserError
 from estimator.estimation.online_effects import wind_from_vector
+from estimator.logs.mission_files import MissionFile, MissionItem, MissionLeg
 from estimator.physics.effects import Effect, Mass, Wind
 from estimator.physics.route_energy import (
     DEFAULT_CLIMB_RATE_MPS,
@@ -55,20 +58,34 @@ from estimator.physics.vehicle import Vehicle
 from estimator.telemetry.samples import (
     HomeSample,
     MissionCurrentSample,
-    MissionItem,
-    MissionSample,
     PositionSample,
     WindSample,
 )
 
 FLAG_NO_HOME, FLAG_NO_POSITION, FLAG_NO_MISSION, FLAG_NOT_FLYING = 1, 2, 4, 8
+FLAG_MISSION_UNUSABLE = 16
 FLAG_NAMES = {
     FLAG_NO_HOME: "no home",
     FLAG_NO_POSITION: "no position",
     FLAG_NO_MISSION: "no mission",
     FLAG_NOT_FLYING: "not flying",
+    FLAG_MISSION_UNUSABLE: "mission energy not computable",
 }
+#: The model energy of mission legs flown in conditions, the return added when they end in the
+#: air (the daemon passes :func:`estimator.analysis.mission_energy.mission_energy`'s total).
+MissionEnergyFn = Callable[[Sequence[MissionLeg], Conditions], RouteEnergy]
 _EARTH_RADIUS_M = 6_371_008.8
+
+
+@dataclass(frozen=True, slots=True)
+class MissionSample:
+    """A whole mission read from the autopilot (the daemon's download), in sequence order,
+    item 0 being home (as ArduPilot numbers them), on the autopilot's clock ``time_s``."""
+
+    time_s: float
+    items: tuple[MissionItem, ...]
+
+
 ReturnSample = PositionSample | HomeSample | MissionSample | MissionCurrentSample | WindSample
 WIND_SOURCES = ("tracked", "autopilot")
 
@@ -94,6 +111,7 @@ class ReturnSettings:
     loiter_s: hover over home before the descent (RTL_LOIT_TIME); touchdown_s: hover power
     until the motors stop.
     rate_time_constant_s: smoothing of the return energy's rate of change (s).
+    mission_period_s: the mission's remaining energy is recomputed this often (s).
     wind_source: "tracked" (the wind in use: the online tracker's once identified, else the
     vehicle file's) or "autopilot" (the autopilot's own estimate, WIND / WIND_COV, with 1σ
     ``autopilot_wind_sigma_mps`` per component, while one is at most
@@ -118,6 +136,7 @@ class ReturnSettings:
     land_speed_mps: float = 0.5
     touchdown_s: float = 0.0
     rate_time_constant_s: float = 10.0
+    mission_period_s: float = 5.0
     wind_source: str = "tracked"
     autopilot_wind_sigma_mps: float = 1.0
     autopilot_wind_max_age_s: float = 10.0
@@ -194,8 +213,16 @@ class ReturnHome:
     """What the return needs that the estimator does not already hold: position, home,
     mission and the item flown; and the return energy's recent rate of change."""
 
-    def __init__(self, vehicle: Vehicle, settings: ReturnSettings | None = None) -> None:
+    def __init__(
+        self,
+        vehicle: Vehicle,
+        settings: ReturnSettings | None = None,
+        mission_energy: MissionEnergyFn | None = None,
+    ) -> None:
         self._vehicle = RouteVehicle.from_vehicle(vehicle)
+        self._mission_energy = mission_energy
+        self._mission_time_s = -math.inf  # sample clock of the last mission figure
+        self._mission_figures: tuple[float, float, bool | None, int] = (math.nan, math.nan, None, 0)
         self.settings = settings or ReturnSettings()
         self._max_airspeed_mps = float(
             self.settings.max_airspeed_mps or vehicle.max_airspeed_mps or DEFAULT_MAX_AIRSPEED_MPS
@@ -215,6 +242,7 @@ class ReturnHome:
             self.home = sample
         elif isinstance(sample, MissionSample):
             self.mission = sample.items
+            self._mission_time_s = -math.inf
         elif isinstance(sample, WindSample):
             self.autopilot_wind = sample
         else:
@@ -247,7 +275,7 @@ class ReturnHome:
         margin_wh = inputs.energy_wh - energy_wh * inputs.loss_factor
         margin_sigma_wh = math.hypot(inputs.energy_sigma_wh, sigma_wh * inputs.loss_factor)
         pnr_s = self._point_of_no_return(time_s, energy_wh, margin_wh, inputs)
-        return ReturnFigures(
+        figures = ReturnFigures(
             home_distance_m=distance_m,
             energy_wh=energy_wh,
             sigma_wh=sigma_wh,
@@ -260,6 +288,62 @@ class ReturnHome:
             pnr_s=pnr_s,
             flags=flags,
         )
+        mission_wh, mission_sigma_wh, feasible, mission_flags = self._mission_figures_now(
+            time_s, position, conditions, inputs
+        )
+        return replace(
+            figures,
+            mission_energy_wh=mission_wh,
+            mission_sigma_wh=mission_sigma_wh,
+            mission_feasible=feasible,
+            flags=flags | mission_flags,
+        )
+
+    def _mission_figures_now(
+        self,
+        time_s: float,
+        position: PositionSample,
+        conditions: Conditions,
+        inputs: ReturnInputs,
+    ) -> tuple[float, float, bool | None, int]:
+        """Energy (Wh, bias applied) and 1σ of the rest of the mission from here and the return
+        after it, whether it leaves the reserve, and a flag; recomputed once per
+        ``mission_period_s`` of sample clock (a whole mission's legs cost more than a return)."""
+        if self.mission is None or self._mission_energy is None:
+            return math.nan, math.nan, None, 0
+        if time_s - self._mission_time_s < self.settings.mission_period_s:
+            return self._mission_figures
+        self._mission_time_s = time_s
+        try:
+            legs = self._remaining_legs(position)
+            route = self._mission_energy(legs, conditions)
+        except (UserError, ValueError):  # no navigation item, a leg with no headway
+            self._mission_figures = (math.nan, math.nan, None, FLAG_MISSION_UNUSABLE)
+            return self._mission_figures
+        energy_wh, sigma_wh = self._scaled(route, inputs)
+        feasible = inputs.energy_wh - energy_wh * inputs.loss_factor >= 0
+        self._mission_figures = (energy_wh, sigma_wh, feasible, 0)
+        return self._mission_figures
+
+    def _remaining_legs(self, position: PositionSample) -> list[MissionLeg]:
+        """The mission's legs from the item flown (MISSION_CURRENT) on, the first starting
+        here; none left: a return from here."""
+        assert self.mission is not None and self.home is not None
+        home = self.home
+        mission = MissionFile(
+            "the autopilot's mission", home.lat_deg, home.lon_deg, home.alt_amsl_m, self.mission
+        )
+        here = mission.ned_m(
+            MissionItem(
+                -1, 16, 3, (0.0, 0.0, 0.0, 0.0), position.lat_deg, position.lon_deg,
+                position.alt_m or 0.0, "the vehicle's position",
+            )
+        )  # fmt: skip
+        seq = self.current_seq or 0
+        rest = [leg for leg in mission.legs() if leg.seq >= seq]
+        if not rest:
+            return [MissionLeg("rtl", seq, here, (0.0, 0.0, 0.0))]
+        return [replace(rest[0], start_ned_m=here), *rest[1:]]
 
     def _point_of_no_return(
         self, time_s: float, energy_wh: float, margin_wh: float, inputs: ReturnInputs
@@ -291,11 +375,17 @@ class ReturnHome:
         return_energy, speed_mps = self.route(
             distance_m, math.degrees(bearing_rad), alt_m, conditions, inputs.velocity_ne_mps
         )
-        model_wh = return_energy.energy_wh
-        sens = dict(zip(UNCERTAINTY_SOURCES, return_energy.sensitivity_wh, strict=True))
+        energy_wh, sigma_wh = self._scaled(return_energy, inputs)
+        return energy_wh, return_energy.time_s, sigma_wh, speed_mps
+
+    @staticmethod
+    def _scaled(route: RouteEnergy, inputs: ReturnInputs) -> tuple[float, float]:
+        """A route's model energy with the fused bias (Wh) and its 1σ (Wh): the bias's, the
+        wind's and the payload's (the model coefficients' σ is what the bias calibrates)."""
+        model_wh = route.energy_wh
+        sens = dict(zip(UNCERTAINTY_SOURCES, route.sensitivity_wh, strict=True))
         spread = (model_wh * inputs.bias_sigma, sens["wind_n"], sens["wind_e"], sens["payload"])
-        sigma_wh = inputs.bias * math.sqrt(sum(x * x for x in spread))
-        return inputs.bias * model_wh, return_energy.time_s, sigma_wh, speed_mps
+        return inputs.bias * model_wh, inputs.bias * math.sqrt(sum(x * x for x in spread))
 
     def conditions(self, inputs: ReturnInputs) -> Conditions:
         """Wind and payload of the return with their 1σ: the effects in use (the tracker's

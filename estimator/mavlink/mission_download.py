@@ -21,7 +21,7 @@ from collections.abc import Callable
 
 from pymavlink.dialects.v20 import common as mavlink
 
-from estimator.telemetry.samples import MissionItem
+from estimator.logs.mission_files import MissionItem
 
 log = logging.getLogger("uav_energy.mission")
 
@@ -182,4 +182,5 @@ def _item(msg: mavlink.MAVLink_message) -> MissionItem:
         lat_deg=msg.x / 1e7 if positioned else math.nan,
         lon_deg=msg.y / 1e7 if positioned else math.nan,
         alt_m=float(msg.z),
+        where=f"item {msg.seq}",
     )

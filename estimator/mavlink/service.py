@@ -32,6 +32,8 @@ from dataclasses import replace
 from pymavlink.dialects.v20 import common as mavlink
 
 from estimator.estimation.pipeline import Estimate, Pipeline, PipelineSettings
+from estimator.estimation.return_home import MissionEnergyFn, MissionSample
+from estimator.logs.mission_files import MissionItem
 from estimator.mavlink import publish
 from estimator.mavlink.config import ServiceConfig
 from estimator.mavlink.link import MavlinkLink, open_link, parse_url
@@ -41,7 +43,7 @@ from estimator.mavlink.mission_download import MissionDownload
 from estimator.physics.vehicle import Vehicle
 from estimator.telemetry.decode import ARDUPILOT_WIND_ID, SKIP_COUNTERS, TelemetryDecoder
 from estimator.telemetry.plausibility import pack_voltage_problem
-from estimator.telemetry.samples import BatterySample, MissionItem, MissionSample
+from estimator.telemetry.samples import BatterySample
 
 log = logging.getLogger("uav_energy.service")
 
@@ -74,11 +76,12 @@ class Service:
         config: ServiceConfig,
         vehicle: Vehicle,
         settings: PipelineSettings | None = None,
+        mission_energy: MissionEnergyFn | None = None,
     ) -> None:
         self.config = config
         if settings is None:
             settings = config.pipeline_settings()
-        self.pipeline = Pipeline(vehicle, settings)
+        self.pipeline = Pipeline(vehicle, settings, mission_energy)
         target = None
         if config.target_system:
             target = (config.target_system, config.target_component or 1)
@@ -110,6 +113,7 @@ class Service:
             config.hysteresis_pct * per_pct_wh,
         )
         self.mission: MissionDownload | None = None
+        self._home_first = True  # ArduPilot's mission item 0 is home; PX4's is not
         self._first_position_s: float | None = None
         self._home_requested_s = -1e9
         self.home_requests = 0
@@ -210,6 +214,7 @@ class Service:
             log.info("autopilot found: system %d component %d", *self.decoder.target)
             self._request_streams(now_s)
             self._start_mission(self.decoder.target)
+            self._home_first = msg.autopilot == mavlink.MAV_AUTOPILOT_ARDUPILOTMEGA
         if self.mission is not None and msg.get_type() in MISSION_MESSAGES:
             self.mission.on_message(msg, now_s)
         if counts["reboots"] != reboots:
@@ -267,7 +272,11 @@ class Service:
         self.mission = MissionDownload(link.send, link.mav, own, target, self._mission_read)
 
     def _mission_read(self, items: tuple[MissionItem, ...]) -> None:
-        """A downloaded mission into the pipeline, on the autopilot's clock."""
+        """A downloaded mission into the pipeline, on the autopilot's clock (item 0 is home:
+        a placeholder goes first for autopilots whose missions start with a real item)."""
+        if not self._home_first:
+            nan = float("nan")
+            items = (MissionItem(-1, 16, 0, (0.0,) * 4, nan, nan, 0.0, "home"), *items)
         self.pipeline.process(MissionSample(self.decoder.clock_s or 0.0, items))
 
     def _request_home(self, now_s: float) -> None:

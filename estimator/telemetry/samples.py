@@ -86,29 +86,6 @@ class HomeSample:
 
 
 @dataclass(frozen=True, slots=True)
-class MissionItem:
-    """One navigation item of a mission (MISSION_ITEM_INT): sequence number, MAV_CMD, frame,
-    the four parameters, WGS84 latitude/longitude (deg, NaN when the item has no position)
-    and altitude (m, in the item's frame)."""
-
-    seq: int
-    command: int
-    frame: int
-    params: tuple[float, float, float, float]
-    lat_deg: float
-    lon_deg: float
-    alt_m: float
-
-
-@dataclass(frozen=True, slots=True)
-class MissionSample:
-    """A whole mission read from the autopilot (the daemon's download), in sequence order."""
-
-    time_s: float
-    items: tuple[MissionItem, ...]
-
-
-@dataclass(frozen=True, slots=True)
 class MissionCurrentSample:
     """The mission item the autopilot is flying to (MISSION_CURRENT.seq) and the mission's
     item count (``total``; None when the autopilot does not say)."""
@@ -126,6 +103,5 @@ Sample = (
     | WindSample
     | PositionSample
     | HomeSample
-    | MissionSample
     | MissionCurrentSample
 )
