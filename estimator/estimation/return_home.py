@@ -51,6 +51,7 @@ from estimator.physics.route_energy import (
     hover_energy,
     landing_energy,
     leg_energy,
+    optimal_speed,
     sum_energies,
     vertical_energy,
 )
@@ -86,6 +87,8 @@ class MissionSample:
     items: tuple[MissionItem, ...]
 
 
+#: Wind-optimal speeds kept (the cache starts over when full).
+_SPEED_CACHE_SIZE = 4096
 ReturnSample = PositionSample | HomeSample | MissionSample | MissionCurrentSample | WindSample
 WIND_SOURCES = ("tracked", "autopilot")
 
@@ -219,8 +222,11 @@ class ReturnHome:
         settings: ReturnSettings | None = None,
         mission_energy: MissionEnergyFn | None = None,
     ) -> None:
-        self._vehicle = RouteVehicle.from_vehicle(vehicle)
+        # no sensitivities to the model's coefficients: live, the fused bias calibrates them
+        # (and each would cost a prediction per piece)
+        self._vehicle = replace(RouteVehicle.from_vehicle(vehicle), model_stderr=(0.0,) * 5)
         self._mission_energy = mission_energy
+        self._speeds: dict[tuple[float, ...], float] = {}  # _best_speed_mps's cache
         self._mission_time_s = -math.inf  # sample clock of the last mission figure
         self._mission_figures: tuple[float, float, bool | None, int] = (math.nan, math.nan, None, 0)
         self.settings = settings or ReturnSettings()
@@ -387,6 +393,37 @@ class ReturnHome:
         spread = (model_wh * inputs.bias_sigma, sens["wind_n"], sens["wind_e"], sens["payload"])
         return inputs.bias * model_wh, inputs.bias * math.sqrt(sum(x * x for x in spread))
 
+    def _best_speed_mps(self, conditions: Conditions, track_deg: float) -> float:
+        """The wind-optimal ground speed (m/s) at the track, wind and payload rounded to 1°,
+        0.1 m/s and 0.01 kg, cached: the search costs more than the rest of the return, and
+        in flight those inputs change slowly."""
+        key = (
+            round(track_deg) % 360,
+            round(conditions.wind_speed_mps, 1),
+            round(conditions.wind_from_deg) % 360,
+            round(conditions.payload_kg, 2),
+        )
+        speed = self._speeds.get(key)
+        if speed is None:
+            if len(self._speeds) >= _SPEED_CACHE_SIZE:
+                self._speeds.clear()
+            rounded = replace(
+                conditions, wind_speed_mps=key[1], wind_from_deg=key[2], payload_kg=key[3]
+            )
+            try:
+                speed = optimal_speed(
+                    self._vehicle,
+                    rounded,
+                    key[0],
+                    max_airspeed_mps=self._max_airspeed_mps,
+                    max_ground_speed_mps=self.settings.max_ground_speed_mps,
+                    along_track=self.settings.airspeed_along_track,
+                ).ground_speed_mps
+            except InfeasibleTrack:
+                speed = MIN_GROUND_SPEED_MPS
+            self._speeds[key] = speed
+        return speed
+
     def conditions(self, inputs: ReturnInputs) -> Conditions:
         """Wind and payload of the return with their 1σ: the effects in use (the tracker's
         σ, the larger component's), or the autopilot's wind (``wind_source``)."""
@@ -437,7 +474,7 @@ class ReturnHome:
             "max_ground_speed_mps": s.max_ground_speed_mps,
             "along_track": s.airspeed_along_track,
         }
-        speed = s.return_speed_mps if s.return_speed_mps > 0 else None
+        speed = s.return_speed_mps or self._best_speed_mps(conditions, track_deg)
         try:
             leg = leg_energy(
                 rv, conditions, distance_m=distance_m, track_deg=track_deg,
