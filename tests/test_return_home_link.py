@@ -428,3 +428,46 @@ async def test_pymavlink_and_mavsdk_clients_get_the_return_values_and_the_warnin
     )
     assert not to_autopilot.kinds("STATUSTEXT")
     assert not to_autopilot.kinds("NAMED_VALUE_FLOAT")
+
+
+async def test_the_simulator_answers_a_home_request_and_logs_the_home_in_its_tlog() -> None:
+    """``uav-energy sim`` (SimPlayer) answers MAV_CMD_REQUEST_MESSAGE(HOME_POSITION) with its
+    take-off point and writes that HOME_POSITION into its tlog, so a replay of the tlog sees
+    the home the daemon saw."""
+    import io
+
+    from test_service import free_udp_port
+
+    from estimator.mavlink.link import open_link
+    from estimator.sim.link import SimPlayer
+    from estimator.telemetry.decode import FrameParser
+
+    run = simulate(SimConfig(plan="hover-cruise", duration_s=20.0, seed=3))
+    port = free_udp_port()
+    gcs = await open_link(f"udpin:127.0.0.1:{port}", source_system=1)
+    autopilot = await open_link(f"udpout:127.0.0.1:{port}", source_system=1, source_component=1)
+    tlog = io.BytesIO()
+    player = SimPlayer(run, autopilot, speedup=10.0, tlog=tlog)
+    playing = asyncio.create_task(player.play())
+    got: list[mavlink.MAVLink_message] = []
+    async with asyncio.timeout(10):
+        while not any(m.get_type() == "HEARTBEAT" for m in got):
+            got += await gcs.recv()
+        gcs.send(
+            gcs.mav.command_long_encode(
+                1, 1, mavlink.MAV_CMD_REQUEST_MESSAGE, 0,
+                mavlink.MAVLINK_MSG_ID_HOME_POSITION, 0, 0, 0, 0, 0, 0,
+            )
+        )  # fmt: skip
+        while not any(m.get_type() == "HOME_POSITION" for m in got):
+            got += await gcs.recv()
+    playing.cancel()
+    await gcs.close()
+    await autopilot.close()
+    home_msg = next(m for m in got if m.get_type() == "HOME_POSITION")
+    config = run.config
+    assert home_msg.latitude == round(config.home_lat_deg * 1e7)
+    assert home_msg.altitude == round(config.home_msl_m * 1000)
+    logged = FrameParser().feed(tlog.getvalue())
+    assert any(m.get_type() == "HOME_POSITION" for m in logged)
+    assert player.counts["home_requests"] == 1

@@ -62,6 +62,7 @@ class SimPlayer:
         #: Current rate per message name (Hz), changed by the peer's requests.
         self.rates_hz = dict(self.simulated_hz)
         self._last_sent: dict[str, float] = {}
+        self._now_s: float | None = None  # simulated time of the last message sent
         self.counts: Counter[str] = Counter()
 
     # -- requests -----------------------------------------------------------------------------
@@ -109,7 +110,7 @@ class SimPlayer:
             0.0,
             0.0,
         )
-        self._send(home, None)
+        self._send(home, self._now_s)  # in the tlog too: a replay sees the home the peer saw
         ack = mav.command_ack_encode(
             mavlink.MAV_CMD_REQUEST_MESSAGE,
             mavlink.MAV_RESULT_ACCEPTED,
@@ -199,6 +200,7 @@ class SimPlayer:
                     self.counts["decimated"] += 1
                     continue
                 self._last_sent[name] = time_s
+                self._now_s = time_s
                 self._send(msg, time_s)
                 self.counts["sent"] += 1
             # let the last datagrams leave before the caller closes the link
