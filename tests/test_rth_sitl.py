@@ -16,12 +16,14 @@ prints the table docs/daemon.md gives; the test flies two of them.
 from __future__ import annotations
 
 import json
+import math
 import sys
 from dataclasses import asdict, dataclass
 from pathlib import Path
 
 from test_ardupilot_sitl import FITTED_VEHICLE, LiveDaemon, live_daemon, needs_sitl
 
+from estimator.sitl.launch import HOME
 from estimator.sitl.pilot import Pilot
 
 #: SITL's wind: speed m/s, direction it blows from (deg).
@@ -192,7 +194,52 @@ def test_live_return_energy_is_within_10_percent_of_real_rtls_in_wind(tmp_path: 
         assert abs(p.error_pct) < 10.0, table(points)
 
 
+#: The live mission check: waypoints (north, east m from home) at 20 m, then RTL.
+MISSION_WAYPOINTS = ((300.0, 0.0), (300.0, 300.0), (0.0, 300.0))
+
+
+def fly_mission(tmp_path: Path) -> dict[str, float]:
+    """After the warm-up, upload :data:`MISSION_WAYPOINTS` + RTL while hovering (the daemon
+    reads the changed mission), fly it in AUTO to the disarm: the daemon's MIS_WH at the switch
+    against the energy the autopilot used."""
+    lat0, lon0 = HOME[0], HOME[1]
+    per_deg = 111_319.5
+    with live_daemon(tmp_path, FITTED_VEHICLE) as live:
+        pilot = live.pilot()
+        try:
+            pilot.connect()
+            pilot.set_param("SIM_WIND_SPD", WIND[0])
+            pilot.set_param("SIM_WIND_DIR", WIND[1])
+            warm_up(pilot)
+            items = [(16, 0, 0.0, 0.0, lat0, lon0, HOME[2])]
+            for north, east in MISSION_WAYPOINTS:
+                lat = lat0 + north / per_deg
+                lon = lon0 + east / (per_deg * math.cos(math.radians(lat0)))
+                items.append((16, 3, 0.0, 0.0, lat, lon, TAKEOFF_M))
+            items.append((20, 3, 0.0, 0.0, 0.0, 0.0, 0.0))
+            pilot.upload_mission(items)
+            pilot.hold(8.0)
+            switch_s, consumed_wh = pilot.state.boot_s, pilot.state.consumed_wh
+            pilot.set_mode("AUTO")
+            pilot.wait_for(lambda: not pilot.state.armed, 600.0, "mission to the disarm")
+            used_wh = pilot.state.consumed_wh - consumed_wh
+        finally:
+            pilot.close()
+        at = _latest(live, switch_s)
+    return {
+        "mission_wh": at["mission_energy_wh"],
+        "mission_sigma_wh": at["mission_sigma_wh"],
+        "used_wh": used_wh,
+        "error_pct": 100.0 * (at["mission_energy_wh"] / used_wh - 1.0),
+    }
+
+
 if __name__ == "__main__":
+    if sys.argv[1:2] == ["--mission"]:
+        mission_dir = Path(sys.argv[2] if len(sys.argv) > 2 else "out/rth_sitl_mission")
+        mission_dir.mkdir(parents=True, exist_ok=True)
+        print(json.dumps(fly_mission(mission_dir), indent=1))
+        sys.exit(0)
     out_dir = Path(sys.argv[1]) if len(sys.argv) > 1 else Path("out/rth_sitl")
     out_dir.mkdir(parents=True, exist_ok=True)
     wind_source = sys.argv[2] if len(sys.argv) > 2 else "tracked"

@@ -6,7 +6,8 @@ links are not disturbed: we never upload, clear or set anything. Each request wa
 :data:`ITEM_TIMEOUT_S` (wall clock) and is resent up to :data:`RETRIES` times; a failed
 download (no answer, an error MISSION_ACK to us) is counted and retried after
 :data:`RETRY_AFTER_S`. The mission is read again when it changes: MISSION_CURRENT's item
-count changes, or the autopilot acknowledges a transfer to someone else (an upload finished).
+count changes or disagrees with the mission read (ArduPilot's count leaves out its home
+item 0), or the autopilot acknowledges a transfer to someone else (an upload finished).
 
 Event-driven, no task of its own: the daemon hands it the autopilot's messages
 (:meth:`MissionDownload.on_message`) and calls :meth:`MissionDownload.tick` once a second.
@@ -94,11 +95,15 @@ class MissionDownload:
         kind = msg.get_type()
         if kind == "MISSION_CURRENT":
             total = getattr(msg, "total", 0)
-            if total in (0, 0xFFFF):
+            if total == 0:  # the autopilot does not say
                 return
-            if self._total is not None and total != self._total:
-                self._changed(now_s, f"item count {self._total} → {total}")
+            total = 0 if total == 0xFFFF else total  # UINT16_MAX: no mission
+            changed = self._total is not None and total != self._total
+            # the count read: ArduPilot's total leaves out its home item 0, PX4's has none
+            stale = self.items is not None and len(self.items) not in (total, total + 1)
             self._total = total
+            if (changed or stale) and not self._active:
+                self._changed(now_s, f"{total} items now")
             return
         if getattr(msg, "mission_type", 0) != mavlink.MAV_MISSION_TYPE_MISSION:
             return
