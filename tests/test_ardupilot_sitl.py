@@ -240,7 +240,10 @@ class LiveDaemon:
 
 @contextlib.contextmanager
 def live_daemon(
-    tmp_path: Path, vehicle: Path, model_json: dict | None = None
+    tmp_path: Path,
+    vehicle: Path,
+    model_json: dict | None = None,
+    daemon_args: tuple[str, ...] = (),
 ) -> Iterator[LiveDaemon]:
     assert SITL_BINARY is not None
     opts = SitlOptions(
@@ -255,7 +258,7 @@ def live_daemon(
     out, log = tmp_path / "estimates.jsonl", tmp_path / "daemon.log"
     args = [str(EXE), "run", "--connect", f"tcp:127.0.0.1:{serial_port(opts.instance)}"]
     args += ["--json", "-", "--vehicle", str(vehicle), "--rate", "5"]
-    args += ["--publish", f"udpout:127.0.0.1:{gcs.port}"]
+    args += ["--publish", f"udpout:127.0.0.1:{gcs.port}", *daemon_args]
     with running_sitl(opts) as sitl, out.open("wb") as out_fh, log.open("wb") as log_fh:
         daemon = subprocess.Popen(args, stdout=out_fh, stderr=log_fh)
         gcs.start()

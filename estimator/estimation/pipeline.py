@@ -46,8 +46,15 @@ import numpy as np
 
 from estimator.errors import UserError
 from estimator.estimation.airborne import AirborneGate, Phase
-from estimator.estimation.fusion import EnergyFilter, FusionSettings
+from estimator.estimation.fusion import EnergyEstimate, EnergyFilter, FusionSettings
 from estimator.estimation.online_effects import OnlineEffects, TrackerReading
+from estimator.estimation.return_home import (
+    MissionEnergyFn,
+    MissionSample,
+    ReturnHome,
+    ReturnInputs,
+    ReturnSettings,
+)
 from estimator.physics.battery import PackModel
 from estimator.physics.effects import (
     Climb,
@@ -62,6 +69,9 @@ from estimator.physics.vehicle import Vehicle
 from estimator.telemetry.samples import (
     ArmedSample,
     BatterySample,
+    HomeSample,
+    MissionCurrentSample,
+    PositionSample,
     RebootSample,
     Sample,
     VelocitySample,
@@ -100,7 +110,8 @@ class PipelineSettings:
     published once flying readings (:mod:`estimator.estimation.airborne`) have been fused for this
     long
     (s, sample clock): the bias then rests on them, not on its prior (a payload carried from
-    take-off puts the measured power 30–40 % above the model's)."""
+    take-off puts the measured power 30–40 % above the model's). return_home: the return
+    and mission figures (:mod:`estimator.estimation.return_home`)."""
 
     kinematics: KinematicsSettings = field(default_factory=KinematicsSettings)
     fusion: FusionSettings = field(default_factory=FusionSettings)
@@ -110,6 +121,7 @@ class PipelineSettings:
     estimate_period_s: float = 1.0
     track_period_s: float = 2.0
     endurance_valid_after_s: float = 2.0
+    return_home: ReturnSettings = field(default_factory=ReturnSettings)
 
 
 @dataclass(frozen=True, slots=True)
@@ -131,6 +143,14 @@ class Estimate:
     model's
     scale is learnt only in flight. Publishers do not give the endurance figures before
     (:mod:`estimator.mavlink.publish`).
+    home_distance_m, rth_*, margin_*, pnr_s, mission_*, rth_flags: the return home and the
+    mission (:mod:`estimator.estimation.return_home`): distance to home over ground (m), the
+    electrical energy (Wh) and time (s) of the return, the ground speed home (m/s) and the
+    wind assumed (m/s, from °), the margin (usable energy above the
+    reserve left after it, Wh), the point of no return (s until the margin is 0 at the current
+    power), the energy of the rest of the mission and the return after it (Wh), and whether it
+    leaves the reserve (None: unknown); NaN with a bit of ``rth_flags`` set when an input is
+    missing (:data:`~estimator.estimation.return_home.FLAG_NAMES`).
     """
 
     time_s: float
@@ -160,6 +180,20 @@ class Estimate:
     vme_endurance_sigma_s: float = math.nan
     range_vmr_sigma_m: float = math.nan
     endurance_valid: bool = True
+    home_distance_m: float = math.nan
+    rth_energy_wh: float = math.nan
+    rth_sigma_wh: float = math.nan
+    rth_time_s: float = math.nan
+    rth_speed_mps: float = math.nan
+    rth_wind_mps: float = math.nan
+    rth_wind_from_deg: float = math.nan
+    margin_wh: float = math.nan
+    margin_sigma_wh: float = math.nan
+    pnr_s: float = math.nan
+    mission_energy_wh: float = math.nan
+    mission_sigma_wh: float = math.nan
+    mission_feasible: bool | None = None
+    rth_flags: int = 0
 
     def as_dict(self) -> dict[str, float | bool | None]:
         return {name: getattr(self, name) for name in _ESTIMATE_FIELDS}
@@ -221,7 +255,12 @@ class Pipeline:
     ``readings`` holds the :class:`PowerReading` of the period that the last estimate closed.
     """
 
-    def __init__(self, vehicle: Vehicle, settings: PipelineSettings | None = None) -> None:
+    def __init__(
+        self,
+        vehicle: Vehicle,
+        settings: PipelineSettings | None = None,
+        mission_energy: MissionEnergyFn | None = None,
+    ) -> None:
         self.vehicle = vehicle
         self.settings = settings or PipelineSettings()
         if not (self.settings.estimate_period_s > 0 and self.settings.track_period_s > 0):
@@ -272,6 +311,8 @@ class Pipeline:
         self._time_s: float | None = None  # newest sample time (ordering)
         self._loss_factor = 1.0
         self._resume: _Resume | None = None
+        #: Position, home and mission for the return figures of each estimate.
+        self.returning = ReturnHome(vehicle, self.settings.return_home, mission_energy)
         self._refresh_speeds()
 
     # -- power: every prediction goes through predict_power_w ----------------------------------
@@ -369,8 +410,10 @@ class Pipeline:
 
     # -- samples ------------------------------------------------------------------------------
 
-    def process(self, sample: Sample) -> Estimate | None:
-        """Fold in one sample; return the new estimate when it closed a period."""
+    def process(self, sample: Sample | MissionSample) -> Estimate | None:
+        """Fold in one sample (or a mission read from the autopilot); return the new estimate
+        when it closed a period. ``mission_energy`` gives the rest of a mission's energy
+        (:mod:`estimator.estimation.return_home`; without it, no mission figures)."""
         if isinstance(sample, VelocitySample):
             self.counts["velocity"] += 1
             if self._out_of_order(sample.time_s, "velocity_out_of_order"):
@@ -404,6 +447,9 @@ class Pipeline:
             return self._reboot(sample)
         elif isinstance(sample, WindSample):
             return None  # the autopilot's wind is a channel of the offline residual analysis
+        elif isinstance(sample, PositionSample | HomeSample | MissionSample | MissionCurrentSample):
+            self.returning.take(sample)
+            return None
         else:
             self.counts["unknown_sample"] += 1
             return None
@@ -517,6 +563,7 @@ class Pipeline:
         self._state = None
         self._armed = None
         self._battery = None
+        self.returning.restart()
         if self.energy.initialized:
             self.energy.rebase(sample.time_s)
             self._resistance_time_s = sample.time_s
@@ -690,6 +737,31 @@ class Pipeline:
             self._refresh_speeds()
             self._speeds_time_s = time_s
 
+    def _return_inputs(self, est: EnergyEstimate, steady_w: float) -> ReturnInputs:
+        """The state the return figures rest on (:mod:`estimator.estimation.return_home`)."""
+        settings, state = self.settings.return_home, self._state
+        if self.online is not None:
+            sigma = self.online.sigma
+            wind_sigma = (sigma["wind_n_mps"], sigma["wind_e_mps"])
+            mass_sigma_kg = sigma["mass_kg"]
+        else:
+            wind_sigma = (settings.untracked_wind_sigma_mps,) * 2
+            mass_sigma_kg = settings.untracked_mass_sigma_fraction * self.vehicle.mass_kg
+        return ReturnInputs(
+            time_s=self._time_s or 0.0,
+            velocity_ne_mps=(0.0, 0.0) if state is None else (state.vn_mps, state.ve_mps),
+            effects=self.effects,
+            wind_sigma_ne_mps=wind_sigma,
+            mass_sigma_kg=mass_sigma_kg,
+            bias=est.bias,
+            bias_sigma=est.bias_sigma,
+            energy_wh=est.energy_wh,
+            energy_sigma_wh=est.energy_sigma_wh,
+            loss_factor=self._loss_factor,
+            steady_power_w=steady_w,
+            flying=self.endurance_valid,
+        )
+
     def _emit(self, time_s: float) -> Estimate:
         est = self.energy.estimate()
         state = self._state
@@ -701,6 +773,7 @@ class Pipeline:
         battery = self._battery
         stale = battery is None or time_s - battery.time_s > self.settings.battery_stale_s
         voltage = self.energy.voltage
+        back = self.returning.figures(time_s, self._return_inputs(est, steady_w))
         estimate = Estimate(
             time_s=time_s,
             speed_mps=0.0 if state is None else state.speed_mps,
@@ -729,6 +802,20 @@ class Pipeline:
             vme_endurance_sigma_s=vme_sigma_s,
             range_vmr_sigma_m=self.v_mr_mps * vmr_sigma_s,
             endurance_valid=self.endurance_valid,
+            home_distance_m=back.home_distance_m,
+            rth_energy_wh=back.energy_wh,
+            rth_sigma_wh=back.sigma_wh,
+            rth_time_s=back.time_s,
+            rth_speed_mps=back.speed_mps,
+            rth_wind_mps=back.wind_mps,
+            rth_wind_from_deg=back.wind_from_deg,
+            margin_wh=back.margin_wh,
+            margin_sigma_wh=back.margin_sigma_wh,
+            pnr_s=back.pnr_s,
+            mission_energy_wh=back.mission_energy_wh,
+            mission_sigma_wh=back.mission_sigma_wh,
+            mission_feasible=back.mission_feasible,
+            rth_flags=back.flags,
         )
         self.last = estimate
         self.counts["estimates"] += 1

@@ -49,6 +49,18 @@ class ServiceConfig:
     of
     keeping the vehicle file's values for the whole flight.
     log_level: debug, info, warning or error.
+    return_alt_m: height over home (m) the return flies at (ArduPilot's RTL_ALT; 15 m).
+    return_speed_mps: the autopilot's return ground speed (m/s; 0: the wind-optimal one, which
+    the ground station may then set as RTL_SPEED). max_airspeed_mps: the vehicle's fastest
+    airspeed (lean-angle limit; 0: the vehicle file's), max_ground_speed_mps: the autopilot's
+    fastest return speed.
+    return_wind: "tracked" (the online tracker's wind) or "autopilot" (its WIND / WIND_COV).
+    warning_margin_pct / critical_margin_pct: STATUSTEXT WARNING / CRITICAL to the ground
+    stations when the return margin (energy above the reserve after the return) falls below
+    this share (%) of a full pack's usable energy; hysteresis_pct: it must rise this much above
+    the threshold before the next crossing warns again.  statustext_to_autopilot: also send
+    those STATUSTEXTs on the connect link.  download_mission: read the autopilot's mission
+    (MAVLink mission protocol, read-only) for the mission energy.
     fusion: noise figures overriding :class:`~estimator.estimation.fusion.FusionSettings` defaults
     (the ``[fusion]`` table), as (name, value) pairs.
     """
@@ -77,15 +89,34 @@ class ServiceConfig:
     vehicle: str = ""
     track_effects: bool = True
     log_level: str = "info"
+    return_alt_m: float = 15.0
+    return_speed_mps: float = 0.0
+    max_airspeed_mps: float = 0.0
+    max_ground_speed_mps: float = 20.0
+    return_wind: str = "tracked"
+    warning_margin_pct: float = 15.0
+    critical_margin_pct: float = 5.0
+    hysteresis_pct: float = 2.0
+    statustext_to_autopilot: bool = False
+    download_mission: bool = True
     fusion: tuple[tuple[str, float], ...] = ()
 
     def pipeline_settings(self) -> PipelineSettings:
         """The pipeline's settings this configuration asks for."""
         from estimator.estimation.fusion import FusionSettings
         from estimator.estimation.pipeline import PipelineSettings
+        from estimator.estimation.return_home import ReturnSettings
 
         return PipelineSettings(
-            fusion=FusionSettings(**dict(self.fusion)), track_effects=self.track_effects
+            fusion=FusionSettings(**dict(self.fusion)),
+            track_effects=self.track_effects,
+            return_home=ReturnSettings(
+                return_alt_m=self.return_alt_m,
+                return_speed_mps=self.return_speed_mps,
+                max_airspeed_mps=self.max_airspeed_mps or None,
+                max_ground_speed_mps=self.max_ground_speed_mps,
+                wind_source=self.return_wind,
+            ),
         )
 
     @property
@@ -119,6 +150,16 @@ _KEYS = {
     ("vehicle", "file"): "vehicle",
     ("vehicle", "track_effects"): "track_effects",
     ("log", "level"): "log_level",
+    ("return", "alt_m"): "return_alt_m",
+    ("return", "speed_mps"): "return_speed_mps",
+    ("return", "max_airspeed_mps"): "max_airspeed_mps",
+    ("return", "max_ground_speed_mps"): "max_ground_speed_mps",
+    ("return", "wind"): "return_wind",
+    ("return", "warning_margin_pct"): "warning_margin_pct",
+    ("return", "critical_margin_pct"): "critical_margin_pct",
+    ("return", "hysteresis_pct"): "hysteresis_pct",
+    ("return", "statustext_to_autopilot"): "statustext_to_autopilot",
+    ("return", "download_mission"): "download_mission",
 }
 #: Fields holding file paths: relative ones in a config file are relative to its directory.
 _PATH_FIELDS = frozenset({"vehicle", "signing_key_file", "state_file"})
@@ -232,6 +273,22 @@ def validate(config: ServiceConfig) -> None:
             raise UserError(f"config '{name}' must be > 0")
     if config.require_signing and not config.signing_key_file:
         raise UserError("config 'require_signing' needs a signing key_file")
+    if not 0 <= config.return_alt_m <= 1000:
+        raise UserError("config 'return_alt_m' must be in [0, 1000] m")
+    if not 0 <= config.return_speed_mps <= 50:
+        raise UserError("config 'return_speed_mps' must be in [0, 50] m/s (0: wind-optimal)")
+    if not (config.max_airspeed_mps == 0 or 1 <= config.max_airspeed_mps <= 50):
+        raise UserError("config 'max_airspeed_mps' must be 0 (the vehicle file's) or in [1, 50]")
+    if not 1 <= config.max_ground_speed_mps <= 50:
+        raise UserError("config 'max_ground_speed_mps' must be in [1, 50] m/s")
+    if config.return_wind not in ("tracked", "autopilot"):
+        raise UserError("config 'return_wind' must be 'tracked' or 'autopilot'")
+    if not config.critical_margin_pct <= config.warning_margin_pct <= 100:
+        raise UserError(
+            "config 'critical_margin_pct' ≤ 'warning_margin_pct' ≤ 100 % of the usable energy"
+        )
+    if not 0 <= config.hysteresis_pct <= 50:
+        raise UserError("config 'hysteresis_pct' must be in [0, 50] %")
     if config.json not in ("", "-") and not config.json.startswith("udp:"):
         raise UserError(f"config 'json' must be '', '-' or udp:HOST:PORT, got {config.json!r}")
     if config.json.startswith("udp:"):

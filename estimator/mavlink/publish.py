@@ -53,6 +53,24 @@ NAMED_VALUES: dict[str, tuple[str, Callable[[Estimate], float]]] = {
         "bit 0 model_only, bit 1 stale, bit 2 endurance not yet valid",
         lambda e: float(e.model_only + 2 * e.stale + 4 * (not e.endurance_valid)),
     ),
+    "HOME_M": ("m to home over ground", lambda e: e.home_distance_m),
+    "RTH_WH": ("Wh to return home and land", lambda e: e.rth_energy_wh),
+    "RTH_SIG": ("Wh, 1σ of RTH_WH", lambda e: e.rth_sigma_wh),
+    "RTH_S": ("s to return home and land", lambda e: e.rth_time_s),
+    "RTH_VG": ("m/s, ground speed home of least energy", lambda e: e.rth_speed_mps),
+    "MARGIN_WH": ("Wh above the reserve after the return", lambda e: e.margin_wh),
+    "MARGIN_SIG": ("Wh, 1σ of MARGIN_WH", lambda e: e.margin_sigma_wh),
+    "PNR_S": ("s to the point of no return", lambda e: e.pnr_s),
+    "MIS_WH": ("Wh for the rest of the mission and the return", lambda e: e.mission_energy_wh),
+    "MIS_SIG": ("Wh, 1σ of MIS_WH", lambda e: e.mission_sigma_wh),
+    "MIS_OK": (
+        "1 mission + return feasible with the reserve, 0 not, NaN unknown",
+        lambda e: _nan(None if e.mission_feasible is None else float(e.mission_feasible)),
+    ),
+    "RTH_FLAGS": (
+        "bit 0 no home, 1 no position, 2 no mission, 3 not flying",
+        lambda e: float(e.rth_flags),
+    ),
 }
 #: Estimate fields not published before :attr:`Estimate.endurance_valid`.
 ENDURANCE_FIELDS = frozenset(
@@ -99,6 +117,11 @@ def named_values(link: MavlinkLink, estimate: Estimate) -> list[mavlink.MAVLink_
         )
         for name, (_, getter) in NAMED_VALUES.items()
     ]
+
+
+def statustext(link: MavlinkLink, severity: int, text: str) -> mavlink.MAVLink_message:
+    """A STATUSTEXT (MAV_SEVERITY, text of at most 50 characters)."""
+    return link.mav.statustext_encode(severity, text.encode()[:50])
 
 
 def remaining_percent(estimate: Estimate, full_usable_wh: float) -> int:

@@ -13,6 +13,13 @@ then answers only the address it speaks from. Links sign and check frames when a
 is configured (:mod:`estimator.mavlink.signing`). With a state file
 (:mod:`estimator.mavlink.state_file`) the flight state is written every ``state_period_s``
 and on exit, and a restarted daemon continues from it when it fits the autopilot's boot.
+
+Return home and mission (:mod:`estimator.estimation.return_home` computes them in the pipeline):
+HOME_POSITION is requested (MAV_CMD_REQUEST_MESSAGE) when none has arrived
+:data:`HOME_REQUEST_AFTER_S` after the first position, at most once per
+:data:`HOME_REQUEST_RETRY_S`; the mission is read (:mod:`estimator.mavlink.mission_download`)
+and handed to the pipeline as a :class:`MissionSample`; margin crossings become STATUSTEXT
+(:mod:`estimator.mavlink.margin_alerts`) on the ``--publish`` links.
 One log line per event: autopilot found, streams requested, energy initialized (with a
 warning when the pack voltage does not fit the vehicle file's cell count), model-only mode,
 reboot or clock jump, link silent (stale) / resumed, bad frames, floods and input skipped as
@@ -33,14 +40,26 @@ from dataclasses import replace
 from pymavlink.dialects.v20 import common as mavlink
 
 from estimator.estimation.pipeline import Estimate, Pipeline, PipelineSettings
+from estimator.estimation.return_home import MissionEnergyFn, MissionSample
+from estimator.logs.mission_files import MissionItem
 from estimator.mavlink import publish
 from estimator.mavlink.autopilot_lock import AutopilotLock
 from estimator.mavlink.config import ServiceConfig
 from estimator.mavlink.link import MavlinkLink, open_link, parse_url
+from estimator.mavlink.margin_alerts import MarginAlerts
+from estimator.mavlink.mission_download import MESSAGE_IDS as MISSION_MESSAGE_IDS
+from estimator.mavlink.mission_download import MESSAGE_TYPES as MISSION_MESSAGES
+from estimator.mavlink.mission_download import MissionDownload
 from estimator.mavlink.signing import LinkSigning, load_key
 from estimator.mavlink.state_file import StateKeeper
 from estimator.physics.vehicle import Vehicle
-from estimator.telemetry.decode import SKIP_COUNTERS, USED_MESSAGE_IDS, TelemetryDecoder
+from estimator.telemetry.decode import (
+    ARDUPILOT_WIND_ID,
+    SKIP_COUNTERS,
+    USED_MESSAGE_IDS,
+    TelemetryDecoder,
+    message_source,
+)
 from estimator.telemetry.plausibility import pack_voltage_problem
 from estimator.telemetry.samples import BatterySample
 
@@ -53,11 +72,17 @@ REQUEST_RETRY_S = 5.0
 COUNTER_LOG_S = 10.0
 #: JSON lines waiting for a slow stdout reader beyond this are dropped (counted).
 JSON_BUFFER_LIMIT_BYTES = 1 << 20
+#: Wall seconds after the first position without HOME_POSITION before it is requested, and
+#: between requests.
+HOME_REQUEST_AFTER_S = 3.0
+HOME_REQUEST_RETRY_S = 10.0
 _STREAMS = (
     (mavlink.MAVLINK_MSG_ID_GLOBAL_POSITION_INT, "velocity"),
     (mavlink.MAVLINK_MSG_ID_LOCAL_POSITION_NED, "velocity"),
     (mavlink.MAVLINK_MSG_ID_SYS_STATUS, "battery"),
     (mavlink.MAVLINK_MSG_ID_BATTERY_STATUS, "battery"),
+    (ARDUPILOT_WIND_ID, "battery"),  # the autopilot's wind, for the return (WIND, ArduPilot)
+    (mavlink.MAVLINK_MSG_ID_WIND_COV, "battery"),  # (PX4)
 )
 
 
@@ -69,11 +94,12 @@ class Service:
         config: ServiceConfig,
         vehicle: Vehicle,
         settings: PipelineSettings | None = None,
+        mission_energy: MissionEnergyFn | None = None,
     ) -> None:
         self.config = config
         if settings is None:
             settings = config.pipeline_settings()
-        self.pipeline = Pipeline(vehicle, settings)
+        self.pipeline = Pipeline(vehicle, settings, mission_energy)
         target = None
         if config.target_system:
             target = (config.target_system, config.target_component or 1)
@@ -104,6 +130,17 @@ class Service:
             )
         # BATTERY_STATUS.battery_remaining is a share of a full pack's usable energy.
         self._full_usable_wh = float(self.pipeline.pack.usable_energy_wh(1.0))
+        per_pct_wh = self._full_usable_wh / 100.0
+        self.alerts = MarginAlerts(
+            config.warning_margin_pct * per_pct_wh,
+            config.critical_margin_pct * per_pct_wh,
+            config.hysteresis_pct * per_pct_wh,
+        )
+        self.mission: MissionDownload | None = None
+        self._home_first = True  # ArduPilot's mission item 0 is home; PX4's is not
+        self._first_position_s: float | None = None
+        self._home_requested_s = -1e9
+        self.home_requests = 0
 
     # -- lifecycle --------------------------------------------------------------------------
 
@@ -125,7 +162,7 @@ class Service:
         self.link = await open_link(
             cfg.connect,
             source_system=cfg.system_id,
-            message_ids=USED_MESSAGE_IDS,
+            message_ids=USED_MESSAGE_IDS | MISSION_MESSAGE_IDS,
             signing=signing(0),
         )
         if self.lock.locked is not None:
@@ -192,9 +229,12 @@ class Service:
         out.update({f"autopilot_{k}": v for k, v in self.lock.counts.items()})
         out.update({f"decode_{k}": v for k, v in self.decoder.counts.items()})
         out.update({f"pipeline_{k}": v for k, v in self.pipeline.counts.items()})
+        if self.mission is not None:
+            out.update({f"mission_{k}": v for k, v in self.mission.counts.items()})
         out.update(internal_errors=self.internal_errors, json_dropped=self.json_dropped)
         if self.state is not None:
             out.update(state_writes=self.state.writes, state_write_errors=self.state.write_errors)
+        out.update(home_requests=self.home_requests, alerts_sent=self.alerts.sent)
         return out
 
     # -- receive ----------------------------------------------------------------------------
@@ -229,11 +269,18 @@ class Service:
             self.link.set_peer(chosen)
         if chosen is not None:
             self._request_streams(now_s)
+        if self.lock.locked is not None:
+            log.info("autopilot found: system %d component %d", *self.lock.locked)
+            self._start_mission(self.lock.locked)
 
     def _handle(self, msg: mavlink.MAVLink_message, now_s: float) -> None:
         counts = self.decoder.counts
         reboots, jumps = counts["reboots"], counts["clock_jumps"]
         samples = self.decoder.decode(msg)
+        if msg.get_type() == "HEARTBEAT" and message_source(msg) == self.decoder.target:
+            self._home_first = msg.autopilot == mavlink.MAV_AUTOPILOT_ARDUPILOTMEGA
+        if self.mission is not None and msg.get_type() in MISSION_MESSAGES:
+            self.mission.on_message(msg, now_s)
         if counts["reboots"] != reboots:
             self.lock.recheck(now_s)
             self._log_throttled(
@@ -283,6 +330,48 @@ class Service:
             self._streams_ok = True
             mode = "model only (no current sensor)" if self.latest.model_only else "fused"
             log.info("telemetry flowing: estimating, %s", mode)
+
+    def _start_mission(self, target: tuple[int, int]) -> None:
+        """The mission download for this autopilot (read-only; off by configuration)."""
+        link = self.link
+        if not self.config.download_mission or link is None:
+            return
+        if self.mission is not None and self.mission.target == target:
+            return
+        own = (self.config.system_id, OWN_COMPONENT)
+        self.mission = MissionDownload(link.send, link.mav, own, target, self._mission_read)
+
+    def _mission_read(self, items: tuple[MissionItem, ...]) -> None:
+        """A downloaded mission into the pipeline, on the autopilot's clock (item 0 is home:
+        a placeholder goes first for autopilots whose missions start with a real item)."""
+        if not self._home_first:
+            nan = float("nan")
+            items = (MissionItem(-1, 16, 0, (0.0,) * 4, nan, nan, 0.0, "home"), *items)
+        self.pipeline.process(MissionSample(self.decoder.clock_s or 0.0, items))
+
+    def _request_home(self, now_s: float) -> None:
+        """MAV_CMD_REQUEST_MESSAGE(HOME_POSITION) while positions come and no home does."""
+        returning = self.pipeline.returning
+        if returning.position is None or returning.home is not None:
+            return
+        if self._first_position_s is None:
+            self._first_position_s = now_s
+        waited_s = now_s - self._first_position_s
+        if waited_s < HOME_REQUEST_AFTER_S or now_s - self._home_requested_s < HOME_REQUEST_RETRY_S:
+            return
+        if self.link is None or self.decoder.target is None:
+            return
+        self._home_requested_s = now_s
+        self.home_requests += 1
+        msg_id = mavlink.MAVLINK_MSG_ID_HOME_POSITION
+        sysid, compid = self.decoder.target
+        self.link.send(
+            self.link.mav.command_long_encode(
+                sysid, compid, mavlink.MAV_CMD_REQUEST_MESSAGE, 0, msg_id, 0, 0, 0, 0, 0, 0
+            )
+        )
+        if self.home_requests == 1:
+            log.info("no HOME_POSITION %.0f s after the first position: requested", waited_s)
 
     def _request_streams(self, now_s: float) -> None:
         """REQUEST_DATA_STREAM (ArduPilot) and SET_MESSAGE_INTERVAL (both stacks) to the
@@ -337,6 +426,10 @@ class Service:
     def _deliver(self, estimate: Estimate, now_s: float) -> None:
         """A new estimate: keep it for the publish loop, send it now where configured."""
         self.latest = estimate
+        if (alert := self.alerts.update(estimate)) is not None:
+            log.warning("%s", alert.text)
+            for link in self._ground_links(self.config.statustext_to_autopilot):
+                link.send(publish.statustext(link, alert.severity, alert.text))
         if self.config.publish_rate_hz == 0:
             self._publish(estimate)
         if self.config.json and (
@@ -346,12 +439,15 @@ class Service:
             self._last_json_s = now_s
             self._write_json(estimate)
 
+    def _ground_links(self, to_autopilot: bool) -> list[MavlinkLink]:
+        """The ``--publish`` links, and the autopilot link when ``to_autopilot``."""
+        if to_autopilot and self.link is not None:
+            return [*self.outputs, self.link]
+        return list(self.outputs)
+
     def _publish(self, estimate: Estimate) -> None:
         cfg = self.config
-        targets = list(self.outputs)
-        if cfg.values_to_autopilot and self.link is not None:
-            targets.append(self.link)
-        for link in targets:
+        for link in self._ground_links(cfg.values_to_autopilot):
             for msg in publish.named_values(link, estimate):
                 link.send(msg)
             if link is not self.link or cfg.battery_status_to_autopilot:
@@ -407,6 +503,9 @@ class Service:
             self._autopilot_changed(now_s)
         if not self._streams_ok:
             self._request_streams(now_s)
+        self._request_home(now_s)
+        if self.mission is not None:
+            self.mission.tick(now_s)
         skipped = {k: self.decoder.counts[k] for k in SKIP_COUNTERS if self.decoder.counts[k]}
         self._log_count(
             "implausible",

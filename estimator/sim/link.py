@@ -8,7 +8,9 @@ Requests from the other side are answered while playing:
   LOCAL_POSITION_NED, EXTRA1 → ATTITUDE, EXTRA2 → VFR_HUD, EXTENDED_STATUS → SYS_STATUS,
   EXTRA3 → BATTERY_STATUS, ALL → every one) at the requested rate, or off;
 - ``COMMAND_LONG`` ``MAV_CMD_SET_MESSAGE_INTERVAL`` (interval µs; 0 = default, −1 = off),
-  acknowledged with ``COMMAND_ACK``.
+  acknowledged with ``COMMAND_ACK``;
+- ``COMMAND_LONG`` ``MAV_CMD_REQUEST_MESSAGE`` for HOME_POSITION: the run's home (the
+  take-off point), acknowledged.
 
 Rates are honoured by decimation of the simulated streams: a stream can be slowed down or
 switched off, not sped up beyond the rate it was simulated at (``SimConfig.rates_hz``).
@@ -60,6 +62,7 @@ class SimPlayer:
         #: Current rate per message name (Hz), changed by the peer's requests.
         self.rates_hz = dict(self.simulated_hz)
         self._last_sent: dict[str, float] = {}
+        self._now_s: float | None = None  # simulated time of the last message sent
         self.counts: Counter[str] = Counter()
 
     # -- requests -----------------------------------------------------------------------------
@@ -82,6 +85,41 @@ class SimPlayer:
             and msg.command == mavlink.MAV_CMD_SET_MESSAGE_INTERVAL
         ):
             self._set_interval(msg)
+        elif (
+            kind == "COMMAND_LONG"
+            and self._for_us(msg)
+            and msg.command == mavlink.MAV_CMD_REQUEST_MESSAGE
+            and int(msg.param1) == mavlink.MAVLINK_MSG_ID_HOME_POSITION
+        ):
+            self._send_home(msg)
+
+    def _send_home(self, msg: mavlink.MAVLink_message) -> None:
+        """HOME_POSITION (the run's home, local origin) and the COMMAND_ACK of its request."""
+        c = self.run.config
+        self.counts["home_requests"] += 1
+        mav = self.link.mav
+        home = mav.home_position_encode(
+            round(c.home_lat_deg * 1e7),
+            round(c.home_lon_deg * 1e7),
+            round(c.home_msl_m * 1000),
+            0.0,
+            0.0,
+            0.0,
+            [1.0, 0.0, 0.0, 0.0],
+            0.0,
+            0.0,
+            0.0,
+        )
+        self._send(home, self._now_s)  # in the tlog too: a replay sees the home the peer saw
+        ack = mav.command_ack_encode(
+            mavlink.MAV_CMD_REQUEST_MESSAGE,
+            mavlink.MAV_RESULT_ACCEPTED,
+            0,
+            0,
+            msg.get_srcSystem(),
+            msg.get_srcComponent(),
+        )
+        self._send(ack, None)
 
     def _for_us(self, msg: mavlink.MAVLink_message) -> bool:
         return msg.target_system in (0, _SYSTEM_ID) and msg.target_component in (0, _COMPONENT_ID)
@@ -162,6 +200,7 @@ class SimPlayer:
                     self.counts["decimated"] += 1
                     continue
                 self._last_sent[name] = time_s
+                self._now_s = time_s
                 self._send(msg, time_s)
                 self.counts["sent"] += 1
             # let the last datagrams leave before the caller closes the link

@@ -58,6 +58,7 @@ class State:
     vn_mps: float = 0.0
     ve_mps: float = 0.0
     consumed_mah: float = 0.0
+    consumed_wh: float = 0.0
     voltage_v: float = 0.0
     current_a: float = 0.0
     mission_reached: int = -1
@@ -120,6 +121,8 @@ class Pilot:
             s.north_m, s.east_m, s.vn_mps, s.ve_mps = msg.x, msg.y, msg.vx, msg.vy
         elif kind == "BATTERY_STATUS" and msg.id == 0:
             s.consumed_mah = float(msg.current_consumed)
+            if msg.energy_consumed >= 0:  # hJ: the autopilot's own ∫V·I
+                s.consumed_wh = msg.energy_consumed / 36.0
             s.current_a = msg.current_battery / 100.0
         elif kind == "SYS_STATUS":
             s.voltage_v = msg.voltage_battery / 1000.0

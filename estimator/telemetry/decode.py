@@ -18,6 +18,10 @@ MAVLink 1 frames parse too). Messages become :mod:`estimator.telemetry.samples` 
 - the autopilot's wind estimate (ArduPilot WIND, id 168, outside the common dialect: its
   payload is read by hand; PX4 WIND_COV) becomes a :class:`WindSample`, implausible values
   (non-finite, faster than ``MAX_WIND_MPS``) are counted and skipped;
+- the position (GLOBAL_POSITION_INT latitude/longitude, whatever the velocity source) becomes a
+  :class:`PositionSample`, the autopilot's home (HOME_POSITION) a :class:`HomeSample`, the
+  mission item flown (MISSION_CURRENT) a :class:`MissionCurrentSample`; latitude/longitude
+  0/0 (no fix, home not set) and values off the globe are counted and skipped;
 - only the selected autopilot is decoded (default: the first autopilot HEARTBEAT);
   our own component's messages and everyone else's are counted and skipped.
 
@@ -44,6 +48,9 @@ from estimator.telemetry.plausibility import (
 from estimator.telemetry.samples import (
     ArmedSample,
     BatterySample,
+    HomeSample,
+    MissionCurrentSample,
+    PositionSample,
     Sample,
     VelocitySample,
     WindSample,
@@ -63,8 +70,13 @@ SKIP_COUNTERS = (
     "current_implausible",
     "consumed_implausible",
     "wind_implausible",
+    "position_implausible",
+    "home_implausible",
     "time_jump",
 )
+#: A position stamp this close (s) to the believed clock is taken when the velocity comes from
+#: another message (LOCAL_POSITION_NED), so GLOBAL_POSITION_INT's stamp is not judged itself.
+POSITION_STAMP_TOLERANCE_S = 1.0
 #: Message types the decoder uses; every other type is skipped (and may be skipped unparsed).
 USED_MESSAGE_IDS = frozenset(
     {
@@ -75,6 +87,8 @@ USED_MESSAGE_IDS = frozenset(
         mavlink.MAVLINK_MSG_ID_LOCAL_POSITION_NED,
         mavlink.MAVLINK_MSG_ID_ATTITUDE,
         mavlink.MAVLINK_MSG_ID_WIND_COV,
+        mavlink.MAVLINK_MSG_ID_HOME_POSITION,
+        mavlink.MAVLINK_MSG_ID_MISSION_CURRENT,
         168,  # ArduPilot WIND (ardupilotmega dialect)
     }
 )
@@ -355,7 +369,56 @@ class TelemetryDecoder:
 
     def _global_position(self, msg: mavlink.MAVLink_message) -> list[Sample]:
         v = (msg.vx / 100.0, msg.vy / 100.0, msg.vz / 100.0)
-        return self._velocity(msg, v, msg.relative_alt / 1000.0)
+        alt_m = msg.relative_alt / 1000.0
+        t = msg.time_boot_ms / 1000.0
+        out = self._velocity(msg, v, alt_m)
+        if self._velocity_type == "GLOBAL_POSITION_INT" or self._velocity_type is None:
+            # the frame's stamp was judged with its velocity: its position goes with it
+            if not any(isinstance(s, VelocitySample) and s.time_s == t for s in out):
+                return out
+        elif (
+            (clock_s := self._time.clock.time_s) is None
+            or abs(t - clock_s) > POSITION_STAMP_TOLERANCE_S
+            or velocity_problem(VelocitySample(t, *v, alt_m), self.limits) is not None
+        ):  # counted as duplicate_velocity_source: its stamp and values must be believable
+            return out
+        position = self._lat_lon(msg.lat, msg.lon, "position")
+        if position is not None:
+            sample = PositionSample(t, *position, alt_m)
+            out.extend([sample] if out else self._time.clocked(sample))
+        return out
+
+    def _home_position(self, msg: mavlink.MAVLink_message) -> list[Sample]:
+        clock_s = self._clock_s()
+        position = self._lat_lon(msg.latitude, msg.longitude, "home")
+        if clock_s is None or position is None:
+            return []
+        alt_m = msg.altitude / 1000.0
+        if not abs(alt_m) <= self.limits.max_abs_alt_m:
+            return self._skip("home_implausible")
+        return self._time.clocked(HomeSample(clock_s, *position, alt_m))
+
+    def _mission_current(self, msg: mavlink.MAVLink_message) -> list[Sample]:
+        clock_s = self._clock_s()
+        if clock_s is None:
+            return []
+        total = getattr(msg, "total", 0)
+        sample = MissionCurrentSample(
+            clock_s, int(msg.seq), None if total in (0, 0xFFFF) else total
+        )
+        return self._time.clocked(sample)
+
+    def _lat_lon(self, lat_e7: int, lon_e7: int, what: str) -> tuple[float, float] | None:
+        """WGS84 degrees from MAVLink's degE7, or None (counted: ``<what>_unknown`` for the
+        0/0 sentinel, ``<what>_implausible`` off the globe)."""
+        if lat_e7 == 0 and lon_e7 == 0:
+            self.counts[f"{what}_unknown"] += 1
+            return None
+        lat, lon = lat_e7 / 1e7, lon_e7 / 1e7
+        if not (abs(lat) <= 90.0 and abs(lon) <= 180.0):
+            self.counts[f"{what}_implausible"] += 1
+            return None
+        return lat, lon
 
     def _local_position(self, msg: mavlink.MAVLink_message) -> list[Sample]:
         return self._velocity(msg, (msg.vx, msg.vy, msg.vz), -msg.z)
@@ -496,4 +559,6 @@ _HANDLERS = {
     "BATTERY_STATUS": TelemetryDecoder._battery_status,
     "WIND": TelemetryDecoder._ardupilot_wind,
     "WIND_COV": TelemetryDecoder._wind_cov,
+    "HOME_POSITION": TelemetryDecoder._home_position,
+    "MISSION_CURRENT": TelemetryDecoder._mission_current,
 }

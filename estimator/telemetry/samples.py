@@ -63,4 +63,45 @@ class WindSample:
     wind_e_mps: float
 
 
-Sample = VelocitySample | BatterySample | ArmedSample | RebootSample | WindSample
+@dataclass(frozen=True, slots=True)
+class PositionSample:
+    """Where the vehicle is (GLOBAL_POSITION_INT): WGS84 latitude and longitude (deg), height
+    over home (m, None = unknown)."""
+
+    time_s: float
+    lat_deg: float
+    lon_deg: float
+    alt_m: float | None = None
+
+
+@dataclass(frozen=True, slots=True)
+class HomeSample:
+    """The autopilot's home (HOME_POSITION): WGS84 latitude and longitude (deg), altitude
+    above mean sea level (m)."""
+
+    time_s: float
+    lat_deg: float
+    lon_deg: float
+    alt_amsl_m: float
+
+
+@dataclass(frozen=True, slots=True)
+class MissionCurrentSample:
+    """The mission item the autopilot is flying to (MISSION_CURRENT.seq) and the mission's
+    item count (``total``; None when the autopilot does not say)."""
+
+    time_s: float
+    seq: int
+    total: int | None = None
+
+
+Sample = (
+    VelocitySample
+    | BatterySample
+    | ArmedSample
+    | RebootSample
+    | WindSample
+    | PositionSample
+    | HomeSample
+    | MissionCurrentSample
+)
