@@ -12,7 +12,7 @@ from dataclasses import replace
 
 import pytest
 from pymavlink.dialects.v20 import common as mavlink
-from test_service import Messages, running, wait_for
+from test_service import Messages, first_mavsdk_system, running, wait_for
 
 from estimator.estimation.pipeline import Estimate
 from estimator.mavlink import service as service_module
@@ -375,12 +375,7 @@ async def test_pymavlink_and_mavsdk_clients_get_the_return_values_and_the_warnin
         to_autopilot = MissionServer(sender, items=0, silent=True)  # records what it is sent
         await sdk.add_any_connection(f"udpin://127.0.0.1:{sdk_port}")
         await play(sender, messages[:20])
-        system = None
-        async with asyncio.timeout(10):
-            while system is None:
-                systems = await sdk.get_systems()
-                system = systems[0] if systems else None
-                await asyncio.sleep(0.05)
+        system = await first_mavsdk_system(sdk)
         direct = MavlinkDirectAsync(system)
         sdk_seen: dict[str, list[dict]] = {"NAMED_VALUE_FLOAT": [], "STATUSTEXT": []}
 

@@ -15,6 +15,7 @@ import socket
 from collections.abc import AsyncIterator, Iterable
 from dataclasses import replace
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 import pytest
@@ -110,6 +111,14 @@ async def wait_for(condition, timeout_s: float = 10.0) -> None:  # type: ignore[
             await asyncio.sleep(0.02)
 
 
+async def first_mavsdk_system(sdk: Any) -> Any:
+    """The first system a MAVSDK client sees (within 10 s)."""
+    async with asyncio.timeout(10):
+        while not (systems := await sdk.get_systems()):
+            await asyncio.sleep(0.05)
+    return systems[0]
+
+
 async def listen() -> tuple[PymavlinkClient, int, asyncio.DatagramTransport]:
     loop = asyncio.get_running_loop()
     sock = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
@@ -141,12 +150,7 @@ async def test_published_values_match_the_pipeline_replay_for_pymavlink_and_mavs
         half = len(messages) // 2
         await play(sender, messages[:half])
         await wait_for(lambda: len(client.of_type("HEARTBEAT")) > 0)
-        system = None
-        async with asyncio.timeout(10):
-            while system is None:
-                systems = await sdk.get_systems()
-                system = systems[0] if systems else None
-                await asyncio.sleep(0.05)
+        system = await first_mavsdk_system(sdk)
         direct = MavlinkDirectAsync(system)
         telemetry = TelemetryAsync(system)
         sdk_named: list[dict] = []
