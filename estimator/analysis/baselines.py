@@ -79,13 +79,15 @@ class NetworkModel:
     _net: TransformedTargetRegressor | None = None
 
     def fit(self, points: Points) -> NetworkModel:
+        n = len(points.power_w)
         mlp = MLPRegressor(
             hidden_layer_sizes=(10, 10, 10),
             activation="tanh",
             solver="adam",
             learning_rate_init=0.01,
             max_iter=self.max_iter,
-            batch_size=self.batch_size or max(MIN_BATCH, len(points.power_w) // BATCHES_PER_EPOCH),
+            # all the points in one batch when there are fewer than MIN_BATCH
+            batch_size=self.batch_size or min(n, max(MIN_BATCH, n // BATCHES_PER_EPOCH)),
             n_iter_no_change=15,
             tol=1e-5,
             random_state=self.seed,
