@@ -18,7 +18,7 @@ import pytest
 from estimator.analysis.mission_energy import FlightSettings, mission_energy
 from estimator.analysis.mission_validation import check_recording
 from estimator.errors import UserError
-from estimator.logs.mission_files import MissionLeg, load_mission
+from estimator.logs.mission_files import M_PER_DEG, MissionLeg, load_mission
 from estimator.physics.model import G_MPS2
 from estimator.physics.route_energy import (
     Conditions,
@@ -44,7 +44,6 @@ MISSIONS = REPO / "replay/sitl/missions"
 RECORDED = sorted(p for p in MISSIONS.iterdir() if (p / "truth.json").is_file())
 #: Home of the test files (ArduPilot's SITL default location), deg and m above sea level.
 HOME = (-35.363261, 149.165230, 584.0)
-M_PER_DEG = 111_319.5
 
 
 def _rv() -> RouteVehicle:

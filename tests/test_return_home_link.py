@@ -15,6 +15,7 @@ from pymavlink.dialects.v20 import common as mavlink
 from test_service import Messages, first_mavsdk_system, running, wait_for
 
 from estimator.estimation.pipeline import Estimate
+from estimator.logs.mission_files import M_PER_DEG
 from estimator.mavlink import service as service_module
 from estimator.mavlink.config import ServiceConfig
 from estimator.mavlink.link import MavlinkLink
@@ -354,7 +355,7 @@ async def test_pymavlink_and_mavsdk_clients_get_the_return_values_and_the_warnin
     from mavsdk.asyncio.plugins.mavlink_direct import MavlinkDirectAsync
     from test_service import free_udp_port, listen, play, replay
 
-    far_home = home(HOME[0], HOME[1] + 2000.0 / (111_319.5 * math.cos(math.radians(HOME[0]))))
+    far_home = home(HOME[0], HOME[1] + 2000.0 / (M_PER_DEG * math.cos(math.radians(HOME[0]))))
     far_home.pack(_ENC)
     messages = [m for _, m in flight]
     messages.insert(20, far_home)

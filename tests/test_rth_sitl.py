@@ -18,11 +18,14 @@ from __future__ import annotations
 import json
 import math
 import sys
+from collections.abc import Iterator
+from contextlib import contextmanager
 from dataclasses import asdict, dataclass
 from pathlib import Path
 
 from test_ardupilot_sitl import FITTED_VEHICLE, LiveDaemon, live_daemon, needs_sitl
 
+from estimator.logs.mission_files import M_PER_DEG
 from estimator.sitl.launch import HOME
 from estimator.sitl.pilot import Pilot
 
@@ -109,6 +112,20 @@ def warm_up(pilot: Pilot) -> None:
         pilot.hold(WARM_UP_S, pilot.every(0.5, lambda n=vn, e=ve: pilot.send_velocity(n, e)))
 
 
+@contextmanager
+def warmed_up_in_wind(live: LiveDaemon) -> Iterator[Pilot]:
+    """A pilot on ``live``'s SITL with :data:`WIND` set, after :func:`warm_up`; closed after."""
+    pilot = live.pilot()
+    try:
+        pilot.connect()
+        pilot.set_param("SIM_WIND_SPD", WIND[0])
+        pilot.set_param("SIM_WIND_DIR", WIND[1])
+        warm_up(pilot)
+        yield pilot
+    finally:
+        pilot.close()
+
+
 def fly_rtl(
     live: LiveDaemon, pilot: Pilot, name: str, vn: float, ve: float, dur_s: float
 ) -> RtlPoint:
@@ -151,16 +168,9 @@ def fly_points(
     config = tmp_path / "daemon.toml"
     config.write_text(DAEMON_CONFIG.format(wind=wind))
     with live_daemon(tmp_path, FITTED_VEHICLE, daemon_args=("--config", str(config))) as live:
-        pilot = live.pilot()
-        try:
-            pilot.connect()
-            pilot.set_param("SIM_WIND_SPD", WIND[0])
-            pilot.set_param("SIM_WIND_DIR", WIND[1])
-            warm_up(pilot)
+        with warmed_up_in_wind(live) as pilot:
             for point in points:
                 out.append(fly_rtl(live, pilot, *point))
-        finally:
-            pilot.close()
         log = live.log_path.read_text()
     assert live.daemon.returncode == 0, log
     (tmp_path / "points.json").write_text(json.dumps([asdict(p) for p in out], indent=1))
@@ -203,18 +213,12 @@ def fly_mission(tmp_path: Path) -> dict[str, float]:
     reads the changed mission), fly it in AUTO to the disarm: the daemon's MIS_WH at the switch
     against the energy the autopilot used."""
     lat0, lon0 = HOME[0], HOME[1]
-    per_deg = 111_319.5
     with live_daemon(tmp_path, FITTED_VEHICLE) as live:
-        pilot = live.pilot()
-        try:
-            pilot.connect()
-            pilot.set_param("SIM_WIND_SPD", WIND[0])
-            pilot.set_param("SIM_WIND_DIR", WIND[1])
-            warm_up(pilot)
+        with warmed_up_in_wind(live) as pilot:
             items = [(16, 0, 0.0, 0.0, lat0, lon0, HOME[2])]
             for north, east in MISSION_WAYPOINTS:
-                lat = lat0 + north / per_deg
-                lon = lon0 + east / (per_deg * math.cos(math.radians(lat0)))
+                lat = lat0 + north / M_PER_DEG
+                lon = lon0 + east / (M_PER_DEG * math.cos(math.radians(lat0)))
                 items.append((16, 3, 0.0, 0.0, lat, lon, TAKEOFF_M))
             items.append((20, 3, 0.0, 0.0, 0.0, 0.0, 0.0))
             pilot.upload_mission(items)
@@ -223,8 +227,6 @@ def fly_mission(tmp_path: Path) -> dict[str, float]:
             pilot.set_mode("AUTO")
             pilot.wait_for(lambda: not pilot.state.armed, 600.0, "mission to the disarm")
             used_wh = pilot.state.consumed_wh - consumed_wh
-        finally:
-            pilot.close()
         at = _latest(live, switch_s)
     return {
         "mission_wh": at["mission_energy_wh"],

@@ -33,7 +33,17 @@ from estimator.errors import UserError
 from estimator.logs.mission_files import MissionLeg
 from estimator.physics.battery import PackModel
 from estimator.physics.route_energy import (
+    DEFAULT_ACCEL_MPS2,
+    DEFAULT_CLIMB_RATE_MPS,
+    DEFAULT_DESCENT_RATE_MPS,
+    DEFAULT_JERK_MPS3,
+    DEFAULT_LAND_ALT_LOW_M,
+    DEFAULT_LAND_SPEED_MPS,
     DEFAULT_MAX_AIRSPEED_MPS,
+    DEFAULT_RTL_ALT_M,
+    DEFAULT_RTL_LOITER_S,
+    DEFAULT_RTL_PAUSE_S,
+    DEFAULT_VERTICAL_ACCEL_MPS2,
     Conditions,
     InfeasibleTrack,
     Kinematics,
@@ -74,19 +84,19 @@ class FlightSettings:
     """
 
     cruise_mps: float = 10.0
-    climb_mps: float = 2.5
-    descent_mps: float = 1.5
-    land_mps: float = 0.5
-    land_slow_m: float = 10.0
-    rtl_alt_m: float = 15.0
-    rtl_loiter_s: float = 5.0
-    rtl_pause_s: float = 2.0
+    climb_mps: float = DEFAULT_CLIMB_RATE_MPS
+    descent_mps: float = DEFAULT_DESCENT_RATE_MPS
+    land_mps: float = DEFAULT_LAND_SPEED_MPS
+    land_slow_m: float = DEFAULT_LAND_ALT_LOW_M
+    rtl_alt_m: float = DEFAULT_RTL_ALT_M
+    rtl_loiter_s: float = DEFAULT_RTL_LOITER_S
+    rtl_pause_s: float = DEFAULT_RTL_PAUSE_S
     circle_rate_dps: float = 20.0
     touchdown_s: float = 0.0
     max_speed_mps: float = 20.0
-    accel_mps2: float = 2.5
-    jerk_mps3: float = 1.0
-    vertical_accel_mps2: float = 1.0
+    accel_mps2: float = DEFAULT_ACCEL_MPS2
+    jerk_mps3: float = DEFAULT_JERK_MPS3
+    vertical_accel_mps2: float = DEFAULT_VERTICAL_ACCEL_MPS2
     corner_speed_mps: float = 3.0
     spool_s: float = 2.0
     max_airspeed_mps: float | None = None

@@ -37,10 +37,18 @@ from estimator.estimation.online_effects import wind_from_vector
 from estimator.logs.mission_files import MissionFile, MissionItem, MissionLeg
 from estimator.physics.effects import Effect, Mass, Wind
 from estimator.physics.route_energy import (
+    DEFAULT_ACCEL_MPS2,
     DEFAULT_CLIMB_RATE_MPS,
     DEFAULT_DESCENT_RATE_MPS,
+    DEFAULT_JERK_MPS3,
+    DEFAULT_LAND_ALT_LOW_M,
+    DEFAULT_LAND_SPEED_MPS,
     DEFAULT_MAX_AIRSPEED_MPS,
     DEFAULT_MAX_GROUND_SPEED_MPS,
+    DEFAULT_RTL_ALT_M,
+    DEFAULT_RTL_LOITER_S,
+    DEFAULT_RTL_PAUSE_S,
+    DEFAULT_VERTICAL_ACCEL_MPS2,
     MIN_GROUND_SPEED_MPS,
     UNCERTAINTY_SOURCES,
     Conditions,
@@ -123,20 +131,20 @@ class ReturnSettings:
     untracked_wind_sigma_mps / untracked_mass_sigma_fraction: wind (m/s) and mass (share of
     the vehicle's) 1σ when the online tracker is off."""
 
-    return_alt_m: float = 15.0
+    return_alt_m: float = DEFAULT_RTL_ALT_M
     return_speed_mps: float = 0.0
     max_airspeed_mps: float | None = None
     airspeed_along_track: bool = True
     max_ground_speed_mps: float = DEFAULT_MAX_GROUND_SPEED_MPS
-    accel_mps2: float = 2.5
-    jerk_mps3: float = 1.0
-    vertical_accel_mps2: float = 1.0
-    pause_s: float = 2.0
+    accel_mps2: float = DEFAULT_ACCEL_MPS2
+    jerk_mps3: float = DEFAULT_JERK_MPS3
+    vertical_accel_mps2: float = DEFAULT_VERTICAL_ACCEL_MPS2
+    pause_s: float = DEFAULT_RTL_PAUSE_S
     climb_rate_mps: float = DEFAULT_CLIMB_RATE_MPS
     descent_rate_mps: float = DEFAULT_DESCENT_RATE_MPS
-    loiter_s: float = 5.0
-    land_alt_low_m: float = 10.0
-    land_speed_mps: float = 0.5
+    loiter_s: float = DEFAULT_RTL_LOITER_S
+    land_alt_low_m: float = DEFAULT_LAND_ALT_LOW_M
+    land_speed_mps: float = DEFAULT_LAND_SPEED_MPS
     touchdown_s: float = 0.0
     rate_time_constant_s: float = 10.0
     mission_period_s: float = 5.0

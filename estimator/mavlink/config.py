@@ -14,6 +14,7 @@ from typing import TYPE_CHECKING, Any
 
 from estimator.errors import UserError
 from estimator.mavlink.link import parse_url
+from estimator.physics.route_energy import DEFAULT_MAX_GROUND_SPEED_MPS, DEFAULT_RTL_ALT_M
 from estimator.toml_files import read_toml
 
 if TYPE_CHECKING:
@@ -89,10 +90,10 @@ class ServiceConfig:
     vehicle: str = ""
     track_effects: bool = True
     log_level: str = "info"
-    return_alt_m: float = 15.0
+    return_alt_m: float = DEFAULT_RTL_ALT_M
     return_speed_mps: float = 0.0
     max_airspeed_mps: float = 0.0
-    max_ground_speed_mps: float = 20.0
+    max_ground_speed_mps: float = DEFAULT_MAX_GROUND_SPEED_MPS
     return_wind: str = "tracked"
     warning_margin_pct: float = 15.0
     critical_margin_pct: float = 5.0

@@ -57,6 +57,17 @@ DEFAULT_DESCENT_RATE_MPS = 1.5
 #: sensible airspeed ceiling.
 DEFAULT_MAX_GROUND_SPEED_MPS = 20.0
 DEFAULT_MAX_AIRSPEED_MPS = 20.0
+#: ArduCopter's speed changes: WPNAV_ACCEL (m/s²), WPNAV_JERK (m/s³), WPNAV_ACCEL_Z (m/s²).
+DEFAULT_ACCEL_MPS2 = 2.5
+DEFAULT_JERK_MPS3 = 1.0
+DEFAULT_VERTICAL_ACCEL_MPS2 = 1.0
+#: ArduCopter's RTL and landing: RTL_ALT (m), the start in place before it turns home (s,
+#: measured in SITL), RTL_LOIT_TIME (s), LAND_ALT_LOW (m) and LAND_SPEED (m/s) below it.
+DEFAULT_RTL_ALT_M = 15.0
+DEFAULT_RTL_PAUSE_S = 2.0
+DEFAULT_RTL_LOITER_S = 5.0
+DEFAULT_LAND_ALT_LOW_M = 10.0
+DEFAULT_LAND_SPEED_MPS = 0.5
 #: Slowest ground speed the wind-optimal search considers, m/s.
 MIN_GROUND_SPEED_MPS = 0.2
 #: Finite-difference step of the sensitivities, in units of each source's 1σ.
