@@ -26,6 +26,7 @@ from estimator.sim.files import write_tlog
 from estimator.sim.plans import Leg, Plan
 from estimator.sim.run import SimConfig, SimRun
 from estimator.sim.simulator import simulate
+from estimator.telemetry.samples import Sample, VelocitySample, WindSample
 
 VEHICLE = default_vehicle()
 
@@ -225,3 +226,62 @@ def test_the_wind_along_the_track_is_applied_before_the_wind_across_it(tmp_path:
     assert we == pytest.approx(-5.0, abs=1.0)  # the headwind, along the track (east)
     assert wn == pytest.approx(0.0, abs=1e-9)  # across: the vehicle file's (none)
     assert tracker.identified_effects(across, 1.0, 0.0) is None
+
+
+def with_autopilot_wind(
+    samples: list[Sample], wind_ne_mps: tuple[float, float], period_s: float = 1.0
+) -> list[Sample]:
+    """``samples`` with the autopilot's wind report (air-mass velocity NED, m/s) after the
+    first velocity sample of every ``period_s`` of the log's clock (ArduPilot's WIND)."""
+    out: list[Sample] = []
+    next_s = -math.inf
+    for sample in samples:
+        out.append(sample)
+        if isinstance(sample, VelocitySample) and sample.time_s >= next_s:
+            out.append(WindSample(sample.time_s, *wind_ne_mps))
+            next_s = sample.time_s + period_s
+    return out
+
+
+ONE_LEG = Plan("one-leg", (Leg("straight", 10.0, heading_deg=90.0, duration_s=120.0),))
+
+
+def test_the_autopilot_wind_report_identifies_the_wind_across_a_single_leg(
+    tmp_path: Path,
+) -> None:
+    """Power on one straight leg shows only the wind along it; the autopilot's own estimate
+    (1 m/s, weighed as one measurement a minute) also settles the one across it."""
+    wind = Wind(5.0, 45.0)  # from the north-east: head wind and cross wind on an eastward leg
+    run = simulate(SimConfig(plan=ONE_LEG, seed=7, effects=(wind,)))
+    samples = list(iter_samples(write_tlog(run, tmp_path / "flight.tlog", truth_csv=False)))
+    alone = OnlineEffects.from_vehicle(VEHICLE)
+    track_samples(samples, alone)
+    aided = OnlineEffects.from_vehicle(VEHICLE)
+    track_samples(with_autopilot_wind(samples, wind.vector_ne_mps()), aided)
+    assert alone.sigma["wind_n_mps"] > 1.0  # across the track, power alone cannot tell
+    assert aided.sigma["wind_n_mps"] < 1.0 and aided.autopilot_wind_steps > 20
+    assert abs(aided.wind.speed_mps - 5.0) < 1.0
+    assert angle_diff_deg(aided.wind.from_deg, 45.0) < 15.0
+    assert abs(aided.mass_delta_kg) < 0.1
+
+
+def test_an_autopilot_reporting_no_wind_or_stale_or_bad_reports_changes_nothing(
+    tmp_path: Path,
+) -> None:
+    """An autopilot that does not estimate the wind reports exactly zero; a report older than
+    ``autopilot_wind_max_age_s`` or not finite is not taken either: the estimate is the one
+    from power alone."""
+    run = simulate(SimConfig(plan=ONE_LEG, seed=7, effects=(Wind(5.0, 90.0),)))
+    samples = list(iter_samples(write_tlog(run, tmp_path / "flight.tlog", truth_csv=False)))
+    alone = OnlineEffects.from_vehicle(VEHICLE)
+    track_samples(samples, alone)
+    stale = [WindSample(-100.0, -5.0, 0.0), *samples]  # reported once, long before the flight
+    for variant in (
+        with_autopilot_wind(samples, (0.0, 0.0)),
+        stale,
+        with_autopilot_wind(samples, (math.nan, 1.0)),
+    ):
+        tracker = OnlineEffects.from_vehicle(VEHICLE)
+        track_samples(variant, tracker)
+        assert tracker.autopilot_wind_steps == 0
+        np.testing.assert_array_equal(tracker._x, alone._x)

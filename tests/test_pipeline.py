@@ -21,6 +21,7 @@ from estimator.telemetry.samples import (
     RebootSample,
     Sample,
     VelocitySample,
+    WindSample,
 )
 
 VEHICLE = default_vehicle()
@@ -261,3 +262,14 @@ def test_the_first_endurance_published_after_take_off_is_within_10_percent(
     assert first.endurance_s == pytest.approx(truth_s, rel=0.10)
     assert first.time_s < 20.0  # take-off at 2 s, 20 m reached at about 13 s
     assert before and all(not e.endurance_valid for e in before)
+
+
+def test_the_autopilot_wind_reaches_the_tracker_and_the_return() -> None:
+    """A WIND report is a sample like the others: counted, kept by the online tracker and by
+    the return figures (``[return] wind = "autopilot"`` uses it)."""
+    pipeline = Pipeline(default_vehicle())
+    report = WindSample(3.0, -4.0, 1.0)
+    run(pipeline, [*flight(2.0), report])
+    assert pipeline.counts["autopilot_wind"] == 1
+    assert pipeline.returning.autopilot_wind == report
+    assert pipeline.online is not None and pipeline.online._autopilot_wind == report

@@ -114,8 +114,9 @@ def warm_up(pilot: Pilot) -> None:
 
 @contextmanager
 def warmed_up_in_wind(live: LiveDaemon) -> Iterator[Pilot]:
-    """A pilot on ``live``'s SITL with :data:`WIND` set, after :func:`warm_up`; closed after."""
-    pilot = live.pilot()
+    """A pilot on ``live``'s SITL with :data:`WIND` set, after :func:`warm_up`; closed after.
+    What the pilot receives goes to ``pilot.tlog`` beside the estimates (for a replay)."""
+    pilot = live.pilot(live.estimates_path.with_name("pilot.tlog"))
     try:
         pilot.connect()
         pilot.set_param("SIM_WIND_SPD", WIND[0])

@@ -60,6 +60,18 @@ conditional on the wind held: when the vehicle then moves while the wind is not 
 ``wind_known_sigma_mps``, the mass variance goes back to its initial value and the moving
 flight, which sees the wind, settles both. :meth:`~OnlineEffects.identified_effects` says
 which parts are known well enough to apply (the wind along the track flown, the mass).
+
+The autopilot's own wind estimate (ArduPilot WIND from its EKF's drag or airspeed fusion, PX4
+WIND_COV; :meth:`~OnlineEffects.take_autopilot_wind`) is a second channel: before each step
+the latest report, when at most ``autopilot_wind_max_age_s`` old, is a linear measurement of
+the wind states (H = [I₂ 0]). Its errors are slow (the EKF's), not white: each step takes it
+with the variance σ² · ``autopilot_wind_correlation_s`` / Δt, so a minute of reports weighs
+as one measurement of 1σ ``autopilot_wind_sigma_mps``. Through the covariance it also moves
+the mass: where power alone sees only a combination (at a constant power on one leg, a
+lower airspeed and a heavier vehicle look alike), the report separates them. An autopilot
+that does not estimate the wind (ArduCopter without drag fusion or an airspeed sensor) reports
+exactly zero: reports count only once one above ``autopilot_wind_active_mps`` has come since
+boot. Without reports the tracker is the power-only filter above.
 """
 
 from __future__ import annotations
@@ -92,6 +104,7 @@ from estimator.telemetry.samples import (
     RebootSample,
     Sample,
     VelocitySample,
+    WindSample,
 )
 
 #: Variance (m²/s²) standing in for a held wind's in the sigma points (positive definite).
@@ -170,6 +183,16 @@ class OnlineSettings:
     min_mass_fraction: float = 0.3
     #: No multirotor flies in more wind than this (m/s): the estimate is held below it.
     max_wind_mps: float = 15.0
+    #: The autopilot's own wind estimate (ArduPilot WIND, PX4 WIND_COV) as a measurement of
+    #: the wind states: its 1σ per component (m/s), the time its errors stay correlated (s:
+    #: each step takes it with the variance scaled by that time over the step's, so a minute
+    #: of it weighs as one measurement), the age beyond which it is not used (s), and the speed
+    #: (m/s) it must once have exceeded since boot (an autopilot that does not estimate the
+    #: wind reports exactly zero).
+    autopilot_wind_sigma_mps: float = 1.0
+    autopilot_wind_correlation_s: float = 60.0
+    autopilot_wind_max_age_s: float = 10.0
+    autopilot_wind_active_mps: float = 0.1
 
 
 class OnlineEffects:
@@ -228,6 +251,11 @@ class OnlineEffects:
         self.last_step_w = (math.nan, math.nan, math.nan)
         #: Times the covariance was restarted after losing positive definiteness (bad data).
         self.resets = 0
+        self._autopilot_wind: WindSample | None = None
+        self._autopilot_wind_active = False  # it has reported a wind since boot
+        #: Steps that took the autopilot's wind, and its reports beyond the gate (not taken).
+        self.autopilot_wind_steps = 0
+        self.autopilot_wind_rejected = 0
 
     @classmethod
     def from_vehicle(
@@ -326,8 +354,49 @@ class OnlineEffects:
         return predict_power_w(self.model, self.mass_kg, state, (mass, *self.others)).reshape(m, k)
 
     def restart_clock(self) -> None:
-        """The autopilot rebooted: readings come on a new clock (the estimate is kept)."""
+        """The autopilot rebooted: readings come on a new clock (the estimate is kept; its
+        wind reports count again once they are not zero)."""
         self._time_s = None
+        self._autopilot_wind, self._autopilot_wind_active = None, False
+
+    def take_autopilot_wind(self, sample: WindSample) -> None:
+        """Keep the autopilot's latest wind estimate for the next steps (non-finite values are
+        ignored)."""
+        wind = (sample.wind_n_mps, sample.wind_e_mps)
+        if not all(math.isfinite(v) for v in (sample.time_s, *wind)):
+            return
+        self._autopilot_wind = sample
+        min_mps = self.settings.autopilot_wind_active_mps
+        self._autopilot_wind_active |= math.hypot(*wind) > min_mps
+
+    def _autopilot_wind_variance(self, time_s: float, dt: float) -> float | None:
+        """The variance (m²/s², per component) the autopilot's wind takes in a step of ``dt``
+        s ending at ``time_s``; None when there is no fresh report from an autopilot that
+        estimates the wind."""
+        s, wind = self.settings, self._autopilot_wind
+        if (
+            wind is None
+            or not self._autopilot_wind_active
+            or dt <= 0.0
+            or not 0.0 <= time_s - wind.time_s <= s.autopilot_wind_max_age_s
+        ):
+            return None
+        return s.autopilot_wind_sigma_mps**2 * max(s.autopilot_wind_correlation_s / dt, 1.0)
+
+    def _with_autopilot_wind(self, h: _Hypothesis, var: float) -> _Hypothesis | None:
+        """``h`` after the autopilot's wind as a linear measurement of the wind states with
+        variance ``var`` (m²/s²): a Kalman update with H = [I₂ 0], which moves the mass too
+        through its covariance with the wind. None when the report is beyond ``gate_sigma``
+        of the estimate."""
+        assert self._autopilot_wind is not None
+        wind = self._autopilot_wind
+        innovation = np.array([wind.wind_n_mps, wind.wind_e_mps]) - h.x[:2]
+        s_mat = h.p[:2, :2] + var * np.eye(2)
+        if float(innovation @ np.linalg.solve(s_mat, innovation)) > self.settings.gate_sigma**2:
+            return None
+        gain = np.linalg.solve(s_mat, h.p[:2, :]).T  # 3 × 2: P Hᵀ S⁻¹
+        p = h.p - gain @ h.p[:2, :]
+        return h._replace(x=h.x + gain @ innovation, p=0.5 * (p + p.T))
 
     def update(
         self,
@@ -405,11 +474,20 @@ class OnlineEffects:
         reopen = step.moving and self._hovering
         self._hovering = not step.moving
         main = self._prior(_Hypothesis(self._x, self._p, self._loglik), q, reopen)
+        wind_var = self._autopilot_wind_variance(time_s, dt)
+        if wind_var is not None:
+            taken = self._with_autopilot_wind(main, wind_var)
+            self.autopilot_wind_steps += taken is not None
+            self.autopilot_wind_rejected += taken is None
+            main = main if taken is None else taken
         file_x = np.array([*self._file_wind_ne_mps, self._file_mass_kg()])
         done, (estimate_w, file_w) = self._step(main, step, np.vstack([main.x, file_x]))
         self.last_step_w = (step.measured_w, estimate_w, file_w)
         if self._rival is not None:
-            rival, _ = self._step(self._prior(self._rival, q, reopen), step)
+            rival = self._prior(self._rival, q, reopen)
+            if wind_var is not None:
+                rival = self._with_autopilot_wind(rival, wind_var) or rival
+            rival, _ = self._step(rival, step)
             main, self._rival = self._duel(done, rival)
         elif done.nu is not None and self._change_detected(done.nu):
             # redo the step from the prior with the changed state's uncertainty restored; in
@@ -591,7 +669,8 @@ class _Runner:
 
 def track_samples(samples: Iterable[Sample], tracker: OnlineEffects) -> list[TrackPoint]:
     """Run ``tracker`` over a log's samples the way the daemon would: the causal kinematics
-    filter on velocity, an update at each airborne battery sample with a current reading."""
+    filter on velocity, the autopilot's wind reports, an update at each airborne battery sample
+    with a current reading."""
     runner = _Runner(tracker)
     for sample in samples:
         if isinstance(sample, VelocitySample):
@@ -600,6 +679,8 @@ def track_samples(samples: Iterable[Sample], tracker: OnlineEffects) -> list[Tra
             runner.armed = sample.armed
         elif isinstance(sample, RebootSample):
             runner.reboot()
+        elif isinstance(sample, WindSample):
+            tracker.take_autopilot_wind(sample)
         elif isinstance(sample, BatterySample) and sample.power_w is not None:
             runner.power(sample.time_s, sample.power_w, sample.voltage_v)
     return runner.points
@@ -607,9 +688,13 @@ def track_samples(samples: Iterable[Sample], tracker: OnlineEffects) -> list[Tra
 
 def track_series(series: FlightSeries, tracker: OnlineEffects) -> list[TrackPoint]:
     """:func:`track_samples` over a flight already read into arrays (one row = a velocity
-    then a power reading; rows flagged disarmed in ``extras['armed']`` are skipped)."""
+    then a power reading; rows flagged disarmed in ``extras['armed']`` are skipped; the
+    autopilot's wind, when the log has it, goes in before each row)."""
     runner = _Runner(tracker)
-    armed = series.extras.get("armed", np.full(len(series), np.nan))
+    nan = np.full(len(series), np.nan)
+    armed = series.extras.get("armed", nan)
+    wind_mps = series.extras.get("autopilot_wind_speed_mps", nan)
+    wind_from = np.radians(series.extras.get("autopilot_wind_from_deg", nan))
     for k in range(len(series)):
         vn, ve = float(series.vn_mps[k]), float(series.ve_mps[k])
         if not (math.isfinite(vn) and math.isfinite(ve)):
@@ -617,6 +702,9 @@ def track_series(series: FlightSeries, tracker: OnlineEffects) -> list[TrackPoin
         alt = float(series.alt_m[k])
         vd = float(series.vd_mps[k])
         t = float(series.time_s[k])
+        if math.isfinite(wind_mps[k]):
+            wind = -float(wind_mps[k]) * np.array([math.cos(wind_from[k]), math.sin(wind_from[k])])
+            tracker.take_autopilot_wind(WindSample(t, float(wind[0]), float(wind[1])))
         runner.velocity(
             VelocitySample(
                 t, vn, ve, vd if math.isfinite(vd) else 0.0, alt if math.isfinite(alt) else None

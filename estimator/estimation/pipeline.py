@@ -446,7 +446,11 @@ class Pipeline:
         elif isinstance(sample, RebootSample):
             return self._reboot(sample)
         elif isinstance(sample, WindSample):
-            return None  # the autopilot's wind is a channel of the offline residual analysis
+            self.counts["autopilot_wind"] += 1
+            if self.online is not None:
+                self.online.take_autopilot_wind(sample)
+            self.returning.take(sample)
+            return None
         elif isinstance(sample, PositionSample | HomeSample | MissionSample | MissionCurrentSample):
             self.returning.take(sample)
             return None
