@@ -23,9 +23,12 @@ from contextlib import contextmanager
 from dataclasses import asdict, dataclass
 from pathlib import Path
 
-from test_ardupilot_sitl import FITTED_VEHICLE, LiveDaemon, live_daemon, needs_sitl
+import pytest
+from test_ardupilot_sitl import FITTED_VEHICLE, REPO, LiveDaemon, live_daemon, needs_sitl
 
+from estimator.analysis.replay import replay_log
 from estimator.logs.mission_files import M_PER_DEG
+from estimator.physics.vehicle import load_vehicle
 from estimator.sitl.launch import HOME
 from estimator.sitl.pilot import Pilot
 
@@ -203,6 +206,24 @@ def test_live_return_energy_is_within_10_percent_of_real_rtls_in_wind(tmp_path: 
     for p in points:
         assert p.distance_m > 150
         assert abs(p.error_pct) < 10.0, table(points)
+
+
+#: A pilot's tlog of the first two points (``replay/rtl/``, see its SOURCE.md) in which the
+#: tracker, from power alone, had the wind at 3.4 m/s from 76° at the north switch (RTL_SPEED
+#: 9.3 m/s, +13.6 %); the switch time s on the autopilot's clock.
+RECORDED_RTL = (REPO / "replay/rtl/north_upwind.tlog", 154.577)
+
+
+def test_a_recorded_rtl_flight_has_the_wind_and_speed_home_right_at_the_switch() -> None:
+    """With the autopilot's WIND reports the tracker has SITL's 5 m/s from 0° at the north
+    switch, and the speed home is the airspeed limit plus that tail wind."""
+    path, switch_s = RECORDED_RTL
+    flight = replay_log(path, load_vehicle(FITTED_VEHICLE))
+    at = [e for e in flight.estimates if e.time_s <= switch_s][-1]
+    assert switch_s - at.time_s < 1.0
+    assert at.rth_wind_mps == pytest.approx(WIND[0], abs=0.5)
+    assert abs((at.rth_wind_from_deg - WIND[1] + 180.0) % 360.0 - 180.0) < 10.0
+    assert at.rth_speed_mps > 14.0
 
 
 #: The live mission check: waypoints (north, east m from home) at 20 m, then RTL.
