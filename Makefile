@@ -16,8 +16,8 @@ demo: $(STAMP)
 	$(BIN)/uav-energy demo
 
 test: $(STAMP)
-	$(BIN)/ruff check estimator tests bench
-	$(BIN)/ruff format --check estimator tests bench
+	$(BIN)/ruff check estimator tests bench scripts
+	$(BIN)/ruff format --check estimator tests bench scripts
 	$(BIN)/mypy
 	$(BIN)/pytest -q
 

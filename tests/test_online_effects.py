@@ -213,7 +213,8 @@ def test_a_wind_setting_in_during_forward_flight_is_detected(tmp_path: Path) -> 
 def test_the_wind_along_the_track_is_applied_before_the_wind_across_it(tmp_path: Path) -> None:
     """One straight leg into a headwind: the along-track component is identified, the cross
     one is not; the effects to apply carry the former and the vehicle file's value of the
-    latter."""
+    latter. Flying across afterwards keeps them; only a wind in use that the estimate refutes
+    is replaced by the estimate."""
     plan = Plan("one-leg", (Leg("straight", 10.0, heading_deg=90.0, duration_s=120.0),))
     _, _, tracker = track_plan(tmp_path, plan, (Wind(5.0, 90.0),))
     along, across = math.radians(90.0), math.radians(0.0)
@@ -225,7 +226,14 @@ def test_the_wind_along_the_track_is_applied_before_the_wind_across_it(tmp_path:
     wn, we = applied.vector_ne_mps()
     assert we == pytest.approx(-5.0, abs=1.0)  # the headwind, along the track (east)
     assert wn == pytest.approx(0.0, abs=1e-9)  # across: the vehicle file's (none)
-    assert tracker.identified_effects(across, 1.0, 0.0) is None
+    # flying across it next, the head wind in use stands and the cross component stays unknown
+    assert tracker.identified_effects(across, 1.0, 0.0, effects) is None
+    # but a wind in use that the estimate refutes (the file's calm) gives way to the estimate
+    refuting = tracker.identified_effects(across, 1.0, 0.0)
+    assert refuting is not None
+    assert next(e for e in refuting if isinstance(e, Wind)).vector_ne_mps()[1] == pytest.approx(
+        -5.0, abs=1.0
+    )
 
 
 def with_autopilot_wind(
@@ -285,3 +293,32 @@ def test_an_autopilot_reporting_no_wind_or_stale_or_bad_reports_changes_nothing(
         track_samples(variant, tracker)
         assert tracker.autopilot_wind_steps == 0
         np.testing.assert_array_equal(tracker._x, alone._x)
+
+
+def test_a_wind_change_the_autopilot_reports_is_followed_where_power_cannot_show_it(
+    tmp_path: Path,
+) -> None:
+    """In hover the power hardly shows the wind (and the tracker holds it); a wind that the
+    autopilot reports setting in there reopens the wind's variance after three steps apart
+    and is followed: most of the way in 25 s, within 1 m/s in a minute."""
+    onset_s, wind = 120.0, WindFrom(6.0, 60.0, at_s=120.0)
+    plan = Plan("hover", (Leg("hover", duration_s=200.0),))
+    run = simulate(SimConfig(plan=plan, seed=7, effects=(wind,)))
+    samples = list(iter_samples(write_tlog(run, tmp_path / "flight.tlog", truth_csv=False)))
+    reports: list[Sample] = []
+    for sample in samples:
+        reports.append(sample)
+        if isinstance(sample, VelocitySample):
+            blowing = sample.time_s >= onset_s + 5.0  # the autopilot's estimate lags
+            reports.append(
+                WindSample(sample.time_s, *(wind.vector_ne_mps() if blowing else (0.2, 0.0)))
+            )
+    tracker = OnlineEffects.from_vehicle(VEHICLE)
+    points = track_samples(reports, tracker)
+    assert at(points, onset_s - 5.0).wind_speed_mps < 1.0
+    soon, later = at(points, onset_s + 25.0), at(points, onset_s + 60.0)
+    assert soon.wind_speed_mps > 4.0  # most of the way: a minute of reports weighs as one
+    assert abs(later.wind_speed_mps - 6.0) < 1.0
+    for p in (soon, later):
+        assert angle_diff_deg(p.wind_from_deg, 60.0) < 15.0
+    assert tracker.changes >= 1

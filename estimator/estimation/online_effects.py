@@ -193,6 +193,15 @@ class OnlineSettings:
     autopilot_wind_correlation_s: float = 60.0
     autopilot_wind_max_age_s: float = 10.0
     autopilot_wind_active_mps: float = 0.1
+    #: A wind change the autopilot saw: its report this far from the estimate (squared
+    #: Mahalanobis distance with the report's own 1σ; 13.8 = χ²₂ at 0.1 %) on this many steps
+    #: in a row reopens the wind's variance, as a change found in the power does.
+    autopilot_wind_change_chi2: float = 13.8
+    autopilot_wind_change_steps: int = 3
+    #: A wind in use this far from the estimate (squared Mahalanobis distance with the
+    #: estimate's covariance; χ²₂ at 0.1 %) is refuted: the estimate replaces it even before
+    #: it is identified (after a change, the old wind is worse than the new one's first guess).
+    wind_refuted_chi2: float = 13.8
 
 
 class OnlineEffects:
@@ -253,6 +262,7 @@ class OnlineEffects:
         self.resets = 0
         self._autopilot_wind: WindSample | None = None
         self._autopilot_wind_active = False  # it has reported a wind since boot
+        self._autopilot_wind_apart = 0  # steps in a row its report was far from the estimate
         #: Steps that took the autopilot's wind, and its reports beyond the gate (not taken).
         self.autopilot_wind_steps = 0
         self.autopilot_wind_rejected = 0
@@ -304,7 +314,9 @@ class OnlineEffects:
         at most ``mass_sigma_kg``. Wind: the whole vector when both components' 1σ are at
         most ``wind_sigma_mps``; else its component along the track flown (``track_rad``,
         from north towards east), the one that sets the power at the current course, when
-        that component's 1σ is; the component across keeps the value in use. None when
+        that component's 1σ is, the component across keeping the value in use; and the whole
+        vector whenever the wind so chosen is refuted by the estimate (``wind_refuted_chi2``:
+        after a change the old wind is worse than the new one's first guess). None when
         nothing is identified."""
         x, p = self._x, self._p
         used_wind = next((e for e in in_use if isinstance(e, Wind)), None)
@@ -320,13 +332,15 @@ class OnlineEffects:
             mass = float(x[2])
         along = np.array([math.cos(track_rad), math.sin(track_rad)])
         wind_var = p[:2, :2]
+        known = mass_known
         if max(wind_var[0, 0], wind_var[1, 1]) <= wind_sigma_mps**2:
-            wind = x[:2]
+            wind, known = x[:2], True
         elif float(along @ wind_var @ along) <= wind_sigma_mps**2:
-            wind = wind + along * float(along @ (x[:2] - wind))
-        elif not mass_known:
-            return None
-        return self._effects(np.array([*wind, mass]))
+            wind, known = wind + along * float(along @ (x[:2] - wind)), True
+        apart = x[:2] - wind
+        if float(apart @ np.linalg.solve(wind_var, apart)) > self.settings.wind_refuted_chi2:
+            wind, known = x[:2], True
+        return self._effects(np.array([*wind, mass])) if known else None
 
     def _file_mass_kg(self) -> float:
         """The vehicle file's mass difference now (kg): a stepped one from its time on."""
@@ -382,6 +396,24 @@ class OnlineEffects:
         ):
             return None
         return s.autopilot_wind_sigma_mps**2 * max(s.autopilot_wind_correlation_s / dt, 1.0)
+
+    def _autopilot_saw_a_change(self, h: _Hypothesis) -> bool:
+        """Whether the autopilot's report has been beyond ``autopilot_wind_change_chi2`` of
+        ``h``'s wind (with the report's own variance) for ``autopilot_wind_change_steps``
+        steps in a row (then the count starts over and ``changes`` counts it)."""
+        assert self._autopilot_wind is not None
+        s, wind = self.settings, self._autopilot_wind
+        innovation = np.array([wind.wind_n_mps, wind.wind_e_mps]) - h.x[:2]
+        s_mat = h.p[:2, :2] + s.autopilot_wind_sigma_mps**2 * np.eye(2)
+        apart = (
+            float(innovation @ np.linalg.solve(s_mat, innovation)) > s.autopilot_wind_change_chi2
+        )
+        self._autopilot_wind_apart = self._autopilot_wind_apart + 1 if apart else 0
+        if self._autopilot_wind_apart < s.autopilot_wind_change_steps:
+            return False
+        self._autopilot_wind_apart = 0
+        self.changes += 1
+        return True
 
     def _with_autopilot_wind(self, h: _Hypothesis, var: float) -> _Hypothesis | None:
         """``h`` after the autopilot's wind as a linear measurement of the wind states with
@@ -476,6 +508,8 @@ class OnlineEffects:
         main = self._prior(_Hypothesis(self._x, self._p, self._loglik), q, reopen)
         wind_var = self._autopilot_wind_variance(time_s, dt)
         if wind_var is not None:
+            if self._autopilot_saw_a_change(main):
+                main = main._replace(p=self._widened(main.p, wind=True))
             taken = self._with_autopilot_wind(main, wind_var)
             self.autopilot_wind_steps += taken is not None
             self.autopilot_wind_rejected += taken is None
