@@ -258,6 +258,16 @@ def fly_mission(tmp_path: Path) -> dict[str, float]:
     }
 
 
+@needs_sitl
+def test_live_mission_energy_is_within_10_percent_of_the_flown_mission_in_wind(
+    tmp_path: Path,
+) -> None:
+    """The daemon reads a mission uploaded while hovering in a 5 m/s wind; its MIS_WH when AUTO
+    starts is within 10 % of the energy the autopilot used to fly it and land."""
+    flown = fly_mission(tmp_path)
+    assert abs(flown["error_pct"]) < 10.0, flown
+
+
 if __name__ == "__main__":
     if sys.argv[1:2] == ["--mission"]:
         mission_dir = Path(sys.argv[2] if len(sys.argv) > 2 else "out/rth_sitl_mission")
