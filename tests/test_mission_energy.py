@@ -13,14 +13,16 @@ import sys
 from dataclasses import replace
 from pathlib import Path
 
+import numpy as np
 import pytest
 
 from estimator.analysis.mission_energy import FlightSettings, mission_energy
 from estimator.analysis.mission_validation import check_recording
 from estimator.errors import UserError
 from estimator.logs.mission_files import M_PER_DEG, MissionLeg, load_mission
-from estimator.physics.model import G_MPS2
+from estimator.physics.model import COEFFICIENT_NAMES, G_MPS2, PowerModel
 from estimator.physics.route_energy import (
+    UNCERTAINTY_SOURCES,
     Conditions,
     InfeasibleTrack,
     Kinematics,
@@ -30,6 +32,7 @@ from estimator.physics.route_energy import (
     leg_energy,
     optimal_speed,
     reachable_ground_speed_mps,
+    steady_power_w,
     sum_energies,
     vertical_energy,
 )
@@ -104,6 +107,45 @@ def test_sigma_comes_from_the_sources_and_adds_per_source_along_a_route() -> Non
     fitted = RouteVehicle.from_vehicle(load_vehicle(SITL_VEHICLE))
     model_only = leg_energy(fitted, Conditions(), **leg)
     assert model_only.energy_sigma_wh > 0
+
+
+def test_energy_and_sensitivities_equal_the_steady_power_of_each_stepped_condition() -> None:
+    """The wind and payload steps are predicted together with the nominal (one call over
+    phases × conditions); each must equal the steady power under its own conditions."""
+    fitted = RouteVehicle.from_vehicle(load_vehicle(SITL_VEHICLE))
+    c = Conditions(wind_speed_mps=5.0, wind_from_deg=30.0, payload_kg=0.4, wind_sigma_mps=1.0,
+                   payload_sigma_kg=0.1)  # fmt: skip
+    leg = leg_energy(fitted, c, distance_m=400.0, track_deg=100.0, ground_speed_mps=9.0)
+
+    def energy_wh(v: RouteVehicle, cond: Conditions) -> float:
+        vn, ve = 9.0 * math.cos(math.radians(100.0)), 9.0 * math.sin(math.radians(100.0))
+        return float(steady_power_w(v, cond, vn, ve)[0]) * leg.time_s / 3600.0
+
+    assert leg.energy_wh == pytest.approx(energy_wh(fitted, c), rel=1e-12)
+    wn, we = c.wind_ne_mps()
+
+    def wind_ne(n: float, e: float) -> Conditions:
+        from_deg = math.degrees(math.atan2(-e, -n)) % 360.0
+        return replace(c, wind_speed_mps=math.hypot(n, e), wind_from_deg=from_deg)
+
+    h = 0.05  # route_energy's central-difference step, in σ
+    steps = {  # source: (conditions h σ up, h σ down)
+        "wind_n": (wind_ne(wn + h, we), wind_ne(wn - h, we)),
+        "wind_e": (wind_ne(wn, we + h), wind_ne(wn, we - h)),
+        "payload": (replace(c, payload_kg=0.4 + h * 0.1), replace(c, payload_kg=0.4 - h * 0.1)),
+    }
+    sens = dict(zip(UNCERTAINTY_SOURCES, leg.sensitivity_wh, strict=True))
+    for source, (up, down) in steps.items():
+        expected = (energy_wh(fitted, up) - energy_wh(fitted, down)) / (2.0 * h)
+        assert sens[source] == pytest.approx(expected, rel=1e-6)
+    k = COEFFICIENT_NAMES.index("c3")
+    bump = np.eye(5)[k] * h * fitted.model_stderr[k]
+    up_c, down_c = (
+        replace(fitted, model=PowerModel.from_array(fitted.model.as_array() + d))
+        for d in (bump, -bump)
+    )
+    expected_c3 = (energy_wh(up_c, c) - energy_wh(down_c, c)) / (2.0 * h)
+    assert sens["c3"] == pytest.approx(expected_c3, rel=1e-6)
 
 
 def test_a_wind_beyond_the_airspeed_limit_is_infeasible_and_caps_the_ground_speed() -> None:

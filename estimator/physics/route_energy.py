@@ -32,6 +32,7 @@ from __future__ import annotations
 import math
 from collections.abc import Iterable, Sequence
 from dataclasses import dataclass, replace
+from typing import NamedTuple
 
 import numpy as np
 
@@ -40,6 +41,7 @@ from estimator.physics.effects import (
     Effect,
     FlightState,
     Mass,
+    SampleMass,
     Wind,
     effects_from_tables,
     predict_power_w,
@@ -228,12 +230,9 @@ def steady_power_w(
     return predict_power_w(vehicle.model, vehicle.mass_kg, state, effects)
 
 
-def _perturbed(
-    vehicle: RouteVehicle, conditions: Conditions
-) -> Iterable[tuple[int, float, RouteVehicle, Conditions]]:
-    """(source index, step in σ, vehicle, conditions) pairs for central differences."""
+def _model_perturbations(vehicle: RouteVehicle) -> Iterable[tuple[int, float, RouteVehicle]]:
+    """(source index, step in σ, vehicle) for central differences over c1..c5."""
     coeffs = vehicle.model.as_array()
-    wn, we = conditions.wind_ne_mps()
     for k, sigma in enumerate(vehicle.model_stderr):
         if sigma <= 0:
             continue
@@ -242,28 +241,39 @@ def _perturbed(
             c[k] += sign * _STEP_SIGMAS * sigma
             if c[k] <= 0:  # one-sided difference at a coefficient's lower bound
                 continue
-            model = PowerModel.from_array(c)
-            yield k, sign * _STEP_SIGMAS, replace(vehicle, model=model), conditions
+            yield k, sign * _STEP_SIGMAS, replace(vehicle, model=PowerModel.from_array(c))
+
+
+class _Hypothesis(NamedTuple):
+    """Conditions to evaluate phases in: the uncertainty source stepped (index in
+    :data:`UNCERTAINTY_SOURCES`, -1 for none) and its step in σ, the air mass's velocity over
+    ground (north, east, m/s) and the payload (kg)."""
+
+    source: int
+    step: float
+    wind_n_mps: float
+    wind_e_mps: float
+    payload_kg: float
+
+
+def _condition_hypotheses(conditions: Conditions) -> list[_Hypothesis]:
+    """The nominal conditions first, then central-difference steps of the wind components and
+    the payload (those with a σ)."""
+    wn, we = conditions.wind_ne_mps()
+    payload = conditions.payload_kg
+    out = [_Hypothesis(-1, 0.0, wn, we, payload)]
     if conditions.wind_sigma_mps > 0:
         for k, (dn, de) in ((5, (1.0, 0.0)), (6, (0.0, 1.0))):
             for sign in (1.0, -1.0):
                 step = sign * _STEP_SIGMAS * conditions.wind_sigma_mps
-                yield (
-                    k,
-                    sign * _STEP_SIGMAS,
-                    vehicle,
-                    _with_wind_ne(conditions, wn + step * dn, we + step * de),
+                out.append(
+                    _Hypothesis(k, sign * _STEP_SIGMAS, wn + step * dn, we + step * de, payload)
                 )
     if conditions.payload_sigma_kg > 0:
         for sign in (1.0, -1.0):
-            payload = conditions.payload_kg + sign * _STEP_SIGMAS * conditions.payload_sigma_kg
-            yield 7, sign * _STEP_SIGMAS, vehicle, replace(conditions, payload_kg=payload)
-
-
-def _with_wind_ne(conditions: Conditions, wn_mps: float, we_mps: float) -> Conditions:
-    """``conditions`` with the air-mass velocity (north, east) m/s, as speed and from-bearing."""
-    from_deg = math.degrees(math.atan2(-we_mps, -wn_mps)) % 360.0
-    return replace(conditions, wind_speed_mps=math.hypot(wn_mps, we_mps), wind_from_deg=from_deg)
+            step = sign * _STEP_SIGMAS * conditions.payload_sigma_kg
+            out.append(_Hypothesis(7, sign * _STEP_SIGMAS, wn, we, payload + step))
+    return out
 
 
 @dataclass(frozen=True)
@@ -279,24 +289,52 @@ class _Phase:
     ae_mps2: float = 0.0
 
 
+def _energies_wh(
+    vehicle: RouteVehicle, phases: Sequence[_Phase], hypotheses: Sequence[_Hypothesis]
+) -> FloatArray:
+    """Energy (Wh) of ``phases`` under each hypothesis, from one prediction over phases ×
+    hypotheses: the wind taken out of the ground velocity (what :class:`Wind` does), the
+    payload as a per-row :class:`SampleMass` (what :class:`Mass` does)."""
+    m, n = len(hypotheses), len(phases)
+    h = np.array([hyp[2:] for hyp in hypotheses], dtype=float)  # m × (wind n, wind e, payload)
+
+    def tiled(name: str) -> FloatArray:
+        return np.tile(np.array([getattr(ph, name) for ph in phases], dtype=float), m)
+
+    nan = np.full(m * n, np.nan)
+    state = FlightState(
+        time_s=np.zeros(m * n),
+        vn_mps=tiled("vn_mps") - np.repeat(h[:, 0], n),
+        ve_mps=tiled("ve_mps") - np.repeat(h[:, 1], n),
+        vd_mps=tiled("vd_mps"),
+        an_mps2=tiled("an_mps2"),
+        ae_mps2=tiled("ae_mps2"),
+        alt_m=nan,
+        voltage_v=nan.copy(),
+    )
+    effects = (*vehicle.effects, SampleMass(np.repeat(h[:, 2], n)))
+    power_w = predict_power_w(vehicle.model, vehicle.mass_kg, state, effects).reshape(m, n)
+    duration_s = np.array([ph.duration_s for ph in phases], dtype=float)
+    return np.asarray(power_w @ duration_s / _J_PER_WH, dtype=float)
+
+
 def _energy_with_sensitivity(
     vehicle: RouteVehicle, conditions: Conditions, phases: Sequence[_Phase]
 ) -> tuple[float, tuple[float, ...]]:
-    """Energy (Wh) of ``phases`` and its 1σ sensitivities (:data:`UNCERTAINTY_SOURCES`)."""
-    cols = {
-        name: np.array([getattr(ph, name) for ph in phases], dtype=float)
-        for name in ("vn_mps", "ve_mps", "vd_mps", "an_mps2", "ae_mps2", "duration_s")
-    }
-    dur = cols.pop("duration_s")
-
-    def energy_wh(v: RouteVehicle, c: Conditions) -> float:
-        return float(np.sum(steady_power_w(v, c, **cols) * dur) / _J_PER_WH)
-
-    nominal = energy_wh(vehicle, conditions)
+    """Energy (Wh) of ``phases`` and its 1σ sensitivities (:data:`UNCERTAINTY_SOURCES`): the
+    wind and payload steps in one prediction with the nominal, each model step in its own."""
+    hypotheses = _condition_hypotheses(conditions)
+    energies = _energies_wh(vehicle, phases, hypotheses)
+    nominal = float(energies[0])
     slopes = np.zeros(len(UNCERTAINTY_SOURCES))
     steps = np.zeros(len(UNCERTAINTY_SOURCES))
-    for k, step, v, c in _perturbed(vehicle, conditions):
-        slopes[k] += math.copysign(1.0, step) * (energy_wh(v, c) - nominal)
+    stepped = [
+        (h.source, h.step, float(e)) for h, e in zip(hypotheses[1:], energies[1:], strict=True)
+    ]
+    for k, step, v in _model_perturbations(vehicle):
+        stepped.append((k, step, float(_energies_wh(v, phases, hypotheses[:1])[0])))
+    for k, step, energy_wh in stepped:
+        slopes[k] += math.copysign(1.0, step) * (energy_wh - nominal)
         steps[k] += abs(step)
     sens = np.divide(slopes, steps, out=np.zeros_like(slopes), where=steps > 0)
     return nominal, tuple(float(s) for s in sens)
