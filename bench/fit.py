@@ -2,17 +2,19 @@
 time goes, and the held-out error of the three models.
 
 Prints the wall and CPU time of each phase in this process — reading the logs
-(``load_flights``), preprocessing, ``fit_all`` (5-fold held-out scoring of least squares
-theory, cubic polynomial and the 3 × 10 network, then the final fits) — and the whole
-``uav-energy fit … --json`` process (interpreter start and imports included). The network's
-held-out RMSE is printed at its mini-batch size (1/16 of the points) and, with ``--batch-200``,
-also at scikit-learn's default of 200 (the reference the batch size was chosen against; that
-run alone takes ~10 s of CPU). Skips with a message when ``../shared`` is absent.
-Run: ``python -m bench.fit [--batch-200]``.
+(``load_flights``, in one process, then in one per CPU as ``uav-energy fit`` does),
+preprocessing, ``fit_all`` (5-fold held-out scoring of least squares theory, cubic polynomial
+and the 3 × 10 network, then the final fits) — and the whole ``uav-energy fit … --json``
+process (interpreter start and imports included). The network's held-out RMSE is printed at
+its mini-batch size (1/8 of the points) and, with ``--batch-200``, also at scikit-learn's
+default of 200 (the reference the batch size was chosen against; that run alone takes ~10 s of
+CPU). Skips with a message when ``../shared`` is absent. Run: ``python -m bench.fit
+[--batch-200]``.
 """
 
 from __future__ import annotations
 
+import os
 import subprocess
 import sys
 import time
@@ -53,6 +55,8 @@ def main(argv: list[str]) -> int:
         return 0
     print(f"bench fit: {len(logs)} IRIS+ June–August logs")
     flights = timed("read (load_flights)", lambda: load_flights(logs))
+    jobs = os.cpu_count() or 1
+    timed(f"read in {jobs} processes", lambda: load_flights(logs, workers=jobs))
     options = FitOptions()
     points = timed("preprocess", lambda: preprocess(flights, options.preprocess, None, MASS_KG))
     report = timed("fit_all (3 models, 5 folds)", lambda: fit_all(points, options))

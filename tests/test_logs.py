@@ -95,6 +95,17 @@ def test_header_skipping_gives_the_same_samples_as_parsing_every_frame() -> None
     assert list(iter_samples(IRIS_AUGUST)) == reference
 
 
+def test_logs_read_in_several_processes_give_the_same_flights_in_order() -> None:
+    logs = sorted((REPO / "replay/iris").glob("*/*/*.log"))
+    assert len(logs) == 5
+    serial, forked = load_flights(logs), load_flights(logs, workers=2)
+    assert [f.flight_id for f in forked] == [f.flight_id for f in serial]
+    for a, b in zip(serial, forked, strict=True):
+        np.testing.assert_array_equal(a.time_s, b.time_s)
+        np.testing.assert_array_equal(a.power_w, b.power_w)
+        np.testing.assert_array_equal(a.vn_mps, b.vn_mps)
+
+
 def test_truncated_tlog_reads_up_to_the_damage(tmp_path: Path) -> None:
     full = list(iter_samples(IRIS_AUGUST))
     cut = tmp_path / "cut.tlog"

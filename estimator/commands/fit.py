@@ -10,6 +10,7 @@ from __future__ import annotations
 import argparse
 import json
 import math
+import os
 from pathlib import Path
 from typing import Any
 
@@ -42,6 +43,13 @@ def register(subparsers: argparse._SubParsersAction[argparse.ArgumentParser]) ->
     p.add_argument("--report", type=Path, metavar="DIR", help="write PNG plots and summary.md")
     p.add_argument("--json", action="store_true", help="print one JSON object to stdout")
     p.add_argument("--title", default=None, help="title of the report")
+    p.add_argument(
+        "--jobs",
+        type=int,
+        default=os.cpu_count() or 1,
+        metavar="N",
+        help="processes reading the logs (default: the number of CPUs)",
+    )
     v = p.add_argument_group("vehicle file (--out)")
     v.add_argument("--name", default=None, help="vehicle name (default: first log's name)")
     v.add_argument(
@@ -82,7 +90,7 @@ def run(args: argparse.Namespace) -> int:
     console = Console(stderr=True)
     _check_args(args)
     with console.status("reading logs") as status:
-        flights = load_flights(args.logs, args.format)
+        flights = load_flights(args.logs, args.format, workers=args.jobs)
         for warning in flight_warnings(flights, args.cells):
             console.print(
                 f"uav-energy fit: warning: {warning}", highlight=False, soft_wrap=True, markup=False
@@ -133,6 +141,8 @@ def _check_args(args: argparse.Namespace) -> None:
             raise UserError(f"--{name.replace('_', '-')} must be a positive number")
     if args.folds < 2:
         raise UserError("--folds must be at least 2")
+    if args.jobs < 1:
+        raise UserError("--jobs must be at least 1")
     if not 0.0 <= args.reserve_fraction < 1.0:
         raise UserError("--reserve-fraction must be in [0, 1)")
     if args.out is not None and (args.mass_kg is None or args.capacity_ah is None):

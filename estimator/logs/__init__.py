@@ -20,9 +20,11 @@ the last two live in their own modules, imported only when such a file is met.
 from __future__ import annotations
 
 import importlib
+import multiprocessing
 import os
 from collections import Counter
 from collections.abc import Iterable, Iterator, Sequence
+from concurrent.futures import ProcessPoolExecutor
 from dataclasses import dataclass, field
 from pathlib import Path
 from types import ModuleType
@@ -193,8 +195,12 @@ def _guarded(
     stream.count_checks(guard.counts)
 
 
-def load_flights(paths: Sequence[str | Path], fmt: str = "auto") -> list[FlightSeries]:
-    """Read logs into flights. CMU CSV files are read together (regime files join up)."""
+def load_flights(
+    paths: Sequence[str | Path], fmt: str = "auto", workers: int = 1
+) -> list[FlightSeries]:
+    """Read logs into flights. CMU CSV files are read together (regime files join up).
+    ``workers`` > 1: the files of the other formats are read in that many forked processes
+    (same flights, same order)."""
     if not paths:
         raise UserError("no log files given")
     by_format: dict[str, list[Path]] = {}
@@ -206,10 +212,23 @@ def load_flights(paths: Sequence[str | Path], fmt: str = "auto") -> list[FlightS
         module = _module(name)
         if hasattr(module, "load_flights"):
             flights.extend(module.load_flights(group))
+            continue
+        jobs = list(zip(group, _unique_names(group), [name] * len(group), strict=True))
+        if workers > 1 and len(jobs) > 1:
+            fork = multiprocessing.get_context("fork")
+            with ProcessPoolExecutor(min(workers, len(jobs)), mp_context=fork) as pool:
+                for read in pool.map(_read_flights, jobs):
+                    flights.extend(read)
         else:
-            for path, flight_name in zip(group, _unique_names(group), strict=True):
-                flights.extend(flights_from_stream(iter_samples(path, name), flight_name))
+            for job in jobs:
+                flights.extend(_read_flights(job))
     return flights
+
+
+def _read_flights(job: tuple[Path, str, str]) -> list[FlightSeries]:
+    """The flights of one log: (path, flight name, format)."""
+    path, flight_name, fmt = job
+    return list(flights_from_stream(iter_samples(path, fmt), flight_name))
 
 
 def _unique_names(paths: list[Path]) -> list[str]:
