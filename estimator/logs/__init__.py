@@ -20,11 +20,9 @@ the last two live in their own modules, imported only when such a file is met.
 from __future__ import annotations
 
 import importlib
-import multiprocessing
 import os
 from collections import Counter
 from collections.abc import Iterable, Iterator, Sequence
-from concurrent.futures import ProcessPoolExecutor
 from dataclasses import dataclass, field
 from pathlib import Path
 from types import ModuleType
@@ -215,6 +213,9 @@ def load_flights(
             continue
         jobs = list(zip(group, _unique_names(group), [name] * len(group), strict=True))
         if workers > 1 and len(jobs) > 1:
+            import multiprocessing  # only here: the daemon imports this module
+            from concurrent.futures import ProcessPoolExecutor
+
             fork = multiprocessing.get_context("fork")
             with ProcessPoolExecutor(min(workers, len(jobs)), mp_context=fork) as pool:
                 for read in pool.map(_read_flights, jobs):
