@@ -10,7 +10,6 @@ the landing. Run: ``python scripts/tracked_wind_sitl.py``.
 from __future__ import annotations
 
 import json
-import math
 from collections.abc import Iterable
 from pathlib import Path
 
@@ -19,6 +18,7 @@ import numpy as np
 from estimator.analysis.replay import replay_stream
 from estimator.estimation.pipeline import Estimate
 from estimator.logs import iter_samples
+from estimator.physics.effects import Wind
 from estimator.physics.vehicle import Vehicle, load_vehicle
 from estimator.telemetry.samples import Sample, WindSample
 
@@ -31,8 +31,7 @@ SETTLE_S = 30.0
 
 def air_velocity_ne(speed_mps: float, from_deg: float) -> np.ndarray:
     """The air mass's velocity over ground (north, east), m/s, of a wind from ``from_deg``."""
-    a = math.radians(from_deg)
-    return -speed_mps * np.array([math.cos(a), math.sin(a)])
+    return np.array(Wind(speed_mps, from_deg).vector_ne_mps())
 
 
 def truth_wind_ne(winds: list[dict], time_s: float) -> np.ndarray:

@@ -111,6 +111,11 @@ from estimator.telemetry.samples import (
 _HELD_VARIANCE = 1e-9
 
 
+def _mahalanobis2(d: np.ndarray, cov: np.ndarray) -> float:
+    """dᵀ cov⁻¹ d: the squared Mahalanobis distance of ``d`` under ``cov``."""
+    return float(d @ np.linalg.solve(cov, d))
+
+
 def wind_from_vector(wn_mps: float, we_mps: float) -> Wind:
     """The :class:`Wind` whose air mass moves over ground at (north, east) m/s."""
     speed = math.hypot(wn_mps, we_mps)
@@ -338,7 +343,7 @@ class OnlineEffects:
         elif float(along @ wind_var @ along) <= wind_sigma_mps**2:
             wind, known = wind + along * float(along @ (x[:2] - wind)), True
         apart = x[:2] - wind
-        if float(apart @ np.linalg.solve(wind_var, apart)) > self.settings.wind_refuted_chi2:
+        if _mahalanobis2(apart, wind_var) > self.settings.wind_refuted_chi2:
             wind, known = x[:2], True
         return self._effects(np.array([*wind, mass])) if known else None
 
@@ -397,17 +402,25 @@ class OnlineEffects:
             return None
         return s.autopilot_wind_sigma_mps**2 * max(s.autopilot_wind_correlation_s / dt, 1.0)
 
+    def _autopilot_innovation(
+        self, h: _Hypothesis, var: float
+    ) -> tuple[np.ndarray, np.ndarray, float]:
+        """The autopilot's wind report against ``h``'s wind: innovation (m/s, north and east),
+        its covariance with the report's variance ``var`` (m²/s²) per component, and its
+        squared Mahalanobis distance."""
+        assert self._autopilot_wind is not None
+        wind = self._autopilot_wind
+        innovation = np.array([wind.wind_n_mps, wind.wind_e_mps]) - h.x[:2]
+        s_mat = h.p[:2, :2] + var * np.eye(2)
+        return innovation, s_mat, _mahalanobis2(innovation, s_mat)
+
     def _autopilot_saw_a_change(self, h: _Hypothesis) -> bool:
         """Whether the autopilot's report has been beyond ``autopilot_wind_change_chi2`` of
         ``h``'s wind (with the report's own variance) for ``autopilot_wind_change_steps``
         steps in a row (then the count starts over and ``changes`` counts it)."""
-        assert self._autopilot_wind is not None
-        s, wind = self.settings, self._autopilot_wind
-        innovation = np.array([wind.wind_n_mps, wind.wind_e_mps]) - h.x[:2]
-        s_mat = h.p[:2, :2] + s.autopilot_wind_sigma_mps**2 * np.eye(2)
-        apart = (
-            float(innovation @ np.linalg.solve(s_mat, innovation)) > s.autopilot_wind_change_chi2
-        )
+        s = self.settings
+        _, _, distance2 = self._autopilot_innovation(h, s.autopilot_wind_sigma_mps**2)
+        apart = distance2 > s.autopilot_wind_change_chi2
         self._autopilot_wind_apart = self._autopilot_wind_apart + 1 if apart else 0
         if self._autopilot_wind_apart < s.autopilot_wind_change_steps:
             return False
@@ -420,11 +433,8 @@ class OnlineEffects:
         variance ``var`` (m²/s²): a Kalman update with H = [I₂ 0], which moves the mass too
         through its covariance with the wind. None when the report is beyond ``gate_sigma``
         of the estimate."""
-        assert self._autopilot_wind is not None
-        wind = self._autopilot_wind
-        innovation = np.array([wind.wind_n_mps, wind.wind_e_mps]) - h.x[:2]
-        s_mat = h.p[:2, :2] + var * np.eye(2)
-        if float(innovation @ np.linalg.solve(s_mat, innovation)) > self.settings.gate_sigma**2:
+        innovation, s_mat, distance2 = self._autopilot_innovation(h, var)
+        if distance2 > self.settings.gate_sigma**2:
             return None
         gain = np.linalg.solve(s_mat, h.p[:2, :]).T  # 3 × 2: P Hᵀ S⁻¹
         p = h.p - gain @ h.p[:2, :]
@@ -728,7 +738,7 @@ def track_series(series: FlightSeries, tracker: OnlineEffects) -> list[TrackPoin
     nan = np.full(len(series), np.nan)
     armed = series.extras.get("armed", nan)
     wind_mps = series.extras.get("autopilot_wind_speed_mps", nan)
-    wind_from = np.radians(series.extras.get("autopilot_wind_from_deg", nan))
+    wind_from_deg = series.extras.get("autopilot_wind_from_deg", nan)
     for k in range(len(series)):
         vn, ve = float(series.vn_mps[k]), float(series.ve_mps[k])
         if not (math.isfinite(vn) and math.isfinite(ve)):
@@ -737,8 +747,8 @@ def track_series(series: FlightSeries, tracker: OnlineEffects) -> list[TrackPoin
         vd = float(series.vd_mps[k])
         t = float(series.time_s[k])
         if math.isfinite(wind_mps[k]):
-            wind = -float(wind_mps[k]) * np.array([math.cos(wind_from[k]), math.sin(wind_from[k])])
-            tracker.take_autopilot_wind(WindSample(t, float(wind[0]), float(wind[1])))
+            wind = Wind(float(wind_mps[k]), float(wind_from_deg[k])).vector_ne_mps()
+            tracker.take_autopilot_wind(WindSample(t, *wind))
         runner.velocity(
             VelocitySample(
                 t, vn, ve, vd if math.isfinite(vd) else 0.0, alt if math.isfinite(alt) else None

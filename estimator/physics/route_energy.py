@@ -196,6 +196,28 @@ def _velocity_ne(track_deg: float, ground_speed_mps: FloatArray | float) -> tupl
     return v * math.cos(rad), v * math.sin(rad)
 
 
+def _steady_state(
+    vn_mps: FloatArray | float,
+    ve_mps: FloatArray | float,
+    vd_mps: FloatArray | float,
+    an_mps2: FloatArray | float,
+    ae_mps2: FloatArray | float,
+) -> FlightState:
+    """A flight state of these velocities (NED, m/s) and horizontal accelerations (NED, m/s²),
+    broadcast to one shape; no time, altitude or voltage (steady flight anywhere)."""
+    vn, ve, vd, an, ae = (
+        np.array(x, dtype=float)  # copies: the prediction may not share the caller's arrays
+        for x in np.broadcast_arrays(
+            *(
+                np.atleast_1d(np.asarray(x, dtype=float))
+                for x in (vn_mps, ve_mps, vd_mps, an_mps2, ae_mps2)
+            )
+        )
+    )
+    nan = np.full(vn.shape, np.nan)
+    return FlightState(np.zeros(vn.shape), vn, ve, vd, an, ae, nan, nan.copy())
+
+
 def steady_power_w(
     vehicle: RouteVehicle,
     conditions: Conditions,
@@ -207,23 +229,7 @@ def steady_power_w(
 ) -> FloatArray:
     """Electrical power (W) at ground velocity (NED, m/s) and horizontal acceleration (NED,
     m/s²; 0: steady flight); arrays broadcast."""
-    vn, ve, vd, an, ae = np.broadcast_arrays(
-        *(
-            np.atleast_1d(np.asarray(x, dtype=float))
-            for x in (vn_mps, ve_mps, vd_mps, an_mps2, ae_mps2)
-        )
-    )
-    zeros = np.zeros(vn.shape)
-    state = FlightState(
-        time_s=zeros,
-        vn_mps=vn.copy(),
-        ve_mps=ve.copy(),
-        vd_mps=vd.copy(),
-        an_mps2=an.copy(),
-        ae_mps2=ae.copy(),
-        alt_m=np.full(vn.shape, np.nan),
-        voltage_v=np.full(vn.shape, np.nan),
-    )
+    state = _steady_state(vn_mps, ve_mps, vd_mps, an_mps2, ae_mps2)
     effects: list[Effect] = [conditions.wind, *vehicle.effects]
     if conditions.payload_kg != 0.0:
         effects.append(Mass(delta_kg=conditions.payload_kg))
@@ -301,16 +307,12 @@ def _energies_wh(
     def tiled(name: str) -> FloatArray:
         return np.tile(np.array([getattr(ph, name) for ph in phases], dtype=float), m)
 
-    nan = np.full(m * n, np.nan)
-    state = FlightState(
-        time_s=np.zeros(m * n),
-        vn_mps=tiled("vn_mps") - np.repeat(h[:, 0], n),
-        ve_mps=tiled("ve_mps") - np.repeat(h[:, 1], n),
-        vd_mps=tiled("vd_mps"),
-        an_mps2=tiled("an_mps2"),
-        ae_mps2=tiled("ae_mps2"),
-        alt_m=nan,
-        voltage_v=nan.copy(),
+    state = _steady_state(
+        tiled("vn_mps") - np.repeat(h[:, 0], n),
+        tiled("ve_mps") - np.repeat(h[:, 1], n),
+        tiled("vd_mps"),
+        tiled("an_mps2"),
+        tiled("ae_mps2"),
     )
     effects = (*vehicle.effects, SampleMass(np.repeat(h[:, 2], n)))
     power_w = predict_power_w(vehicle.model, vehicle.mass_kg, state, effects).reshape(m, n)
