@@ -36,11 +36,13 @@ from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
+from pymavlink.dialects.v20 import common as mavlink
 
 from estimator.analysis.replay import replay_log
 from estimator.logs import iter_samples
 from estimator.logs.ulog import TOPICS
 from estimator.physics.vehicle import Vehicle, default_vehicle, load_vehicle
+from estimator.telemetry.decode import USED_MESSAGE_IDS
 
 REPO = Path(__file__).resolve().parent.parent
 DATA = REPO.parent / "shared" / "data"
@@ -56,17 +58,11 @@ SYNTHETIC_REPEATS = 10  # copies of the 60 s fixture flight
 SIMULATED_S = 600.0
 #: The messages our readers use (estimator.telemetry.decode.USED_MESSAGE_IDS by name;
 #: estimator.logs.dataflash), asked of pymavlink by type.
-TLOG_TYPES = [
-    "HEARTBEAT",
-    "SYS_STATUS",
-    "BATTERY_STATUS",
-    "GLOBAL_POSITION_INT",
-    "LOCAL_POSITION_NED",
-    "ATTITUDE",
-    "WIND_COV",
-    "WIND",
-]
-DATAFLASH_TYPES = ["XKF1", "NKF1", "GPS", "BAT", "CURR", "ARM", "EV"]
+TLOG_TYPES = sorted(
+    mavlink.mavlink_map[i].msgname if i in mavlink.mavlink_map else "WIND"  # ardupilotmega
+    for i in USED_MESSAGE_IDS
+)
+DATAFLASH_TYPES = ["XKF1", "NKF1", "GPS", "BAT", "CURR", "ARM", "EV", "MSG"]
 
 #: The baselines as scripts (argv[1] = the log), so the whole-process run times them too.
 PYMAVLINK_LOOP = """

@@ -166,3 +166,29 @@ def test_bad_input_is_one_line_and_exit_2(
     assert len(lines) == 1 and lines[0].startswith("uav-energy residuals: error:")
     assert message in lines[0]
     assert "Traceback" not in err
+
+
+def test_a_turning_wind_the_autopilot_reported_is_written_as_its_first_steady_wind(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """ArduPilot SITL, wind from 90° turning to 180° at 143 s: the autopilot's WIND report is
+    the named effect; a vehicle file holds one wind, the one before the turn."""
+    repo = Path(__file__).resolve().parent.parent
+    written = tmp_path / "sitl.toml"
+    code, out, err = run_cli(
+        capsys,
+        str(repo / "replay" / "sitl" / "wind_turn" / "flight.tlog"),
+        "--vehicle",
+        str(repo / "config" / "vehicles" / "ardupilot_sitl_quad.toml"),
+        "--write",
+        str(written),
+        "--report",
+        str(tmp_path / "report"),
+    )
+    assert code == 0
+    assert "the autopilot's wind ×" in out
+    assert "a second wind window is not written" in err
+    wind = next(e for e in effects_from_tables(load_vehicle(written).effects) if e.name == "wind")
+    assert isinstance(wind, Wind)
+    assert abs(wind.from_deg - 90.0) < 25.0 and wind.at_s is None
+    assert wind.until_s is not None and abs(wind.until_s - 143.3) < 10.0

@@ -16,6 +16,7 @@ from estimator.physics.effects import (
     Climb,
     FlightState,
     Mass,
+    ReportedWind,
     Turn,
     Voltage,
     Wind,
@@ -243,3 +244,43 @@ def test_a_window_that_ends_before_it_starts_is_a_user_error() -> None:
     with pytest.raises(UserError, match="until_s"):
         effect_from_params("mass", {"delta_kg": 1.0, "at_s": 5.0, "until_s": 3.0})
     assert effect_from_params("wind", {"speed_mps": 3.0, "until_s": 3.0}).params["at_s"] is None
+
+
+def reported(
+    time_s: np.ndarray, speed_mps: np.ndarray, from_deg: np.ndarray, scale: float = 1.0
+) -> ReportedWind:
+    rad = np.radians(from_deg)
+    return ReportedWind(scale, time_s, -speed_mps * np.cos(rad), -speed_mps * np.sin(rad))
+
+
+def test_a_reported_wind_acts_as_the_wind_it_reports_times_its_scale() -> None:
+    st = state(vn=[8.0, -8.0, 0.0], ve=[0.0, 0.0, 8.0], n=3)
+    t = np.array([-10.0, 10.0])
+    got = power(st, reported(t, np.array([10.0, 10.0]), np.array([0.0, 0.0]), scale=0.5))
+    assert got == pytest.approx(power(st, Wind(5.0, 0.0)))
+
+
+def test_a_reported_wind_is_interpolated_between_reports() -> None:
+    st = state(n=3)  # hover at t = 0, 1, 2 s
+    wind = reported(np.array([0.0, 2.0]), np.array([2.0, 6.0]), np.array([90.0, 90.0]))
+    assert power(st, wind)[1] == pytest.approx(float(MODEL.power_w(4.0)))
+
+
+def test_the_summary_of_a_reported_wind_gives_its_onset_turn_and_stop() -> None:
+    t = np.arange(0.0, 400.0, 0.5)
+    speed = np.where((t >= 100.0) & (t < 300.0), 6.0, 0.2)
+    from_deg = np.where(t < 200.0, 90.0, 180.0)
+    first, second = reported(t, speed, from_deg, scale=0.5).steady()
+    assert (first.speed_mps, first.from_deg) == pytest.approx((3.0, 90.0))
+    assert (first.at_s, first.until_s) == (100.0, 200.0)
+    assert (second.speed_mps, second.from_deg) == pytest.approx((3.0, 180.0))
+    assert (second.at_s, second.until_s) == (200.0, 300.0)
+
+
+def test_a_steady_or_calm_report_is_summarised_as_one_wind_or_none() -> None:
+    t = np.arange(0.0, 200.0, 0.5)
+    noisy = 5.0 + 0.3 * np.sin(t)
+    (steady,) = reported(t, noisy, np.full(len(t), 300.0)).steady()
+    assert steady.at_s is None and steady.until_s is None
+    assert steady.speed_mps == pytest.approx(5.0, abs=0.1)
+    assert reported(t, np.full(len(t), 0.5), np.zeros(len(t))).steady() == ()

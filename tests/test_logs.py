@@ -3,6 +3,7 @@ plausibility skips and sanity warnings."""
 
 from __future__ import annotations
 
+import contextlib
 import math
 import struct
 from pathlib import Path
@@ -10,7 +11,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 from pymavlink.dialects.v20 import common as mavlink
-from tlog_builder import flight_frames, write_tlog
+from tlog_builder import EPOCH_US, flight_frames, write_tlog
 
 from estimator.cli import main as cli_main
 from estimator.errors import UserError
@@ -19,7 +20,7 @@ from estimator.logs.cmu import REQUIRED_COLUMNS, rotate
 from estimator.logs.sanity import flight_warnings
 from estimator.telemetry.decode import FrameParser, TelemetryDecoder
 from estimator.telemetry.plausibility import InputLimits
-from estimator.telemetry.samples import BatterySample, VelocitySample
+from estimator.telemetry.samples import BatterySample, GripperSample, VelocitySample
 
 REPO = Path(__file__).resolve().parent.parent
 IRIS_MARCH = REPO / "replay/iris/2016-03-14/004/004-F2.log"
@@ -346,3 +347,43 @@ def test_log_values_beyond_the_limits_are_skipped_and_counted(tmp_path: Path) ->
     )
     assert list(stream) == clean
     assert stream.checks == {"voltage_implausible": 1, "time_jump": 1}
+
+
+def test_gripper_texts_become_a_released_channel(tmp_path: Path) -> None:
+    """ArduPilot's STATUSTEXT of a finished release marks the rows after it; before the first
+    report the gripper held (a release says so); other texts that mention it are not read."""
+    codec = mavlink.MAVLink(None, srcSystem=1, srcComponent=1)
+
+    def text(t_ms: int, words: str) -> tuple[int, bytes]:
+        msg = codec.statustext_encode(mavlink.MAV_SEVERITY_INFO, words.encode())
+        return EPOCH_US + t_ms * 1000, msg.pack(codec)
+
+    frames = [
+        *flight_frames(seconds=30.0),
+        text(10_100, "Gripper load releasing"),
+        text(15_100, "Gripper load released"),
+        text(20_100, "PreArm: Gripper load released"),
+    ]
+    frames.sort(key=lambda f: f[0])
+    path = write_tlog(tmp_path / "gripper.tlog", frames)
+    events = [s for s in iter_samples(path) if isinstance(s, GripperSample)]
+    assert events == [GripperSample(15.0, True)]
+    (flight,) = load_flights([path])
+    released = flight.extras["gripper_released"]
+    assert np.all(released[flight.time_s <= 15.0] == 0.0)
+    assert np.all(released[flight.time_s >= 15.5] == 1.0)
+
+
+def test_random_bytes_are_not_taken_for_a_tlog(tmp_path: Path) -> None:
+    """One random head in 128 has a MAVLink STX at byte 8; the record's receive time must
+    also be plausible (an unreadable "tlog" would replay to nothing, without an error)."""
+    rng = np.random.default_rng(5)
+    heads = [rng.bytes(64) for _ in range(2000)]
+    with_stx = [h[:8] + b"\xfe" + h[9:] for h in heads]
+    taken = 0
+    for i, head in enumerate(with_stx):
+        path = tmp_path / f"r{i}.bin"
+        path.write_bytes(head)
+        with contextlib.suppress(UserError):
+            taken += detect_format(path) == "tlog"
+    assert taken <= 2

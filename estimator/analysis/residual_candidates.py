@@ -20,6 +20,7 @@ from estimator.physics.effects import (
     Climb,
     Effect,
     Mass,
+    ReportedWind,
     Turn,
     Voltage,
     Wind,
@@ -42,6 +43,8 @@ class Candidate:
     searched on the training data and the second from it (a wind that turns or changes speed:
     in hover a wind's speed shows and its direction does not, so one window spreading over
     both winds helps nowhere).
+    ``source``: what the autopilot reported that the effect follows (its wind estimate, its
+    gripper's actions), shown in the label; the effect's times come from it, not the search.
     """
 
     name: str
@@ -52,9 +55,12 @@ class Candidate:
     windowed: bool = False
     starts: tuple[tuple[float, ...], ...] = ()
     switch: bool = False
+    source: str = ""
 
     @property
     def label(self) -> str:
+        if self.source:
+            return f"{self.name} ({self.source})"
         if self.switch:
             return f"{self.name} (change)"
         return f"{self.name} (window)" if self.windowed else self.name
@@ -74,6 +80,54 @@ def _wind(x: FloatArray, at_s: float | None, until_s: float | None) -> Effect:
     """x = air-mass velocity over ground (north, east), m/s."""
     wind = wind_from_vector(float(x[0]), float(x[1]))
     return replace(wind, at_s=at_s, until_s=until_s)
+
+
+def _reported_wind(samples: Samples) -> Candidate | None:
+    """The autopilot's wind estimate of a single flight, scaled, if it reports any wind."""
+    speed = samples.channels.get("autopilot_wind_speed_mps")
+    from_deg = samples.channels.get("autopilot_wind_from_deg")
+    if speed is None or from_deg is None or len(samples.flight_ids) != 1:
+        return None
+    known = np.isfinite(speed) & np.isfinite(from_deg)
+    if not np.any(speed[known] >= ReportedWind.CALM_MPS):
+        return None
+    rad = np.radians(np.where(known, from_deg, 0.0))
+    speed = np.where(known, speed, 0.0)
+    time_s = samples.state.time_s
+    # the air mass moves towards the opposite of where the wind blows from
+    wind_n, wind_e = -speed * np.cos(rad), -speed * np.sin(rad)
+    lower, upper = ReportedWind.bounds["scale"]
+    return Candidate(
+        "wind",
+        (1.0,),
+        (lower,),
+        (upper,),
+        lambda x, _at, _until: ReportedWind(float(x[0]), time_s, wind_n, wind_e),
+        source="autopilot",
+    )
+
+
+def _gripper_mass(samples: Samples, lower: float, upper: float) -> Candidate | None:
+    """A payload held while the autopilot's gripper is grabbed, over a single flight whose
+    gripper changed: a mass until the first release, or from the first grab (the first row
+    after the report)."""
+    state = samples.channels.get("gripper_released")
+    if state is None or len(samples.flight_ids) != 1:
+        return None
+    changes = np.flatnonzero(np.diff(state) != 0) + 1
+    if not len(changes):
+        return None
+    change_s = float(samples.state.time_s[changes[0]])
+    released = bool(state[changes[0]] == 1.0)
+    at_s, until_s = (None, change_s) if released else (change_s, None)
+    return Candidate(
+        "mass",
+        (0.0,),
+        (lower,),
+        (upper,),
+        lambda x, _at, _until: Mass(float(x[0]), at_s, until_s),
+        source="gripper",
+    )
 
 
 def _constant_and_windowed(candidate: Candidate) -> tuple[Candidate, Candidate]:
@@ -162,6 +216,9 @@ def candidates_for(vehicle: Vehicle, samples: Samples, names: Sequence[str]) -> 
             lambda x, _at, _until: Turn(float(x[0])),
         ),
     ]
+    for reported in (_reported_wind(samples), _gripper_mass(samples, mass_lo, mass_hi)):
+        if reported is not None:
+            all_candidates.append(reported)
     declared = set(vehicle.effects)
     # a window is on each flight's own clock: shared by several flights it would mean "every
     # flight changed at the same time"; several flights are analysed per flight (--flight)

@@ -74,6 +74,7 @@ from estimator.physics.effects import (
     Avionics,
     Effect,
     Mass,
+    ReportedWind,
     Wind,
 )
 from estimator.physics.model import FloatArray
@@ -113,18 +114,29 @@ class Selected:
     label: str = ""
 
     def as_dicts(self) -> list[dict[str, Any]]:
-        """One JSON object per effect (a change gives two, in time order)."""
-        return [
-            self._as_dict(effect, sd)
-            for effect, sd in zip(self.effects, self.params_fold_sd, strict=True)
-        ]
+        """One JSON object per effect (a change gives two, in time order; a reported wind
+        one per steady wind of its summary, with its scale)."""
+        out: list[dict[str, Any]] = []
+        for effect, sd in zip(self.effects, self.params_fold_sd, strict=True):
+            if isinstance(effect, ReportedWind):
+                out.extend(
+                    self._as_dict(
+                        f"{_reported(effect)}: {describe(wind)}", effect.params | wind.params, sd
+                    )
+                    for wind in effect.steady()
+                )
+            else:
+                out.append(self._as_dict(describe(effect), effect.params, sd))
+        return out
 
-    def _as_dict(self, effect: Effect, fold_sd: dict[str, float]) -> dict[str, Any]:
+    def _as_dict(
+        self, description: str, params: dict[str, Any], fold_sd: dict[str, float]
+    ) -> dict[str, Any]:
         return {
             "name": self.name,
             "label": self.label or self.name,
-            "description": describe(effect),
-            "params": _round_params(effect.params),
+            "description": description,
+            "params": _round_params(params),
             "rmse_after_w": round(self.rmse_after_w, 3),
             "z": round(self.z, 2),
             "params_fold_sd": {k: round(v, 4) for k, v in fold_sd.items()},
@@ -288,6 +300,9 @@ def _when(at_s: float | None, until_s: float | None) -> str:
 def describe(effect: Effect) -> str:
     """The effect in words with units, e.g. "wind 6.0 m/s from 61°, from 150 s on"."""
     p = effect.params
+    if isinstance(effect, ReportedWind):
+        winds = "; then ".join(describe(w) for w in effect.steady()) or "calm"
+        return f"{_reported(effect)} ({winds})"
     if isinstance(effect, Wind):
         what = f"wind {effect.speed_mps:.1f} m/s from {effect.from_deg:.0f}°"
     elif isinstance(effect, Mass):
@@ -299,6 +314,10 @@ def describe(effect: Effect) -> str:
     if "at_s" in p:
         return f"{what}, {_when(p['at_s'], p.get('until_s'))}"
     return what
+
+
+def _reported(effect: ReportedWind) -> str:
+    return f"the autopilot's wind × {effect.scale:.2f}"
 
 
 def _round_params(params: dict[str, Any]) -> dict[str, Any]:

@@ -25,7 +25,7 @@ from estimator.errors import UserError
 from estimator.estimation.online_effects import OnlineEffects, track_series
 from estimator.logs import FORMATS, FlightSeries, load_flights
 from estimator.logs.sanity import flight_warnings
-from estimator.physics.effects import EFFECT_TYPES, Climb, effects_to_tables
+from estimator.physics.effects import EFFECT_TYPES, Climb, ReportedWind, effects_to_tables
 from estimator.physics.vehicle import Vehicle, load_vehicle
 
 
@@ -113,10 +113,16 @@ def with_effects(
 ) -> Vehicle:
     """``vehicle`` with the selected effects added to its ``[effects.NAME]`` tables. A vehicle
     file holds one table per effect: a second window of the same effect is left out (with a
-    warning on ``console``)."""
+    warning on ``console``); the autopilot's reported wind is written as its first steady
+    wind."""
     tables = dict(vehicle.effects)
     first: dict[str, Any] = {}
-    for effect in result.effects:
+    steady = [
+        part
+        for effect in result.effects
+        for part in (effect.steady() if isinstance(effect, ReportedWind) else (effect,))
+    ]
+    for effect in steady:
         if effect.name in first:
             if console is not None:
                 console.print(f"--write: a second {effect.name} window is not written")

@@ -69,6 +69,7 @@ from estimator.physics.vehicle import Vehicle
 from estimator.telemetry.samples import (
     ArmedSample,
     BatterySample,
+    GripperSample,
     HomeSample,
     MissionCurrentSample,
     PositionSample,
@@ -453,6 +454,11 @@ class Pipeline:
             return None
         elif isinstance(sample, PositionSample | HomeSample | MissionSample | MissionCurrentSample):
             self.returning.take(sample)
+            return None
+        elif isinstance(sample, GripperSample):
+            # the online tracker learns a payload change from the power; the event is for
+            # the residual analysis (estimator.analysis.residual_candidates)
+            self.counts["gripper_released" if sample.released else "gripper_grabbed"] += 1
             return None
         else:
             self.counts["unknown_sample"] += 1

@@ -37,6 +37,7 @@ from estimator.telemetry.plausibility import InputLimits, SampleGuard
 from estimator.telemetry.samples import (
     ArmedSample,
     BatterySample,
+    GripperSample,
     RebootSample,
     Sample,
     VelocitySample,
@@ -52,6 +53,9 @@ DEFAULT_VELOCITY_MAX_AGE_S = 1.0
 _DATAFLASH_MAGIC = b"\xa3\x95"
 _ULOG_MAGIC = b"ULog"
 _MAVLINK_STX = (0xFE, 0xFD)
+#: A tlog record starts with its receive time, µs since 1970 (big-endian): below 2⁵² (the
+#: year 2112), so 1 in ~10⁴ random heads passes, not 1 in 128 as on the STX byte alone.
+_TLOG_MAX_TIME_US = 2**52
 _MODULES = {"tlog": "tlog", "cmu-csv": "cmu", "dataflash": "dataflash", "ulog": "ulog"}
 
 
@@ -64,7 +68,8 @@ class FlightSeries:
     ``extras`` holds source-specific per-row columns (CMU: ``payload_kg``,
     ``airflow_speed_mps``, ``airflow_from_deg``; tlogs: ``armed`` as 0/1/NaN, and when the
     autopilot sends its wind estimate ``autopilot_wind_speed_mps`` and
-    ``autopilot_wind_from_deg``, NaN before the first).
+    ``autopilot_wind_from_deg``, NaN before the first; when it reports gripper actions
+    ``gripper_released``: 1 released, 0 grabbed, the other state before the first report).
     """
 
     flight_id: str
@@ -158,7 +163,11 @@ def detect_format(path: str | Path) -> str:
         return "ulog"
     if head.startswith(_DATAFLASH_MAGIC):
         return "dataflash"
-    if len(head) > 8 and head[8] in _MAVLINK_STX:
+    if (
+        len(head) > 8
+        and head[8] in _MAVLINK_STX
+        and int.from_bytes(head[:8], "big") < _TLOG_MAX_TIME_US
+    ):
         return "tlog"
     first_line = head.split(b"\n", 1)[0].decode("utf-8", "replace")
     if _module("cmu-csv").looks_like_cmu_header(first_line):
@@ -289,11 +298,14 @@ def _align(samples: list[Sample], flight_id: str, max_age_s: float) -> FlightSer
     last_v: VelocitySample | None = None
     last_wind = (float("nan"), float("nan"))
     armed = float("nan")
+    gripper = float("nan")
     for s in samples:
         if isinstance(s, VelocitySample):
             last_v = s
         elif isinstance(s, WindSample):
             last_wind = (s.wind_n_mps, s.wind_e_mps)
+        elif isinstance(s, GripperSample):
+            gripper = 1.0 if s.released else 0.0
         elif isinstance(s, ArmedSample):
             armed = 1.0 if s.armed else 0.0
         elif isinstance(s, BatterySample) and s.current_a is not None and last_v is not None:
@@ -310,6 +322,7 @@ def _align(samples: list[Sample], flight_id: str, max_age_s: float) -> FlightSer
                     s.voltage_v,
                     s.current_a,
                     armed,
+                    gripper,
                 )
             )
             winds.append(last_wind)
@@ -322,6 +335,11 @@ def _align(samples: list[Sample], flight_id: str, max_age_s: float) -> FlightSer
         extras["autopilot_wind_speed_mps"] = np.hypot(w[:, 0], w[:, 1])
         # the direction it blows from: opposite to the air-mass velocity
         extras["autopilot_wind_from_deg"] = np.degrees(np.arctan2(-w[:, 1], -w[:, 0])) % 360.0
+    reported = a[np.isfinite(a[:, 8]), 8]
+    if len(reported):
+        # 1 after the autopilot reported the gripper released, 0 after grabbed; before its
+        # first report the other state (a release tells that it held something)
+        extras["gripper_released"] = np.where(np.isfinite(a[:, 8]), a[:, 8], 1.0 - reported[0])
     return FlightSeries(
         flight_id=flight_id,
         time_s=a[:, 0],

@@ -11,6 +11,8 @@ record's ``TimeUS`` (µs since the autopilot's boot) / 1e6. What is used:
   ArduPilot logs NaN for values it does not know: they become ``None`` (no usable voltage
   drops the record). Logs older than ``BAT`` (Copter ≤ 3.3) have ``CURR``, whose integer
   ``Volt``/``Curr`` columns are centivolts / centiamps;
+- gripper actions: ``MSG`` texts "Gripper load released"/"grabbed" (as the tlog's STATUSTEXT,
+  :func:`~estimator.telemetry.decode.gripper_released`);
 - armed state: ``ARM.ArmState``, or ``EV`` ids 10 (armed) / 11 (disarmed) in older logs.
   ArduCopter opens its log at arming (``LOG_DISARMED`` 0, the default) and the ``ARM`` record
   of that arming is written before the file is ready: a log whose first arming record is a
@@ -38,7 +40,14 @@ from pymavlink.DFReader import DFReader_binary
 
 from estimator.errors import UserError
 from estimator.logs import SampleStream
-from estimator.telemetry.samples import ArmedSample, BatterySample, Sample, VelocitySample
+from estimator.telemetry.decode import gripper_released
+from estimator.telemetry.samples import (
+    ArmedSample,
+    BatterySample,
+    GripperSample,
+    Sample,
+    VelocitySample,
+)
 
 #: Velocity sources, most preferred first.
 VELOCITY_TYPES = ("XKF1", "NKF1", "GPS")
@@ -118,7 +127,7 @@ class _Decoder:
 
     def samples(self) -> Iterator[Sample]:
         self._check_framing()
-        wanted = {t for t in (self._battery_type, self._arming_type) if self._count(t) > 0}
+        wanted = {t for t in (self._battery_type, self._arming_type, "MSG") if self._count(t) > 0}
         if self.velocity_type is not None:
             wanted.add(self.velocity_type)
         heap: list[tuple[float, int, Sample]] = []
@@ -231,6 +240,10 @@ class _Decoder:
             return None
         return self._armed_change(msg.TimeUS / 1e6, msg.Id == EVENT_ARMED)
 
+    def _message(self, msg: Any) -> Sample | None:
+        released = gripper_released(str(msg.Message))
+        return None if released is None else GripperSample(msg.TimeUS / 1e6, released)
+
     def _armed_change(self, time_s: float, armed: bool) -> Sample | None:
         if armed == self._armed:
             return None
@@ -246,6 +259,7 @@ _HANDLERS = {
     "CURR": _Decoder._battery,
     "ARM": _Decoder._arm,
     "EV": _Decoder._event,
+    "MSG": _Decoder._message,
 }
 
 

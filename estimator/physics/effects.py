@@ -22,9 +22,10 @@ starts, a payload released in flight, a load switched off are such windows.
 
 from __future__ import annotations
 
+import itertools
 import math
 from collections.abc import Mapping, Sequence
-from dataclasses import asdict, dataclass, fields, replace
+from dataclasses import asdict, dataclass, field, fields, replace
 from typing import Any, ClassVar
 
 import numpy as np
@@ -190,6 +191,90 @@ class Wind(Effect):
         on = active(ctx.state.time_s, self.at_s, self.until_s)
         ctx.air_vn_mps = ctx.air_vn_mps - wn * on
         ctx.air_ve_mps = ctx.air_ve_mps - we * on
+
+
+@dataclass(frozen=True)
+class ReportedWind(Effect):
+    """A wind given as a time series: the autopilot's own estimate (ArduPilot WIND, PX4
+    WIND_COV). The air mass moves over ground at ``scale`` × (``wind_n_mps``, ``wind_e_mps``)
+    (NED, m/s), linear between the report times ``time_s`` (s, flight clock). ``scale``: the
+    share of the reported wind the power shows (the autopilot's drag model is not the
+    vehicle's).
+
+    A recording of one flight, not a vehicle property: its one parameter is ``scale``;
+    :meth:`steady` summarises the scaled report as steady winds, the form a vehicle file holds.
+    """
+
+    name: ClassVar[str] = "wind"
+    bounds: ClassVar[dict[str, tuple[float, float]]] = {"scale": (0.0, 2.0)}
+    #: A scaled report below this (m/s) is calm in the summary.
+    CALM_MPS: ClassVar[float] = 1.0
+    #: The summary splits the windy stretch in two where the two mean winds differ by at
+    #: least this (m/s, vector difference), each part lasting at least ``MIN_PART_S``; the
+    #: second starts where the report first leaves the first's mean by half of it.
+    CHANGE_MPS: ClassVar[float] = 2.0
+    MIN_PART_S: ClassVar[float] = 20.0
+    scale: float = 1.0
+    time_s: FloatArray = field(default_factory=lambda: np.zeros(1), repr=False, compare=False)
+    wind_n_mps: FloatArray = field(default_factory=lambda: np.zeros(1), repr=False, compare=False)
+    wind_e_mps: FloatArray = field(default_factory=lambda: np.zeros(1), repr=False, compare=False)
+
+    @property
+    def params(self) -> dict[str, Any]:
+        return {"scale": self.scale}
+
+    def steady(self) -> tuple[Wind, ...]:
+        """The scaled report as steady winds: over the stretch where it is above
+        :attr:`CALM_MPS` (open at the recording's ends), one wind, or two where it changed
+        (the split that leaves the least variance). Each: median speed, direction of the mean
+        vector."""
+        n, e = self.scale * self.wind_n_mps, self.scale * self.wind_e_mps
+        windy = np.flatnonzero(np.hypot(n, e) >= self.CALM_MPS)
+        if not len(windy):
+            return ()
+        first, last = int(windy[0]), int(windy[-1]) + 1
+        bounds = [first, *self._change(first, last), last]
+        return tuple(
+            self._wind(lo, hi, at_open=lo == 0, until_open=hi == len(n))
+            for lo, hi in itertools.pairwise(bounds)
+        )
+
+    def _change(self, first: int, last: int) -> list[int]:
+        """The index splitting rows [first, last) into two winds, if they differ enough."""
+        n = self.scale * self.wind_n_mps[first:last]
+        e = self.scale * self.wind_e_mps[first:last]
+        t = self.time_s[first:last]
+        k = np.arange(1, len(n))
+        if not len(k):
+            return []
+        cn, ce = np.cumsum(n)[:-1], np.cumsum(e)[:-1]
+        # between-part sum of squares (to maximise) of each split k: rows [0, k) and [k, m)
+        m = len(n)
+        gain = ((cn - k * n.mean()) ** 2 + (ce - k * e.mean()) ** 2) * m / (k * (m - k))
+        long_enough = (t[k] - t[0] >= self.MIN_PART_S) & (t[-1] - t[k - 1] >= self.MIN_PART_S)
+        if not long_enough.any():
+            return []
+        best = int(k[long_enough][np.argmax(gain[long_enough])])
+        mean_n, mean_e = n[:best].mean(), e[:best].mean()
+        if math.hypot(mean_n - n[best:].mean(), mean_e - e[best:].mean()) < self.CHANGE_MPS:
+            return []
+        near = np.flatnonzero(np.hypot(n[:best] - mean_n, e[:best] - mean_e) <= self.CHANGE_MPS / 2)
+        return [first + (int(near[-1]) + 1 if len(near) else best)]
+
+    def _wind(self, lo: int, hi: int, at_open: bool, until_open: bool) -> Wind:
+        n, e = self.scale * self.wind_n_mps[lo:hi], self.scale * self.wind_e_mps[lo:hi]
+        mean_n, mean_e = float(np.mean(n)), float(np.mean(e))
+        return Wind(
+            speed_mps=float(np.median(np.hypot(n, e))),
+            from_deg=math.degrees(math.atan2(-mean_e, -mean_n)) % 360.0,
+            at_s=None if at_open else float(self.time_s[lo]),
+            until_s=None if until_open else float(self.time_s[hi]),
+        )
+
+    def adjust(self, ctx: PowerContext) -> None:
+        t = ctx.state.time_s
+        ctx.air_vn_mps = ctx.air_vn_mps - self.scale * np.interp(t, self.time_s, self.wind_n_mps)
+        ctx.air_ve_mps = ctx.air_ve_mps - self.scale * np.interp(t, self.time_s, self.wind_e_mps)
 
 
 @dataclass(frozen=True)

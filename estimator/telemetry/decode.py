@@ -22,6 +22,8 @@ MAVLink 1 frames parse too). Messages become :mod:`estimator.telemetry.samples` 
   :class:`PositionSample`, the autopilot's home (HOME_POSITION) a :class:`HomeSample`, the
   mission item flown (MISSION_CURRENT) a :class:`MissionCurrentSample`; latitude/longitude
   0/0 (no fix, home not set) and values off the globe are counted and skipped;
+- ArduPilot's gripper texts (STATUSTEXT "Gripper load released"/"grabbed", "Gripper
+  Released"/"Grabbed" from a mission; :data:`GRIPPER_TEXT`) become a :class:`GripperSample`;
 - only the selected autopilot is decoded (default: the first autopilot HEARTBEAT);
   our own component's messages and everyone else's are counted and skipped.
 
@@ -31,6 +33,7 @@ Every skip is counted in :attr:`TelemetryDecoder.counts` (see :data:`SKIP_COUNTE
 from __future__ import annotations
 
 import math
+import re
 import struct
 from collections import Counter
 from collections.abc import Iterable
@@ -48,6 +51,7 @@ from estimator.telemetry.plausibility import (
 from estimator.telemetry.samples import (
     ArmedSample,
     BatterySample,
+    GripperSample,
     HomeSample,
     MissionCurrentSample,
     PositionSample,
@@ -89,6 +93,7 @@ USED_MESSAGE_IDS = frozenset(
         mavlink.MAVLINK_MSG_ID_WIND_COV,
         mavlink.MAVLINK_MSG_ID_HOME_POSITION,
         mavlink.MAVLINK_MSG_ID_MISSION_CURRENT,
+        mavlink.MAVLINK_MSG_ID_STATUSTEXT,
         168,  # ArduPilot WIND (ardupilotmega dialect)
     }
 )
@@ -96,6 +101,9 @@ USED_MESSAGE_IDS = frozenset(
 #: speed m/s, vertical speed m/s; float32 little-endian).
 ARDUPILOT_WIND_ID = 168
 _ARDUPILOT_WIND = struct.Struct("<fff")
+#: ArduPilot's texts for a finished gripper action (libraries/AP_Gripper, and the mission's
+#: DO_GRIPPER in libraries/AP_Mission): group 1 is "released" or "grabbed".
+GRIPPER_TEXT = re.compile(r"^gripper (?:load )?(released|grabbed)\b", re.IGNORECASE)
 #: A wind estimate above this (m/s) is not plausible and is skipped.
 MAX_WIND_MPS = 60.0
 #: The velocity message types by id (the decoder uses the one of the first believed frame).
@@ -408,6 +416,13 @@ class TelemetryDecoder:
         )
         return self._time.clocked(sample)
 
+    def _statustext(self, msg: mavlink.MAVLink_message) -> list[Sample]:
+        released = gripper_released(str(msg.text))
+        clock_s = self._clock_s()
+        if released is None or clock_s is None:
+            return []
+        return self._time.clocked(GripperSample(clock_s, released))
+
     def _lat_lon(self, lat_e7: int, lon_e7: int, what: str) -> tuple[float, float] | None:
         """WGS84 degrees from MAVLink's degE7, or None (counted: ``<what>_unknown`` for the
         0/0 sentinel, ``<what>_implausible`` off the globe)."""
@@ -516,6 +531,12 @@ class TelemetryDecoder:
         return sample
 
 
+def gripper_released(text: str) -> bool | None:
+    """True for ArduPilot's text of a finished gripper release, False for a grab, else None."""
+    match = GRIPPER_TEXT.match(text)
+    return None if match is None else match.group(1).lower() == "released"
+
+
 def is_autopilot(msg: mavlink.MAVLink_message) -> bool:
     """A HEARTBEAT of an autopilot (not MAV_AUTOPILOT_INVALID) of a vehicle type (not a
     ground station, companion computer, gimbal, ADS-B receiver or camera)."""
@@ -561,4 +582,5 @@ _HANDLERS = {
     "WIND_COV": TelemetryDecoder._wind_cov,
     "HOME_POSITION": TelemetryDecoder._home_position,
     "MISSION_CURRENT": TelemetryDecoder._mission_current,
+    "STATUSTEXT": TelemetryDecoder._statustext,
 }

@@ -95,6 +95,15 @@ class MissionCurrentSample:
     total: int | None = None
 
 
+@dataclass(frozen=True, slots=True)
+class GripperSample:
+    """The autopilot's gripper finished an action (ArduPilot STATUSTEXT "Gripper load
+    released" / "Gripper load grabbed"): a payload let go of (``released``) or held."""
+
+    time_s: float
+    released: bool
+
+
 Sample = (
     VelocitySample
     | BatterySample
@@ -104,4 +113,5 @@ Sample = (
     | PositionSample
     | HomeSample
     | MissionCurrentSample
+    | GripperSample
 )
