@@ -211,13 +211,13 @@ class ReportedWind(Effect):
     CALM_MPS: ClassVar[float] = 1.0
     #: The summary splits the windy stretch in two where the two mean winds differ by at
     #: least this (m/s, vector difference), each part lasting at least ``MIN_PART_S``; the
-    #: second starts where the report first leaves the first's mean by half of it.
+    #: second starts after the last report within half of it of the first's mean.
     CHANGE_MPS: ClassVar[float] = 2.0
     MIN_PART_S: ClassVar[float] = 20.0
-    scale: float = 1.0
-    time_s: FloatArray = field(default_factory=lambda: np.zeros(1), repr=False, compare=False)
-    wind_n_mps: FloatArray = field(default_factory=lambda: np.zeros(1), repr=False, compare=False)
-    wind_e_mps: FloatArray = field(default_factory=lambda: np.zeros(1), repr=False, compare=False)
+    scale: float
+    time_s: FloatArray = field(repr=False, compare=False)
+    wind_n_mps: FloatArray = field(repr=False, compare=False)
+    wind_e_mps: FloatArray = field(repr=False, compare=False)
 
     @property
     def params(self) -> dict[str, Any]:
