@@ -174,6 +174,15 @@ class ResidualResult:
     def effects(self) -> list[Effect]:
         return [e for s in self.selected for e in s.effects]
 
+    @property
+    def steady_effects(self) -> list[Effect]:
+        """:attr:`effects` with a reported wind as its steady winds (the vehicle file's form)."""
+        return [
+            part
+            for effect in self.effects
+            for part in (effect.steady() if isinstance(effect, ReportedWind) else (effect,))
+        ]
+
     def residual_before_w(self) -> FloatArray:
         return self.samples.power_w - self.predicted_before_w
 

@@ -25,7 +25,7 @@ from estimator.errors import UserError
 from estimator.estimation.online_effects import OnlineEffects, track_series
 from estimator.logs import FORMATS, FlightSeries, load_flights
 from estimator.logs.sanity import flight_warnings
-from estimator.physics.effects import EFFECT_TYPES, Climb, ReportedWind, effects_to_tables
+from estimator.physics.effects import EFFECT_TYPES, Climb, effects_to_tables
 from estimator.physics.vehicle import Vehicle, load_vehicle
 
 
@@ -117,12 +117,7 @@ def with_effects(
     wind."""
     tables = dict(vehicle.effects)
     first: dict[str, Any] = {}
-    steady = [
-        part
-        for effect in result.effects
-        for part in (effect.steady() if isinstance(effect, ReportedWind) else (effect,))
-    ]
-    for effect in steady:
+    for effect in result.steady_effects:
         if effect.name in first:
             if console is not None:
                 console.print(f"--write: a second {effect.name} window is not written")

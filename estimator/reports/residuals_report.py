@@ -77,7 +77,7 @@ def _mark_windows(
     ax: Axes, result: ResidualResult, first_s: float, last_s: float, shift_s: float
 ) -> None:
     """Shade each selected effect's time window (flight clock + ``shift_s``), labelled."""
-    for k, effect in enumerate(result.effects):
+    for k, effect in enumerate(result.steady_effects):
         params = effect.params
         if "at_s" not in params or (params["at_s"] is None and params.get("until_s") is None):
             continue
