@@ -30,6 +30,7 @@ from dataclasses import dataclass, replace
 import numpy as np
 
 from estimator.errors import UserError
+from estimator.estimation.return_home import MissionEnergyFn
 from estimator.logs.mission_files import MissionLeg
 from estimator.physics.battery import PackModel
 from estimator.physics.route_energy import (
@@ -182,6 +183,12 @@ class MissionEnergy:
         )
         used = np.cumsum([0.0, *(r.energy.energy_wh for r in self.legs)])
         return distance, self.usable_wh - used, np.sqrt(np.sum(sens * sens, axis=1))
+
+
+def remaining_energy_fn(vehicle: Vehicle) -> MissionEnergyFn:
+    """The rest of a mission's model energy as :func:`mission_energy` computes it, for the
+    pipeline's MIS_* figures (the daemon's and a replay's)."""
+    return lambda legs, conditions: mission_energy(legs, vehicle, conditions).total
 
 
 def mission_energy(

@@ -31,6 +31,7 @@ from numpy.typing import NDArray
 from estimator.estimation.airborne import AIRBORNE_ALT_M
 from estimator.estimation.online_effects import OnlineSettings
 from estimator.estimation.pipeline import Estimate, Pipeline, PipelineSettings, PowerReading
+from estimator.estimation.return_home import MissionSample
 from estimator.logs import SampleStream, iter_samples
 from estimator.physics.vehicle import Vehicle
 from estimator.telemetry.samples import Sample
@@ -125,7 +126,7 @@ class Summary:
 
 
 def run(
-    samples: Iterable[Sample],
+    samples: Iterable[Sample | MissionSample],
     pipeline: Pipeline,
     on_sample: Callable[[int], None] | None = None,
 ) -> tuple[list[Estimate], PowerTrace, int]:
@@ -157,7 +158,7 @@ def replay_stream(
     vehicle: Vehicle,
     name: str,
     settings: PipelineSettings | None = None,
-    samples: Iterable[Sample] | None = None,
+    samples: Iterable[Sample | MissionSample] | None = None,
     on_sample: Callable[[int], None] | None = None,
     pipeline: Pipeline | None = None,
 ) -> FlightReplay:

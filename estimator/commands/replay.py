@@ -1,6 +1,8 @@
-"""``uav-energy replay LOG... [--vehicle FILE.toml] [--config FILE.toml] [--out CSV]
-[--report DIR] [--json] [--speed max|N]``: recorded flights through the daemon's pipeline
-(:mod:`estimator.analysis.replay`), with the daemon's settings when given its ``--config`` file.
+"""``uav-energy replay LOG... [--vehicle FILE.toml] [--config FILE.toml] [--mission FILE]
+[--out CSV] [--report DIR] [--json] [--speed max|N]``: recorded flights through the daemon's
+pipeline (:mod:`estimator.analysis.replay`), with the daemon's settings when given its
+``--config`` file. ``--mission`` gives the pipeline the mission the autopilot flew (a QGC
+``.plan`` or ``.waypoints``), as the daemon's download does, for the MIS_* figures.
 
 Output: a table of the power error per flight on stdout (or one JSON object with ``--json``),
 the estimates as CSV with ``--out``, plots with ``--report``. ``--speed N`` paces the samples at
@@ -22,6 +24,7 @@ import sys
 import time
 from collections.abc import Iterable, Iterator, Sequence
 from dataclasses import fields
+from itertools import chain
 from pathlib import Path
 from typing import Any
 
@@ -35,8 +38,10 @@ from rich.table import Table
 from estimator.analysis.replay import FlightReplay, Summary, replay_stream, summarize
 from estimator.commands.progress import logs_progress
 from estimator.errors import UserError
-from estimator.estimation.pipeline import Estimate, PipelineSettings
+from estimator.estimation.pipeline import Estimate, Pipeline, PipelineSettings
+from estimator.estimation.return_home import MissionSample
 from estimator.logs import FORMATS, iter_samples
+from estimator.logs.mission_files import MissionFile, load_mission
 from estimator.mavlink.config import build_config, load_config_file
 from estimator.physics.vehicle import Vehicle, default_vehicle, load_vehicle
 from estimator.telemetry.samples import Sample
@@ -82,6 +87,13 @@ def register(subparsers: argparse._SubParsersAction[argparse.ArgumentParser]) ->
     parser.add_argument(
         "--format", default="auto", choices=("auto", *FORMATS), help="log format (default: auto)"
     )
+    parser.add_argument(
+        "--mission",
+        type=Path,
+        metavar="FILE",
+        help="the mission the autopilot flew (.plan or .waypoints), for the MIS_* figures "
+        "the daemon computes from its download",
+    )
     parser.add_argument("--out", type=Path, metavar="FILE.csv", help="write every estimate")
     parser.add_argument("--report", type=Path, metavar="DIR", help="write plots and a summary")
     parser.add_argument("--json", action="store_true", help="print one JSON object")
@@ -125,6 +137,7 @@ def paced(samples: Iterable[Sample], speed: float) -> Iterator[Sample]:
 
 def run(args: argparse.Namespace) -> int:
     vehicle, settings = vehicle_and_settings(args.vehicle, args.config)
+    mission = None if args.mission is None else load_mission(args.mission)
     names = flight_names(args.logs)
     console = Console(file=sys.stderr)
     flights: list[FlightReplay] = []
@@ -134,7 +147,7 @@ def run(args: argparse.Namespace) -> int:
     with _progress(console, len(args.logs)) as progress:
         for path, name in zip(args.logs, names, strict=True):
             try:
-                flight = _replay_one(path, name, vehicle, settings, args, progress)
+                flight = _replay_one(path, name, vehicle, settings, mission, args, progress)
             except UserError as exc:
                 if len(args.logs) == 1:
                     raise
@@ -186,6 +199,7 @@ def _replay_one(
     name: str,
     vehicle: Vehicle,
     settings: PipelineSettings,
+    mission: MissionFile | None,
     args: argparse.Namespace,
     progress: Progress,
 ) -> FlightReplay:
@@ -196,9 +210,17 @@ def _replay_one(
         if n % _PROGRESS_EVERY == 0:
             progress.update(task, completed=n)
 
-    samples: Iterable[Sample] = stream if args.speed is None else paced(stream, args.speed)
+    samples: Iterable[Sample | MissionSample] = (
+        stream if args.speed is None else paced(stream, args.speed)
+    )
+    pipeline = None
+    if mission is not None:  # the daemon's download, known before the first sample
+        from estimator.analysis.mission_energy import remaining_energy_fn
+
+        pipeline = Pipeline(vehicle, settings, remaining_energy_fn(vehicle))
+        samples = chain([MissionSample(0.0, mission.items)], samples)
     try:
-        flight = replay_stream(stream, vehicle, name, settings, samples, on_sample)
+        flight = replay_stream(stream, vehicle, name, settings, samples, on_sample, pipeline)
         for warning in stream.warnings(vehicle.battery.cells):
             progress.console.print(
                 f"uav-energy replay: warning: {name}: {warning}",

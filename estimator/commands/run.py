@@ -8,10 +8,9 @@ import logging
 from typing import Any
 
 from estimator.errors import UserError
-from estimator.estimation.return_home import MissionEnergyFn
 from estimator.mavlink.config import LOG_LEVELS, ServiceConfig, build_config, load_config_file
 from estimator.mavlink.service import Service
-from estimator.physics.vehicle import Vehicle, default_vehicle, load_vehicle
+from estimator.physics.vehicle import default_vehicle, load_vehicle
 
 
 def register(subparsers: Any) -> None:
@@ -71,12 +70,6 @@ def run(args: argparse.Namespace) -> int:
         level=config.log_level_number,
         format="%(asctime)s %(levelname)s %(name)s: %(message)s",
     )
-    return asyncio.run(Service(config, vehicle, mission_energy=mission_total(vehicle)).run())
+    from estimator.analysis.mission_energy import remaining_energy_fn
 
-
-def mission_total(vehicle: Vehicle) -> MissionEnergyFn:
-    """The rest of a mission's model energy as ``uav-energy plan`` computes it (ArduCopter's
-    way of flying it, the return added when it ends in the air)."""
-    from estimator.analysis.mission_energy import mission_energy
-
-    return lambda legs, conditions: mission_energy(legs, vehicle, conditions).total
+    return asyncio.run(Service(config, vehicle, mission_energy=remaining_energy_fn(vehicle)).run())
