@@ -17,10 +17,17 @@ from estimator.estimation.online_effects import (
     OnlineEffects,
     TrackPoint,
     track_samples,
-    wind_from_vector,
 )
 from estimator.logs import iter_samples
-from estimator.physics.effects import Climb, Effect, Mass, PowerContext, Wind, effects_to_tables
+from estimator.physics.effects import (
+    Climb,
+    Effect,
+    Mass,
+    PowerContext,
+    Wind,
+    effects_to_tables,
+    wind_from_vector,
+)
 from estimator.physics.vehicle import Vehicle, default_vehicle
 from estimator.sim.files import write_tlog
 from estimator.sim.plans import Leg, Plan

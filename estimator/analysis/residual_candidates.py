@@ -12,7 +12,6 @@ from dataclasses import dataclass, replace
 import numpy as np
 
 from estimator.analysis.residual_samples import Samples
-from estimator.estimation.online_effects import wind_from_vector
 from estimator.physics.effects import (
     Acceleration,
     AirDensity,
@@ -24,6 +23,8 @@ from estimator.physics.effects import (
     Turn,
     Voltage,
     Wind,
+    wind_from_vector,
+    wind_vector_ne_mps,
 )
 from estimator.physics.model import SEA_LEVEL_DENSITY_KGPM3, FloatArray
 from estimator.physics.vehicle import Vehicle
@@ -91,11 +92,8 @@ def _reported_wind(samples: Samples) -> Candidate | None:
     known = np.isfinite(speed) & np.isfinite(from_deg)
     if not np.any(speed[known] >= ReportedWind.CALM_MPS):
         return None
-    rad = np.radians(np.where(known, from_deg, 0.0))
-    speed = np.where(known, speed, 0.0)
+    wind_n, wind_e = wind_vector_ne_mps(np.where(known, speed, 0.0), np.where(known, from_deg, 0.0))
     time_s = samples.state.time_s
-    # the air mass moves towards the opposite of where the wind blows from
-    wind_n, wind_e = -speed * np.cos(rad), -speed * np.sin(rad)
     lower, upper = ReportedWind.bounds["scale"]
     return Candidate(
         "wind",

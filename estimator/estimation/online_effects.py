@@ -94,6 +94,7 @@ from estimator.physics.effects import (
     Wind,
     effects_from_tables,
     predict_power_w,
+    wind_from_vector,
 )
 from estimator.physics.kinematics import KinematicsFilter, KinematicState
 from estimator.physics.model import PowerModel
@@ -114,13 +115,6 @@ _HELD_VARIANCE = 1e-9
 def _mahalanobis2(d: np.ndarray, cov: np.ndarray) -> float:
     """dᵀ cov⁻¹ d: the squared Mahalanobis distance of ``d`` under ``cov``."""
     return float(d @ np.linalg.solve(cov, d))
-
-
-def wind_from_vector(wn_mps: float, we_mps: float) -> Wind:
-    """The :class:`Wind` whose air mass moves over ground at (north, east) m/s."""
-    speed = math.hypot(wn_mps, we_mps)
-    from_deg = math.degrees(math.atan2(-we_mps, -wn_mps)) % 360.0 if speed > 0 else 0.0
-    return Wind(speed_mps=speed, from_deg=from_deg)
 
 
 class _Step(NamedTuple):

@@ -33,9 +33,8 @@ from collections.abc import Callable, Sequence
 from dataclasses import dataclass, replace
 
 from estimator.errors import UserError
-from estimator.estimation.online_effects import wind_from_vector
 from estimator.logs.mission_files import MissionFile, MissionItem, MissionLeg
-from estimator.physics.effects import Effect, Mass, Wind
+from estimator.physics.effects import Effect, Mass, Wind, wind_from_vector
 from estimator.physics.route_energy import (
     DEFAULT_ACCEL_MPS2,
     DEFAULT_CLIMB_RATE_MPS,

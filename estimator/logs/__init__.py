@@ -32,6 +32,7 @@ from numpy.typing import NDArray
 
 from estimator.errors import UserError
 from estimator.logs.sanity import SanityRecorder
+from estimator.physics.effects import wind_from_deg
 from estimator.telemetry.decode import SKIP_COUNTERS
 from estimator.telemetry.plausibility import InputLimits, SampleGuard
 from estimator.telemetry.samples import (
@@ -333,8 +334,7 @@ def _align(samples: list[Sample], flight_id: str, max_age_s: float) -> FlightSer
     if any(isinstance(s, WindSample) for s in samples):
         w = np.array(winds, dtype=float)
         extras["autopilot_wind_speed_mps"] = np.hypot(w[:, 0], w[:, 1])
-        # the direction it blows from: opposite to the air-mass velocity
-        extras["autopilot_wind_from_deg"] = np.degrees(np.arctan2(-w[:, 1], -w[:, 0])) % 360.0
+        extras["autopilot_wind_from_deg"] = wind_from_deg(w[:, 0], w[:, 1])
     reported = a[np.isfinite(a[:, 8]), 8]
     if len(reported):
         # 1 after the autopilot reported the gripper released, 0 after grabbed; before its

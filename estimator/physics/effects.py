@@ -183,14 +183,34 @@ class Wind(Effect):
 
     def vector_ne_mps(self) -> tuple[float, float]:
         """Air-mass velocity over ground (north, east), m/s."""
-        rad = math.radians(self.from_deg)
-        return -self.speed_mps * math.cos(rad), -self.speed_mps * math.sin(rad)
+        wn, we = wind_vector_ne_mps(self.speed_mps, self.from_deg)
+        return float(wn), float(we)
 
     def adjust(self, ctx: PowerContext) -> None:
         wn, we = self.vector_ne_mps()
         on = active(ctx.state.time_s, self.at_s, self.until_s)
         ctx.air_vn_mps = ctx.air_vn_mps - wn * on
         ctx.air_ve_mps = ctx.air_ve_mps - we * on
+
+
+def wind_vector_ne_mps(speed_mps: ArrayLike, from_deg: ArrayLike) -> tuple[FloatArray, FloatArray]:
+    """Air-mass velocity over ground (north, east), m/s, of a wind of ``speed_mps`` blowing
+    from ``from_deg`` (degrees clockwise from north): it moves the opposite way."""
+    rad = np.radians(from_deg)
+    return -_arr(speed_mps) * np.cos(rad), -_arr(speed_mps) * np.sin(rad)
+
+
+def wind_from_deg(wn_mps: ArrayLike, we_mps: ArrayLike) -> FloatArray:
+    """Where a wind whose air mass moves over ground at (north, east) m/s blows from, degrees
+    clockwise from north in [0, 360)."""
+    return np.asarray(np.degrees(np.arctan2(-_arr(we_mps), -_arr(wn_mps))) % 360.0)
+
+
+def wind_from_vector(wn_mps: float, we_mps: float) -> Wind:
+    """The :class:`Wind` whose air mass moves over ground at (north, east) m/s."""
+    speed = math.hypot(wn_mps, we_mps)
+    from_deg = float(wind_from_deg(wn_mps, we_mps)) if speed > 0 else 0.0
+    return Wind(speed_mps=speed, from_deg=from_deg)
 
 
 @dataclass(frozen=True)
@@ -263,10 +283,9 @@ class ReportedWind(Effect):
 
     def _wind(self, lo: int, hi: int, at_open: bool, until_open: bool) -> Wind:
         n, e = self.scale * self.wind_n_mps[lo:hi], self.scale * self.wind_e_mps[lo:hi]
-        mean_n, mean_e = float(np.mean(n)), float(np.mean(e))
-        return Wind(
+        return replace(
+            wind_from_vector(float(np.mean(n)), float(np.mean(e))),
             speed_mps=float(np.median(np.hypot(n, e))),
-            from_deg=math.degrees(math.atan2(-mean_e, -mean_n)) % 360.0,
             at_s=None if at_open else float(self.time_s[lo]),
             until_s=None if until_open else float(self.time_s[hi]),
         )
