@@ -60,6 +60,7 @@ from estimator.sitl.scenarios import (
     Scenario,
     SetWind,
     Takeoff,
+    out_and_back,
 )
 from estimator.telemetry.decode import BATTERY_STATUS_CONFIRM, FrameParser, TelemetryDecoder
 from estimator.telemetry.samples import ArmedSample, BatterySample, RebootSample, VelocitySample
@@ -377,7 +378,7 @@ def _boot_stamped(tlog: Path) -> Iterator[tuple[float, Any]]:
 TO_RESERVE = Scenario(
     "to_reserve",
     "hover 60 s, 6 m/s legs to the 20 % reserve",
-    (Takeoff(20), Hover(60), LegsToReserve(6, 20)),
+    (Takeoff(20), Hover(60), LegsToReserve(out_and_back(6, 20))),
     model_json=DRAINING_PACK,
 )
 

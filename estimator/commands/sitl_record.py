@@ -1,6 +1,7 @@
 """``uav-energy sitl-record SCENARIO… --out DIR``: fly scenarios in ArduCopter SITL, record them.
 
-Each scenario (estimator/sitl/scenarios.py; ``all`` for every one) is flown in a fresh SITL
+Each scenario (estimator/sitl/scenarios.py; ``all`` for every one of ``replay/sitl``,
+``packs`` for every ``pack_*`` flight of ``replay/sitl_packs``) is flown in a fresh SITL
 (scratch directory, free instance) and written to ``DIR/<scenario>/``: ``flight.tlog``,
 ``truth.json`` and, for the scenarios that log it, ``flight.BIN``. ``--mission FILE`` flies
 a mission file (.plan or .waypoints) in AUTO instead, optionally in a wind (``--wind``) and
@@ -25,7 +26,13 @@ def register(subparsers: argparse._SubParsersAction[argparse.ArgumentParser]) ->
         description="Fly flight scenarios (wind, payload, battery, airframes) in ArduCopter "
         "SITL and record each one's tlog, DataFlash log and truth.json.",
     )
-    p.add_argument("scenarios", nargs="*", metavar="SCENARIO", help="scenario names, or all")
+    p.add_argument(
+        "scenarios",
+        nargs="*",
+        metavar="SCENARIO",
+        help="scenario names (the effects of replay/sitl, pack_* packs of replay/sitl_packs), "
+        "or all (every effect scenario), or packs (every pack_* scenario)",
+    )
     p.add_argument("--mission", metavar="FILE", help="fly this mission file in AUTO instead")
     p.add_argument(
         "--wind", metavar="SPEED@FROM_DEG", help="with --mission: wind, m/s @ degrees (from)"
@@ -41,7 +48,7 @@ def run(args: argparse.Namespace) -> int:
     from estimator.commands.sim import _pair
     from estimator.logs.mission_files import load_mission
     from estimator.sitl.recorder import record
-    from estimator.sitl.scenarios import SCENARIOS, Scenario, mission_scenario
+    from estimator.sitl.scenarios import PACK_SCENARIOS, SCENARIOS, Scenario, mission_scenario
 
     scenarios: list[Scenario]
     if args.mission is not None:
@@ -57,12 +64,14 @@ def run(args: argparse.Namespace) -> int:
             raise UserError("--wind and --gripper go with --mission")
         if not args.scenarios:
             raise UserError("name a scenario (or all), or give --mission FILE")
-        names = list(SCENARIOS) if args.scenarios == ["all"] else args.scenarios
-        unknown = [n for n in names if n not in SCENARIOS]
+        groups = {"all": list(SCENARIOS), "packs": list(PACK_SCENARIOS)}
+        known = SCENARIOS | PACK_SCENARIOS
+        names = [n for name in args.scenarios for n in groups.get(name, [name])]
+        unknown = [n for n in names if n not in known]
         if unknown:
-            known = ", ".join(SCENARIOS)
-            raise UserError(f"unknown scenario {unknown[0]!r}; known: all, {known}")
-        scenarios = [SCENARIOS[n] for n in names]
+            listed = ", ".join(known)
+            raise UserError(f"unknown scenario {unknown[0]!r}; known: all, packs, {listed}")
+        scenarios = [known[n] for n in names]
     try:
         speedup = float(args.speedup)
     except ValueError:

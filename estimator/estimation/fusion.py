@@ -32,7 +32,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import ArrayLike
 
-from estimator.estimation.kalman import LinearKalman
+from estimator.estimation.kalman import LinearKalman, state_from_json
 from estimator.physics.battery import PackModel
 from estimator.physics.model import FloatArray
 from estimator.telemetry.samples import BatterySample
@@ -279,14 +279,7 @@ class EnergyFilter:
 
     def restore(self, state: Mapping[str, Any]) -> None:
         """Continue from :meth:`snapshot`; ValueError/KeyError/TypeError on a bad one."""
-        x = np.array([float(v) for v in state["x"]])
-        p = np.array([[float(v) for v in row] for row in state["P"]])
-        if (
-            x.shape != (2,)
-            or p.shape != (2, 2)
-            or not (np.isfinite(x).all() and np.isfinite(p).all())
-        ):
-            raise ValueError("energy state is not a finite [E, b] with a 2×2 covariance")
+        x, p = state_from_json(state["x"], state["P"], 2, "energy state [E, b]")
         voltage = ResistanceFilter(self.pack, self.settings)
         voltage.restore(state["resistance"])
         anchor = state["anchor_power_w"]

@@ -11,7 +11,7 @@ here against filterpy's on random inputs (equal to 1e-12).
 
 from __future__ import annotations
 
-from typing import NamedTuple
+from typing import Any, NamedTuple
 
 import numpy as np
 
@@ -91,3 +91,13 @@ class MerweSigmaPoints:
         gain = ((sigmas - x).T @ (self.wc * dz)) / s_var
         y = z - z_mean
         return UnscentedUpdate(x + gain * y, p - s_var * np.outer(gain, gain), y, s_var)
+
+
+def state_from_json(x_doc: Any, p_doc: Any, n: int, what: str) -> tuple[np.ndarray, np.ndarray]:
+    """A filter's state (n,) and covariance (n × n) from their JSON lists; ValueError (or
+    TypeError) when they are not finite arrays of those shapes."""
+    x = np.array([float(v) for v in x_doc])
+    p = np.array([[float(v) for v in row] for row in p_doc])
+    if x.shape != (n,) or p.shape != (n, n) or not (np.isfinite(x).all() and np.isfinite(p).all()):
+        raise ValueError(f"{what} is not a finite state of {n} with its {n}×{n} covariance")
+    return x, p

@@ -1,10 +1,10 @@
-"""Lithium-polymer pack model: open-circuit voltage, state of charge, usable energy.
+"""Lithium pack model: open-circuit voltage, state of charge, usable energy.
 
-The per-cell OCV(SoC) table is a typical LiPo discharge curve at rest (room temperature),
-used unless the vehicle file gives its pack's own (``[battery] cell_ocv_v``); SoC is the
-fraction of rated charge left (1 = full). Energy integrates OCV over charge, so it
-is the chemical energy the pack can deliver before resistive losses (those are I²R, counted
-by whoever knows the current).
+The per-cell OCV(SoC) table is a typical resting discharge curve (room temperature) of the
+pack's chemistry (:data:`CHEMISTRY_OCV_V`: LiPo, LiHV, Li-ion), used unless the vehicle file
+gives its pack's own (``[battery] cell_ocv_v``); SoC is the fraction of the pack's charge left
+(1 = full). Energy integrates OCV over charge, so it is the chemical energy the pack can
+deliver before resistive losses (those are I²R, counted by whoever knows the current).
 """
 
 from __future__ import annotations
@@ -16,6 +16,7 @@ from estimator.physics.vehicle import BatterySpec
 
 #: State of charge (fraction) and the matching resting cell voltage (V), ascending.
 SOC_POINTS = np.linspace(0.0, 1.0, 21)
+_SEGMENTS = len(SOC_POINTS) - 1
 CELL_OCV_POINTS_V = np.array(
     [
         3.27,
@@ -43,19 +44,55 @@ CELL_OCV_POINTS_V = np.array(
 )
 
 
+#: Li-ion (NMC 18650/21700) cells: a steadier slope than LiPo's and a deeper usable range
+#: (typical resting curve of NMC cells at 25 °C, e.g. Plett, *Battery Management Systems*
+#: vol. 1, ch. 2, fig. 2.5; fit your pack's own with ``uav-energy fit --pack``).
+LIION_CELL_OCV_V = np.array(
+    [3.00, 3.30, 3.42, 3.50, 3.55, 3.59, 3.62, 3.65, 3.68, 3.71, 3.75,
+     3.79, 3.83, 3.87, 3.92, 3.96, 4.01, 4.05, 4.09, 4.14, 4.19]
+)  # fmt: skip
+#: LiHV cells charge to 4.35 V: the LiPo curve stretched above its knee (3.27 V at SoC 0)
+#: so that full reads 4.35 V instead of 4.20 V.
+LIHV_CELL_OCV_V = 3.27 + (CELL_OCV_POINTS_V - 3.27) * (4.35 - 3.27) / (4.20 - 3.27)
+#: Resting cell voltage (V) at :data:`SOC_POINTS` by chemistry (``[battery] chemistry``).
+CHEMISTRY_OCV_V = {"lipo": CELL_OCV_POINTS_V, "lihv": LIHV_CELL_OCV_V, "liion": LIION_CELL_OCV_V}
+
+
 class PackModel:
-    """A pack of ``spec.cells`` LiPo cells in series with ``spec.capacity_ah`` rated charge."""
+    """A pack of ``spec.cells`` lithium cells in series with ``spec.capacity_ah`` charge."""
 
     def __init__(self, spec: BatterySpec, internal_resistance_ohm: float = 0.0) -> None:
         self.spec = spec
         self.internal_resistance_ohm = internal_resistance_ohm
         #: Resting cell voltage (V) at each of :data:`SOC_POINTS`.
         self.cell_ocv_v = (
-            CELL_OCV_POINTS_V if spec.cell_ocv_v is None else np.asarray(spec.cell_ocv_v)
+            CHEMISTRY_OCV_V[spec.chemistry]
+            if spec.cell_ocv_v is None
+            else np.asarray(spec.cell_ocv_v, dtype=float)
         )
         # energy per cell per Ah from SoC 0 up to each table point (Wh/Ah), trapezoids
         mid_v = 0.5 * (self.cell_ocv_v[1:] + self.cell_ocv_v[:-1])
         self._cum_wh_per_ah = np.concatenate(([0.0], np.cumsum(np.diff(SOC_POINTS) * mid_v)))
+        self._ocv_list = [float(v) for v in self.cell_ocv_v]
+        self._cum_list = [float(v) for v in self._cum_wh_per_ah]
+
+    def cell_ocv_slope_v(self, soc: float) -> tuple[float, float]:
+        """Resting cell voltage (V) at ``soc`` and its slope dOCV/dSoC (V per unit SoC),
+        the table's end segments extended in a straight line beyond SoC 0 and 1 (so that a
+        filter whose state strays past an end still sees which way to go). Scalar."""
+        i = min(max(int(soc * _SEGMENTS), 0), _SEGMENTS - 1)
+        v0, v1 = self._ocv_list[i], self._ocv_list[i + 1]
+        slope = (v1 - v0) * _SEGMENTS
+        return v0 + slope * (soc - i / _SEGMENTS), slope
+
+    def cell_energy_wh_per_ah(self, soc: float) -> float:
+        """Energy per cell and Ah from SoC 0 up to ``soc`` (Wh/Ah = V·unit SoC), clipped to
+        [0, 1]. Scalar."""
+        s = min(max(soc, 0.0), 1.0)
+        i = min(int(s * _SEGMENTS), _SEGMENTS - 1)
+        f = s * _SEGMENTS - i
+        v0, v1 = self._ocv_list[i], self._ocv_list[i + 1]
+        return self._cum_list[i] + (v0 + 0.5 * f * (v1 - v0)) * f / _SEGMENTS
 
     def ocv_v(self, soc: ArrayLike) -> NDArray[np.float64]:
         """Pack open-circuit voltage (V) at state of charge ``soc`` (clipped to [0, 1])."""

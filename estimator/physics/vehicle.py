@@ -5,7 +5,8 @@ Layout (all sections but ``[effects]`` required)::
     [vehicle]        name, mass_kg, max_airspeed_mps (optional: the fastest it flies, m/s)
     [model]          c1, c2, c3, c4, c5        (electrical power at the battery, W)
     [model.stderr]   c1, c2, c3, c4, c5        (1σ, same units; optional)
-    [battery]        capacity_ah, cells, reserve_fraction
+    [battery]        capacity_ah, cells, reserve_fraction, chemistry (optional: lipo, lihv,
+                     liion), cell_ocv_v (optional: the pack's own curve)
     [effects.NAME]   parameters of effects added by ``uav-energy residuals`` (optional)
 """
 
@@ -30,18 +31,22 @@ from estimator.toml_files import read_toml
 OCV_TABLE_POINTS = 21
 #: A cell voltage outside this range (V) is no lithium cell at rest.
 OCV_RANGE_V = (2.0, 4.5)
+#: Chemistries with a built-in resting curve (estimator.physics.battery.CHEMISTRY_OCV_V).
+CHEMISTRIES = ("lipo", "lihv", "liion")
 
 
 @dataclass(frozen=True)
 class BatterySpec:
-    """Pack as configured: rated capacity (Ah), series cells, the reserve not to be used, and
-    the pack's resting cell voltage (V) at state of charge 0, 0.05, …, 1 (``cell_ocv_v``;
-    None: the built-in LiPo curve of :mod:`estimator.physics.battery`)."""
+    """Pack as configured: rated (label) capacity (Ah), series cells, the reserve not to be
+    used, the chemistry, and the pack's resting cell voltage (V) at state of charge 0, 0.05,
+    …, 1 (``cell_ocv_v``; None: the chemistry's built-in curve in
+    :mod:`estimator.physics.battery`)."""
 
     capacity_ah: float
     cells: int
     reserve_fraction: float = 0.2
     cell_ocv_v: tuple[float, ...] | None = None
+    chemistry: str = "lipo"
 
 
 @dataclass(frozen=True)
@@ -78,6 +83,11 @@ class Vehicle:
                 "capacity_ah": self.battery.capacity_ah,
                 "cells": self.battery.cells,
                 "reserve_fraction": self.battery.reserve_fraction,
+                **(
+                    {"chemistry": self.battery.chemistry}
+                    if self.battery.chemistry != "lipo"
+                    else {}
+                ),
                 **(
                     {"cell_ocv_v": list(self.battery.cell_ocv_v)}
                     if self.battery.cell_ocv_v is not None
@@ -127,6 +137,7 @@ def vehicle_from_toml(doc: dict[str, Any], where: str = "vehicle file") -> Vehic
         cells=int(_number(battery, "cells", f"{where} [battery]", positive=True)),
         reserve_fraction=_number(battery, "reserve_fraction", f"{where} [battery]"),
         cell_ocv_v=_ocv_table(battery.get("cell_ocv_v"), f"{where} [battery] cell_ocv_v"),
+        chemistry=_chemistry(battery.get("chemistry", "lipo"), f"{where} [battery] chemistry"),
     )
     if not 0.0 <= spec.reserve_fraction < 1.0:
         raise UserError(f"{where} [battery] reserve_fraction must be in [0, 1)")
@@ -179,6 +190,12 @@ def _ocv_table(value: Any, where: str) -> tuple[float, ...] | None:
     if any(b <= a for a, b in pairwise(table)):
         raise UserError(f"{where} must rise with the state of charge (SoC 0 first)")
     return table
+
+
+def _chemistry(value: Any, where: str) -> str:
+    if value not in CHEMISTRIES:
+        raise UserError(f"{where} must be one of {', '.join(CHEMISTRIES)}, got {value!r}")
+    return str(value)
 
 
 def default_vehicle() -> Vehicle:

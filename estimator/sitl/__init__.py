@@ -5,6 +5,8 @@
 - :mod:`estimator.sitl.pilot`: a pymavlink ground station that flies it by the autopilot's
   own clock (``time_boot_ms``) and switches the simulator's effects (wind, gripper payload);
 - :mod:`estimator.sitl.scenarios`: flights as data;
+- :mod:`estimator.sitl.pack`: SITL's simulated pack (its voltage table) and a mislabelled,
+  aged or partly charged pack to fly;
 - :mod:`estimator.sitl.recorder`: one scenario → ``flight.tlog``, DataFlash ``flight.BIN``
   and ``truth.json`` (``uav-energy sitl-record``).
 

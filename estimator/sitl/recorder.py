@@ -10,6 +10,8 @@ clock are those of the messages around the event (streams at 2–4 Hz: ±0.5 s).
 
 from __future__ import annotations
 
+import bisect
+import itertools
 import json
 import math
 import shutil
@@ -30,6 +32,13 @@ from estimator.sitl.launch import (
     running_sitl,
     serial_port,
     sitl_binary,
+)
+from estimator.sitl.pack import (
+    CELLS,
+    MAX_VOLTAGE_V,
+    SITL_BATT_VOLTAGE_V,
+    cell_voltage_v,
+    soc_at_cell_voltage,
 )
 from estimator.sitl.pilot import Pilot
 from estimator.sitl.scenarios import (
@@ -256,24 +265,30 @@ class Flight:
             t.open_effect("wind", self.now_s, speed_mps=step.speed_mps, from_deg=step.from_deg)
 
     def _to_reserve(self, step: LegsToReserve) -> None:
-        p = self.pilot
-        pack = self.scenario.model_json or {}
-        if "battCapacityAh" not in pack:
+        """Loop over the step's legs until the consumed charge reaches the true reserve; the
+        reserve's time, charge, voltage and current go to the truth."""
+        p, pack = self.pilot, _battery_truth(self.scenario)
+        if not pack["drains"]:
             raise UserError(f"{self.scenario.name}: LegsToReserve needs a draining pack")
-        capacity_mah = 1000 * float(pack["battCapacityAh"])
-        reserve_mah = (1 - step.reserve_fraction) * capacity_mah
+        reserve_mah = 1000 * (pack["start_soc"] - step.reserve_fraction) * pack["capacity_ah"]
+        ends_s = list(itertools.accumulate(leg.duration_s for leg in step.legs))
         start = p.state.boot_s
 
-        def fly() -> None:  # north on even legs, south on odd ones
-            leg = int((p.state.boot_s - start) // step.leg_s)
-            p.send_velocity((-1) ** leg * step.speed_mps, 0.0)
+        def fly() -> None:
+            into_s = (p.state.boot_s - start) % ends_s[-1]
+            leg = step.legs[min(bisect.bisect_right(ends_s, into_s), len(ends_s) - 1)]
+            p.send_velocity(leg.vn_mps, leg.ve_mps)
 
         def reached() -> bool:
             return p.state.consumed_mah >= reserve_mah
 
         p.wait_for(reached, MAX_FLIGHT_S, "flight to the reserve", p.every(0.5, fly))
         self.truth.event("reserve_s", self.now_s)
-        self.truth.battery["reserve_consumed_mah"] = round(p.state.consumed_mah, 1)
+        self.truth.battery.update(
+            reserve_consumed_mah=round(p.state.consumed_mah, 1),
+            reserve_voltage_v=round(p.state.voltage_v, 3),
+            reserve_current_a=round(p.state.current_a, 2),
+        )
 
 
 def record(
@@ -339,13 +354,28 @@ def _copy_mission(path: Path, out_dir: Path) -> None:
 
 
 def _battery_truth(scenario: Scenario) -> dict[str, Any]:
+    """The simulated pack (capacity Ah, resistance Ω, full voltage V), what the autopilot is
+    told it holds (BATT_CAPACITY, Ah), and its voltage (V) and true state of charge (0–1) at
+    power-up: SIM_BATT_VOLTAGE read in SITL's table."""
     pack = scenario.model_json or {}
-    if "battCapacityAh" in pack:
+    if "battCapacityAh" not in pack:
         return {
-            "cells": 3,
-            "capacity_ah": pack["battCapacityAh"],
-            "max_voltage_v": pack.get("maxVoltage"),
-            "internal_resistance_ohm": pack.get("refBatRes"),
-            "drains": True,
+            "cells": CELLS,
+            "capacity_ah": None,
+            "max_voltage_v": MAX_VOLTAGE_V,
+            "drains": False,
         }
-    return {"cells": 3, "capacity_ah": None, "max_voltage_v": 12.6, "drains": False}
+    params = scenario.all_params()
+    max_voltage_v = float(pack.get("maxVoltage", MAX_VOLTAGE_V))
+    set_v = float(params.get("SIM_BATT_VOLTAGE", SITL_BATT_VOLTAGE_V))
+    start_voltage_v = min(set_v, max_voltage_v)  # Battery::init_voltage
+    return {
+        "cells": CELLS,
+        "capacity_ah": pack["battCapacityAh"],
+        "labelled_capacity_ah": params["BATT_CAPACITY"] / 1000,
+        "max_voltage_v": max_voltage_v,
+        "internal_resistance_ohm": pack.get("refBatRes"),
+        "drains": True,
+        "start_voltage_v": start_voltage_v,
+        "start_soc": round(soc_at_cell_voltage(cell_voltage_v(start_voltage_v, max_voltage_v)), 4),
+    }

@@ -1,0 +1,360 @@
+"""The pack in the vehicle: its charge, usable capacity and internal resistance, learned from
+the terminal voltage, the current and the charge counted (an extended Kalman filter).
+
+State ``x = [s, q, R, d]``:
+
+- ``s``: state of charge (fraction of the pack's real capacity) when the filter started;
+- ``q = Q_label / Q``: the configured (label) capacity over the real one (1: the label is
+  right; 1.25: the pack holds 80 % of its label);
+- ``R``: the pack's internal resistance (Ω);
+- ``d``: the error of the configured resting curve at the present state of charge (V, pack),
+  a Gauss–Markov process over the state of charge: the curve's error at one state of charge
+  says little about its error ``ocv_curve_correlation_soc`` further on.
+
+With ``c`` the charge drawn since the start (Ah: the autopilot's counter, else the measured or
+modelled current integrated), the state of charge now is ``s − q·c/Q_label`` and one reading
+of the terminal voltage at current ``I`` is
+
+    V = cells · OCV_cell(s − q·c/Q_label) + d − I·R + noise.
+
+A pack whose voltage falls faster than its coulombs allow holds less than its label (q > 1);
+one that starts lower on the curve is less charged (s): the two separate as the charge drawn
+grows, with σ from the data. The first reading (a resting pack at power-up, or whatever the
+pack holds when the daemon starts) is folded in by an iterated update (the curve is far from
+linear over the prior's width); later ones by one linearisation each. A current-sensor gain
+error scales ``c`` and ``I`` alike: ``q`` and ``R`` take it up, and the time left (charge
+over current) does not see it.
+
+Usable energy above the reserve (Wh, chemical: OCV integrated over charge) is
+``Q·[cells·(F(soc) − F(r)) + d·(soc − r)]`` with ``F`` the curve's integral per cell and Ah
+(:meth:`PackModel.cell_energy_wh_per_ah`) and ``r`` the reserve fraction of the real pack;
+its σ is first order in the state's covariance.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Iterable, Mapping
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+
+from estimator.estimation.kalman import state_from_json
+from estimator.physics.battery import PackModel
+from estimator.telemetry.samples import BatterySample
+
+#: Iterations of the first (iterated) update.
+_FIRST_UPDATE_ITERATIONS = 6
+#: Bounds of the state (s, q, R Ω, d V): a strayed linearisation never leaves physics
+#: (no pack is more than full).
+_S_RANGE = (-0.1, 1.0)
+_Q_RANGE = (0.4, 3.0)
+_R_RANGE = (0.0, 2.0)
+#: Half-width (of charge) over which the curve's slope is averaged: at least a fifth of a
+#: table segment, at most two segments.
+_MIN_SLOPE_HALF_WIDTH = 0.01
+_MAX_SLOPE_HALF_WIDTH = 0.1
+#: Prior 1σ of the starting state of charge before the first reading (uninformative).
+_S_PRIOR_SIGMA = 0.5
+#: Error of a resting curve measured on the pack itself (V per cell): what is left of the
+#: table's interpolation and of the pack's ageing since (the vehicle file's ``cell_ocv_v``).
+OWN_CURVE_SIGMA_V = 0.004
+#: Spread of one pack's resting curve about its chemistry's typical curve (V per cell):
+#: cells of one chemistry from different makers and ages differ by 10–30 mV at rest.
+TYPICAL_CURVE_SIGMA_V = 0.02
+
+
+@dataclass(frozen=True, slots=True)
+class PackSettings:
+    """Noise figures of the pack filter (1σ).
+
+    capacity_sigma_fraction: prior error of the configured (label) capacity against the real
+    pack, as a fraction (0: the label is exact and ``q`` stays 1).
+    resistance_prior_ohm_per_cell, resistance_sigma_ohm_per_cell: prior resistance per cell
+    and its error (Ω); internal_resistance_ohm: a fixed pack resistance instead (Ω).
+    resistance_walk_ohm_per_sqrt_s: random walk of the resistance (it falls as the pack warms).
+    voltage_noise_v: error of one terminal-voltage reading, pack (V; with the pack's fast
+    polarisation, which no state here follows).
+    ocv_curve_sigma_v_per_cell: error of the configured resting curve (V per cell; None:
+    :data:`OWN_CURVE_SIGMA_V` for a curve measured on the pack, ``[battery] cell_ocv_v``,
+    :data:`TYPICAL_CURVE_SIGMA_V` for a chemistry's typical curve), and
+    ocv_curve_correlation_soc the state-of-charge distance over which it decorrelates.
+    innovation_gate_sigma: a reading further than this many σ from the prediction is not
+    used (a glitch, a forged or mis-scaled value).
+    """
+
+    capacity_sigma_fraction: float = 0.25
+    resistance_prior_ohm_per_cell: float = 0.004
+    resistance_sigma_ohm_per_cell: float = 0.004
+    internal_resistance_ohm: float | None = None
+    resistance_walk_ohm_per_sqrt_s: float = 1e-5
+    voltage_noise_v: float = 0.05
+    ocv_curve_sigma_v_per_cell: float | None = None
+    ocv_curve_correlation_soc: float = 0.1
+    innovation_gate_sigma: float = 6.0
+
+
+@dataclass(frozen=True, slots=True)
+class PackPrior:
+    """What is known of a pack before this flight (e.g. learned on its last flight): real
+    capacity (Ah) and resistance (Ω), each with its 1σ."""
+
+    capacity_ah: float
+    capacity_sigma_ah: float
+    resistance_ohm: float
+    resistance_sigma_ohm: float
+
+
+@dataclass(frozen=True, slots=True)
+class PackEstimate:
+    """The pack now: state of charge (fraction of the real pack), real capacity (Ah),
+    resistance (Ω), usable energy above the reserve (Wh), each with its 1σ."""
+
+    soc: float
+    soc_sigma: float
+    capacity_ah: float
+    capacity_sigma_ah: float
+    resistance_ohm: float
+    resistance_sigma_ohm: float
+    energy_wh: float
+    energy_sigma_wh: float
+
+
+class PackFilter:
+    """The EKF over ``[s, q, R, d]`` of the module docstring, for one pack."""
+
+    def __init__(
+        self, pack: PackModel, settings: PackSettings, prior: PackPrior | None = None
+    ) -> None:
+        self.pack = pack
+        self.settings = settings
+        self.prior = prior
+        self.cells = pack.spec.cells
+        self.label_ah = pack.spec.capacity_ah
+        self.x = np.zeros(4)
+        self.P = np.zeros((4, 4))
+        self.charge_ah = 0.0  # drawn since the start
+        self._counter_base: tuple[float, float] | None = None  # (charge_ah, counter Ah) then
+        self.rejected = 0
+        self.updates = 0
+        own_curve = pack.spec.cell_ocv_v is not None
+        curve_sigma = settings.ocv_curve_sigma_v_per_cell
+        if curve_sigma is None:
+            curve_sigma = OWN_CURVE_SIGMA_V if own_curve else TYPICAL_CURVE_SIGMA_V
+        #: 1σ of the curve error state d (V, pack).
+        self.curve_sigma_v = curve_sigma * self.cells
+
+    # -- start ------------------------------------------------------------------------------
+
+    def start(self, voltage_v: float, current_a: float) -> None:
+        """Start from one reading (V, A): the prior, then an iterated update with it."""
+        s, cells = self.settings, self.cells
+        fixed = s.internal_resistance_ohm
+        if self.prior is not None:
+            q0 = self.label_ah / self.prior.capacity_ah
+            q_sigma = q0 * self.prior.capacity_sigma_ah / self.prior.capacity_ah
+            r0, r_sigma = self.prior.resistance_ohm, self.prior.resistance_sigma_ohm
+        else:
+            q0, q_sigma = 1.0, s.capacity_sigma_fraction
+            r0 = s.resistance_prior_ohm_per_cell * cells
+            r_sigma = s.resistance_sigma_ohm_per_cell * cells
+        if fixed is not None:
+            r0, r_sigma = fixed, 0.0
+        ocv_v = voltage_v + max(current_a, 0.0) * r0
+        s0 = float(np.clip(self.pack.soc_from_ocv(ocv_v), 0.0, 1.0))
+        self.x = np.array([s0, q0, r0, 0.0])
+        self.P = np.diag([_S_PRIOR_SIGMA**2, q_sigma**2, r_sigma**2, self.curve_sigma_v**2])
+        self._update(voltage_v, current_a, _FIRST_UPDATE_ITERATIONS, gate=False)
+
+    # -- the charge drawn ---------------------------------------------------------------------
+
+    def count(self, consumed_mah: float) -> None:
+        """The autopilot's consumed-charge counter (mAh) now: the charge drawn follows it from
+        the first value seen (a counter that restarts is re-based by :meth:`rebase`)."""
+        counter_ah = consumed_mah / 1000.0
+        if self._counter_base is None:
+            self._counter_base = (self.charge_ah, counter_ah)
+        base_ah, counter0_ah = self._counter_base
+        self._advance(base_ah + counter_ah - counter0_ah)
+
+    def draw(self, current_a: float, dt_s: float) -> None:
+        """No counter: ``current_a`` (A, measured or modelled) drawn for ``dt_s`` (s)."""
+        if self._counter_base is None and dt_s > 0:
+            self._advance(self.charge_ah + current_a * dt_s / 3600.0)
+
+    def rebase(self) -> None:
+        """The autopilot restarted: its counter starts again from 0."""
+        self._counter_base = None
+
+    def _advance(self, charge_ah: float) -> None:
+        """Move the charge drawn to ``charge_ah``: the curve error decorrelates with the
+        state-of-charge travelled."""
+        delta_soc = abs(charge_ah - self.charge_ah) * self.x[1] / self.label_ah
+        self.charge_ah = charge_ah
+        if delta_soc > 0:
+            s = self.settings
+            phi = math.exp(-delta_soc / s.ocv_curve_correlation_soc)
+            self.x[3] *= phi
+            self.P[3, :] *= phi
+            self.P[:, 3] *= phi
+            self.P[3, 3] += self.curve_sigma_v**2 * (1.0 - phi * phi)
+
+    # -- voltage ------------------------------------------------------------------------------
+
+    def update(self, dt_s: float, voltage_v: float, current_a: float) -> None:
+        """Fold in one terminal voltage (V) at ``current_a`` (A), ``dt_s`` (s) after the last."""
+        if dt_s > 0 and self.settings.internal_resistance_ohm is None:
+            self.P[2, 2] += self.settings.resistance_walk_ohm_per_sqrt_s**2 * dt_s
+        self._update(voltage_v, current_a, 1, gate=True)
+
+    def _measurement(
+        self, x: np.ndarray, p: np.ndarray, current_a: float
+    ) -> tuple[float, np.ndarray]:
+        """Predicted terminal voltage (V) at state ``x`` and its gradient over the state. The
+        curve's slope is its mean over ±1σ of the state of charge (covariance ``p``), not the
+        slope at the mean: the table's segments are 0.05 of charge wide and differ in slope
+        by 2× and more, so a slope taken from a segment the charge may not be in would make
+        the filter surer than its data (statistical linearisation)."""
+        c_rel = self.charge_ah / self.label_ah
+        soc = x[0] - x[1] * c_rel
+        j_soc = np.array([1.0, -c_rel])
+        soc_sigma = math.sqrt(max(float(j_soc @ p[:2, :2] @ j_soc), 0.0))
+        half = min(max(soc_sigma, _MIN_SLOPE_HALF_WIDTH), _MAX_SLOPE_HALF_WIDTH)
+        curve = self.pack.cell_ocv_slope_v
+        slope_cell = (curve(soc + half)[0] - curve(soc - half)[0]) / (2.0 * half)
+        k = self.cells * slope_cell
+        h = np.array([k, -k * c_rel, -current_a, 1.0])
+        return self.cells * curve(soc)[0] + x[3] - current_a * x[2], h
+
+    def _update(self, voltage_v: float, current_a: float, iterations: int, gate: bool) -> None:
+        x0, p0 = self.x, self.P
+        r_var = self.settings.voltage_noise_v**2
+        x = x0.copy()
+        for _ in range(iterations):
+            z_pred, h = self._measurement(x, p0, current_a)
+            pht = p0 @ h
+            s_var = float(h @ pht) + r_var
+            innovation = voltage_v - z_pred - float(h @ (x0 - x))
+            if gate and innovation**2 > self.settings.innovation_gate_sigma**2 * s_var:
+                self.rejected += 1
+                return
+            gain = pht / s_var
+            x = x0 + gain * innovation
+        i_kh = np.eye(4) - np.outer(gain, h)
+        self.P = i_kh @ p0 @ i_kh.T + r_var * np.outer(gain, gain)
+        x[0] = min(max(x[0], _S_RANGE[0]), _S_RANGE[1])
+        x[1] = min(max(x[1], _Q_RANGE[0]), _Q_RANGE[1])
+        x[2] = min(max(x[2], _R_RANGE[0]), _R_RANGE[1])
+        self.x = x
+        self.updates += 1
+
+    # -- what it says -------------------------------------------------------------------------
+
+    @property
+    def soc(self) -> float:
+        """State of charge now (fraction of the real pack, within [0, 1])."""
+        return min(max(self.x[0] - self.x[1] * self.charge_ah / self.label_ah, 0.0), 1.0)
+
+    @property
+    def capacity_ah(self) -> float:
+        """The pack's real capacity (Ah)."""
+        return self.label_ah / self.x[1]
+
+    @property
+    def resistance_ohm(self) -> float:
+        return float(self.x[2])
+
+    def estimate(self) -> PackEstimate:
+        s, q, _, d = (float(v) for v in self.x)
+        label, cells, c = self.label_ah, self.cells, self.charge_ah
+        reserve = self.pack.spec.reserve_fraction
+        soc = s - q * c / label
+        capacity = label / q
+        pack = self.pack
+        if soc > reserve:
+            per_ah = cells * (
+                pack.cell_energy_wh_per_ah(soc) - pack.cell_energy_wh_per_ah(reserve)
+            ) + d * (soc - reserve)
+            ocv_cell, _ = pack.cell_ocv_slope_v(min(soc, 1.0))
+            d_per_ah = cells * ocv_cell + d
+            j_energy = np.array(
+                [capacity * d_per_ah, -capacity / q * per_ah - c / q * d_per_ah, 0.0,
+                 capacity * (soc - reserve)]
+            )  # fmt: skip
+        else:
+            per_ah, j_energy = 0.0, np.zeros(4)
+        j_soc = np.array([1.0, -c / label, 0.0, 0.0])
+        j_capacity = np.array([0.0, -label / (q * q), 0.0, 0.0])
+        p = self.P
+        return PackEstimate(
+            soc=min(max(soc, 0.0), 1.0),
+            soc_sigma=math.sqrt(max(float(j_soc @ p @ j_soc), 0.0)),
+            capacity_ah=capacity,
+            capacity_sigma_ah=math.sqrt(max(float(j_capacity @ p @ j_capacity), 0.0)),
+            resistance_ohm=float(self.x[2]),
+            resistance_sigma_ohm=math.sqrt(max(float(p[2, 2]), 0.0)),
+            energy_wh=max(capacity * per_ah, 0.0),
+            energy_sigma_wh=math.sqrt(max(float(j_energy @ p @ j_energy), 0.0)),
+        )
+
+    # -- restart --------------------------------------------------------------------------------
+
+    def snapshot(self) -> dict[str, Any]:
+        """The state, its covariance and the charge accounting (JSON-ready)."""
+        return {
+            "x": [float(v) for v in self.x],
+            "P": [[float(v) for v in row] for row in self.P],
+            "charge_ah": self.charge_ah,
+            "counter_base": None if self._counter_base is None else list(self._counter_base),
+        }
+
+    def restore(self, state: Mapping[str, Any]) -> None:
+        """Continue from :meth:`snapshot`; ValueError for one that is not a pack state
+        (not finite, out of the state's bounds, a covariance that is not positive)."""
+        x, p = state_from_json(state["x"], state["P"], 4, "pack state [s, q, R, d]")
+        bounds = (_S_RANGE, _Q_RANGE, _R_RANGE, (-1.0, 1.0))
+        if not all(lo <= v <= hi for v, (lo, hi) in zip(x, bounds, strict=True)):
+            raise ValueError("pack state is out of its physical bounds")
+        if not np.allclose(p, p.T) or np.linalg.eigvalsh(p).min() < -1e-12 or p.max() > 10.0:
+            raise ValueError("pack covariance is not a positive semi-definite matrix")
+        charge_ah = float(state["charge_ah"])
+        if not (math.isfinite(charge_ah) and 0.0 <= charge_ah <= 10.0 * self.label_ah):
+            raise ValueError("charge drawn is not within the pack's reach")
+        base = state["counter_base"]
+        counter_base = None if base is None else (float(base[0]), float(base[1]))
+        if counter_base is not None and not all(map(math.isfinite, counter_base)):
+            raise ValueError("counter base is not finite")
+        self.x, self.P, self.charge_ah, self._counter_base = x, p, charge_ah, counter_base
+
+
+def track_pack(
+    samples: Iterable[BatterySample],
+    pack: PackModel,
+    settings: PackSettings | None = None,
+    prior: PackPrior | None = None,
+) -> list[tuple[float, PackEstimate]]:
+    """The pack filter over a flight's battery readings that carry a current: (time s,
+    estimate) after each. The charge drawn is the autopilot's counter where the readings
+    carry one, else the current integrated."""
+    tracker = PackFilter(pack, settings or PackSettings(), prior)
+    out: list[tuple[float, PackEstimate]] = []
+    last_s: float | None = None
+    for sample in samples:
+        current_a = sample.current_a
+        if current_a is None or not math.isfinite(sample.voltage_v):
+            continue
+        if last_s is None:
+            tracker.start(sample.voltage_v, current_a)
+        else:
+            dt_s = max(sample.time_s - last_s, 0.0)
+            if sample.consumed_mah is not None:
+                tracker.count(sample.consumed_mah)
+            else:
+                tracker.draw(current_a, dt_s)
+            tracker.update(dt_s, sample.voltage_v, current_a)
+        if last_s is None and sample.consumed_mah is not None:
+            tracker.count(sample.consumed_mah)
+        last_s = sample.time_s
+        out.append((sample.time_s, tracker.estimate()))
+    return out

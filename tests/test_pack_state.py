@@ -1,0 +1,159 @@
+"""The pack filter (estimator.estimation.pack_state): charge, real capacity and resistance
+from voltage, current and the charge counted; on synthetic packs and on the ArduCopter SITL
+pack flights of replay/sitl_packs (a 5.0 Ah label, the real pack 65–100 % of it, 10 or 30 mΩ,
+powered up at 50–100 % charge; see their SOURCE.md and the held-out split in split.json)."""
+
+from __future__ import annotations
+
+import dataclasses
+import json
+import math
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import pytest
+
+from estimator.estimation.pack_state import (
+    PackEstimate,
+    PackFilter,
+    PackPrior,
+    PackSettings,
+    track_pack,
+)
+from estimator.logs import iter_samples
+from estimator.physics.battery import CHEMISTRY_OCV_V, SOC_POINTS, PackModel
+from estimator.physics.vehicle import BatterySpec, load_vehicle
+from estimator.telemetry.samples import BatterySample
+
+ROOT = Path(__file__).resolve().parent.parent
+PACK_FLIGHTS = ROOT / "replay" / "sitl_packs"
+SPLIT = json.loads((PACK_FLIGHTS / "split.json").read_text())
+#: A 6S 10 Ah LiPo whose resting curve is its own (measured on the pack).
+OWN = BatterySpec(10.0, 6, cell_ocv_v=tuple(float(v) for v in CHEMISTRY_OCV_V["lipo"]))
+
+
+def discharge(
+    spec: BatterySpec, fraction: float, soc0: float, amps: float, until_soc: float
+) -> list[BatterySample]:
+    """Readings (1 s) of a pack holding ``fraction`` of ``spec``'s label at a current that
+    alternates ``amps`` and 1.5 × ``amps`` each minute, from ``soc0`` to ``until_soc``."""
+    real = PackModel(dataclasses.replace(spec, capacity_ah=spec.capacity_ah * fraction))
+    soc, consumed_mah, out = soc0, 0.0, [BatterySample(0.0, float(real.ocv_v(soc0)), 0.0, 0.0)]
+    t = 0
+    while soc > until_soc:
+        t += 1
+        current = amps * (1.5 if (t // 60) % 2 else 1.0)
+        soc -= current / 3600.0 / real.spec.capacity_ah
+        consumed_mah += current / 3.6
+        volts = float(real.ocv_v(soc)) - 0.025 * current
+        out.append(BatterySample(float(t), volts, current, consumed_mah))
+    return out
+
+
+@pytest.mark.parametrize("fraction", [1.0, 0.8, 0.65])
+@pytest.mark.parametrize("soc0", [1.0, 0.6])
+def test_capacity_and_charge_are_learned_against_the_label(fraction: float, soc0: float) -> None:
+    samples = discharge(OWN, fraction, soc0, 30.0, soc0 - 0.35)
+    track = track_pack(samples, PackModel(OWN))
+    first, last = track[0][1], track[-1][1]
+    assert first.soc == pytest.approx(soc0, abs=0.02)
+    assert last.capacity_ah == pytest.approx(10.0 * fraction, rel=0.05)
+    assert abs(last.capacity_ah - 10.0 * fraction) < 3 * last.capacity_sigma_ah
+    assert last.resistance_ohm == pytest.approx(0.025, rel=0.05)
+
+
+def test_a_prior_from_an_earlier_flight_is_where_the_capacity_starts() -> None:
+    f = PackFilter(PackModel(OWN), PackSettings(), PackPrior(7.0, 0.2, 0.03, 0.003))
+    f.start(float(PackModel(OWN).ocv_v(1.0)), 0.0)
+    est = f.estimate()
+    assert est.capacity_ah == pytest.approx(7.0, rel=0.01)
+    assert est.capacity_sigma_ah == pytest.approx(0.2, rel=0.05)
+    assert est.resistance_ohm == pytest.approx(0.03, rel=0.05)
+
+
+def test_a_label_trusted_exactly_stays_the_capacity() -> None:
+    samples = discharge(OWN, 0.8, 1.0, 30.0, 0.6)
+    track = track_pack(samples, PackModel(OWN), PackSettings(capacity_sigma_fraction=0.0))
+    assert track[-1][1].capacity_ah == pytest.approx(10.0)
+
+
+def test_a_reading_far_off_the_prediction_is_not_used() -> None:
+    pack = PackModel(OWN)
+    f = PackFilter(pack, PackSettings())
+    f.start(float(pack.ocv_v(0.9)), 0.0)
+    for _ in range(50):
+        f.update(1.0, float(pack.ocv_v(0.9)), 0.0)
+    before = f.x.copy()
+    f.update(1.0, 0.001, 0.0)  # a forged or glitched 1 mV
+    assert f.rejected == 1
+    assert np.array_equal(f.x, before)
+
+
+def test_a_snapshot_round_trips_and_a_forged_one_is_refused() -> None:
+    pack = PackModel(OWN)
+    f = PackFilter(pack, PackSettings())
+    f.start(float(pack.ocv_v(0.9)), 0.0)
+    f.count(500.0)
+    f.update(1.0, float(pack.ocv_v(0.85)) - 0.5, 20.0)
+    g = PackFilter(pack, PackSettings())
+    g.restore(json.loads(json.dumps(f.snapshot())))
+    assert g.estimate() == f.estimate()
+    for forged in ({"x": [1.0, 100.0, 0.0, 0.0]}, {"P": [[-1.0] * 4] * 4}, {"charge_ah": 1e300}):
+        with pytest.raises(ValueError):
+            PackFilter(pack, PackSettings()).restore({**f.snapshot(), **forged})
+
+
+@pytest.mark.parametrize("chemistry", sorted(CHEMISTRY_OCV_V))
+def test_each_chemistry_has_a_rising_curve_and_a_full_voltage(chemistry: str) -> None:
+    curve = CHEMISTRY_OCV_V[chemistry]
+    assert len(curve) == len(SOC_POINTS) and np.all(np.diff(curve) > 0)
+    assert curve[-1] == pytest.approx({"lipo": 4.20, "lihv": 4.35, "liion": 4.19}[chemistry])
+    pack = PackModel(BatterySpec(5.0, 4, chemistry=chemistry))
+    v, slope = pack.cell_ocv_slope_v(0.5)
+    assert v == pytest.approx(float(pack.ocv_v(0.5)) / 4) and slope > 0
+    assert pack.cell_energy_wh_per_ah(1.0) == pytest.approx(float(pack.energy_wh(1.0)) / 20.0)
+
+
+# -- the SITL pack flights ----------------------------------------------------------------------
+
+
+def _flight(
+    name: str,
+) -> tuple[dict[str, Any], list[tuple[float, PackEstimate]], list[BatterySample]]:
+    truth = json.loads((PACK_FLIGHTS / name / "truth.json").read_text())
+    vehicle = load_vehicle(ROOT / "config" / "vehicles" / "ardupilot_sitl_quad.toml")
+    label = dataclasses.replace(
+        vehicle.battery, capacity_ah=truth["battery"]["labelled_capacity_ah"]
+    )
+    samples = [
+        s
+        for s in iter_samples(PACK_FLIGHTS / name / "flight.tlog", "auto", vehicle.input_limits())
+        if isinstance(s, BatterySample)
+    ]
+    return truth, track_pack(samples, PackModel(label)), samples
+
+
+ALL_FLIGHTS = [pytest.param(n, id=f"{n}-tuning") for n in SPLIT["tuning"]] + [
+    pytest.param(n, id=f"{n}-held-out") for n in SPLIT["held_out"]
+]
+
+
+@pytest.mark.parametrize("name", ALL_FLIGHTS)
+def test_sitl_pack_charge_at_power_up_and_capacity_before_half_is_used(name: str) -> None:
+    """Replayed with the LABELLED 5.0 Ah: the charge at power-up within 5 % of the truth
+    (and 3σ), and the real capacity within 5 % (and 3σ) once half the pack's charge is used;
+    the resistance within 10 % at the end."""
+    truth, track, samples = _flight(name)
+    battery = truth["battery"]
+    first = track[0][1]
+    assert abs(first.soc - battery["start_soc"]) <= min(0.05, 3 * first.soc_sigma)
+    half_mah = 500.0 * battery["start_soc"] * battery["capacity_ah"]
+    consumed = {s.time_s: s.consumed_mah for s in samples if s.consumed_mah is not None}
+    at_half = next(est for t, est in track if consumed.get(t, 0.0) >= half_mah)
+    error_ah = at_half.capacity_ah - battery["capacity_ah"]
+    assert abs(error_ah) <= 0.05 * battery["capacity_ah"]
+    assert abs(error_ah) <= 3 * at_half.capacity_sigma_ah
+    last = track[-1][1]
+    resistance = battery["internal_resistance_ohm"]
+    assert math.isclose(last.resistance_ohm, resistance, rel_tol=0.1)
