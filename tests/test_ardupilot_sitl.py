@@ -37,7 +37,7 @@ from estimator.logs import iter_samples
 from estimator.logs.tlog import STAMP_BYTES, frame_length
 from estimator.mavlink.link import MavlinkLink
 from estimator.mavlink.publish import json_line
-from estimator.physics.vehicle import BatterySpec, Vehicle, default_vehicle
+from estimator.physics.vehicle import BatterySpec, Vehicle, default_vehicle, load_vehicle
 from estimator.sim.demo import wait_for_daemon
 from estimator.sitl.launch import (
     DEFAULT_BINARY,
@@ -49,6 +49,7 @@ from estimator.sitl.launch import (
     stop_process,
     wait_listening,
 )
+from estimator.sitl.pack import Pack
 from estimator.sitl.pilot import Pilot
 from estimator.sitl.recorder import Flight, Truth, record
 from estimator.sitl.scenarios import (
@@ -61,6 +62,7 @@ from estimator.sitl.scenarios import (
     SetWind,
     Takeoff,
     out_and_back,
+    pack_scenario,
 )
 from estimator.telemetry.decode import BATTERY_STATUS_CONFIRM, FrameParser, TelemetryDecoder
 from estimator.telemetry.samples import ArmedSample, BatterySample, RebootSample, VelocitySample
@@ -245,14 +247,17 @@ def live_daemon(
     vehicle: Path,
     model_json: dict | None = None,
     daemon_args: tuple[str, ...] = (),
+    params: dict[str, float] | None = None,
 ) -> Iterator[LiveDaemon]:
+    """SITL (``model_json``, parameters: the scenarios' base, then ``params``) with the daemon
+    on its SERIAL0 publishing to a UDP ground station."""
     assert SITL_BINARY is not None
     opts = SitlOptions(
         binary=SITL_BINARY,
         workdir=tmp_path / "sitl",
         instance=free_instance(),
         model_json=model_json,
-        params=Scenario("live", "", (), model_json=model_json).all_params(),
+        params=Scenario("live", "", (), model_json=model_json, params=params or {}).all_params(),
         speedup=SITL_SPEEDUP,
     )
     gcs = GroundStation()
@@ -459,6 +464,51 @@ def test_daemon_live_against_sitl_to_the_reserve(tmp_path: Path) -> None:
     # never absurd: nothing published says more than SITL's pack could ever give (an hour)
     assert max(e["endurance_s"] for e in estimates if e["endurance_s"] is not None) < 3600.0
     assert max(published) < 3600
+
+
+#: A 3S pack labelled 5.0 Ah that holds 3.25 Ah (65 %), 10 mΩ, full at power-up.
+MISLABELLED = Pack(true_capacity_ah=3.25, resistance_ohm=0.01)
+
+
+@needs_sitl
+@pytest.mark.slow
+def test_daemon_live_warns_of_a_mislabelled_pack_and_learns_its_capacity(tmp_path: Path) -> None:
+    """The daemon with the vehicle file's pack labelled 5.0 Ah, live on SITL's pack that
+    holds 3.25 Ah (BATT_CAPACITY 5000 too): the ground station gets "pack holds ~3.2Ah,
+    configured 5.0Ah" within 90 s of take-off, once, and the capacity
+    it publishes is within 5 % of the truth before half of the pack's charge is used."""
+    scenario = pack_scenario(MISLABELLED)
+    vehicle = load_vehicle(FITTED_VEHICLE)
+    labelled = tmp_path / "labelled.toml"
+    replace(vehicle, battery=replace(vehicle.battery, capacity_ah=5.0)).save(labelled)
+    truth = Truth(scenario.name, "", "quad", scenario.model_json, {}, SITL_SPEEDUP)
+    with live_daemon(tmp_path, labelled, scenario.model_json, params=scenario.params) as live:
+        pilot = live.pilot(tmp_path / "pilot.tlog")
+        try:
+            Flight(pilot, scenario, truth).fly()
+        finally:
+            pilot.close()
+    assert live.daemon.returncode == 0, live.log_path.read_text()
+    takeoff_s = truth.events["takeoff_s"]
+    # the ground station's clock: the time_boot_ms of our values before each message
+    boot_s, warned_s = 0.0, []
+    for msg in live.gcs.messages:
+        if msg.get_type() == "NAMED_VALUE_FLOAT":
+            boot_s = msg.time_boot_ms / 1000.0
+        elif msg.get_type() == "STATUSTEXT" and msg.text.startswith("pack holds"):
+            warned_s.append(boot_s)
+            assert msg.text.endswith("configured 5.0Ah") and msg.severity == 4
+    assert len(warned_s) == 1 and warned_s[0] - takeoff_s <= 90.0, (warned_s, takeoff_s)
+    consumed = [
+        s
+        for s in iter_samples(tmp_path / "pilot.tlog")
+        if isinstance(s, BatterySample) and s.consumed_mah is not None
+    ]
+    half_s = next(s.time_s for s in consumed if s.consumed_mah >= 500.0 * 3.25)
+    before = [e for e in live.estimates() if takeoff_s <= e["time_s"] <= half_s]
+    learned = before[-1]["capacity_ah"], before[-1]["capacity_sigma_ah"]
+    print(json.dumps({"warned_after_takeoff_s": warned_s[0] - takeoff_s, "at_half": learned}))
+    assert abs(learned[0] - 3.25) <= 0.05 * 3.25, learned
 
 
 # -- the recording played live into the daemon ---------------------------------------------------

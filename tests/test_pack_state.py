@@ -8,12 +8,14 @@ from __future__ import annotations
 import dataclasses
 import json
 import math
+from dataclasses import replace
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 import pytest
 
+from estimator.analysis.replay import replay_log
 from estimator.estimation.pack_state import (
     PackEstimate,
     PackFilter,
@@ -21,7 +23,9 @@ from estimator.estimation.pack_state import (
     PackSettings,
     track_pack,
 )
+from estimator.estimation.pipeline import Estimate
 from estimator.logs import iter_samples
+from estimator.mavlink.pack_alerts import PackLabelAlert
 from estimator.physics.battery import CHEMISTRY_OCV_V, SOC_POINTS, PackModel
 from estimator.physics.vehicle import BatterySpec, load_vehicle
 from estimator.telemetry.samples import BatterySample
@@ -157,3 +161,67 @@ def test_sitl_pack_charge_at_power_up_and_capacity_before_half_is_used(name: str
     last = track[-1][1]
     resistance = battery["internal_resistance_ohm"]
     assert math.isclose(last.resistance_ohm, resistance, rel_tol=0.1)
+
+
+# -- the pipeline and the ground station's warning -----------------------------------------------
+
+
+def _alert_estimate(capacity_ah: float, sigma_ah: float, stale: bool = False) -> Estimate:
+    return replace(BASE_ESTIMATE, capacity_ah=capacity_ah, capacity_sigma_ah=sigma_ah, stale=stale)
+
+
+def test_the_label_warning_goes_out_once_beyond_3_sigma_and_rearms_within_2() -> None:
+    alert = PackLabelAlert(label_ah=4.0)
+    assert alert.update(_alert_estimate(3.5, 0.3)) is None  # 1.7σ: could be the label
+    assert alert.update(_alert_estimate(3.0, 0.3, stale=True)) is None
+    sent = alert.update(_alert_estimate(3.0, 0.3))
+    assert sent is not None and sent.text == "pack holds ~3.0Ah, configured 4.0Ah"
+    assert alert.update(_alert_estimate(2.9, 0.1)) is None  # already said
+    assert alert.update(_alert_estimate(3.5, 0.3)) is None  # 1.7σ: re-armed
+    assert alert.update(_alert_estimate(3.0, 0.2)) is not None
+    assert alert.sent == 2
+    assert PackLabelAlert(4.0).update(_alert_estimate(math.nan, math.nan)) is None
+
+
+@pytest.mark.parametrize("name", ALL_FLIGHTS)
+def test_the_pipeline_learns_the_pack_and_warns_of_a_wrong_label(name: str) -> None:
+    """The daemon's pipeline replaying a SITL pack flight with the LABELLED 5.0 Ah: a pack
+    holding 65 or 80 % of its label is announced within 90 s of take-off, one that holds its
+    label never; the published capacity is within 5 % (and 3σ) before half of the charge is
+    used."""
+    truth = json.loads((PACK_FLIGHTS / name / "truth.json").read_text())
+    battery = truth["battery"]
+    vehicle = load_vehicle(ROOT / "config" / "vehicles" / "ardupilot_sitl_quad.toml")
+    label = replace(vehicle, battery=replace(vehicle.battery, capacity_ah=5.0))
+    flight = replay_log(PACK_FLIGHTS / name / "flight.tlog", label)
+    alert = PackLabelAlert(label.battery.capacity_ah)
+    warned_s = [e.time_s for e in flight.estimates if alert.update(e) is not None]
+    takeoff_s = truth["events"]["takeoff_s"]
+    if battery["capacity_ah"] < battery["labelled_capacity_ah"]:
+        assert warned_s and warned_s[0] - takeoff_s <= 90.0, warned_s
+    else:
+        assert not warned_s
+    half_s = _half_used_s(name, battery)
+    before_half = [e for e in flight.estimates if takeoff_s <= e.time_s <= half_s]
+    last = before_half[-1]
+    assert abs(last.capacity_ah - battery["capacity_ah"]) <= 0.05 * battery["capacity_ah"]
+    assert abs(last.capacity_ah - battery["capacity_ah"]) <= 3 * last.capacity_sigma_ah
+
+
+def _half_used_s(name: str, battery: dict[str, Any]) -> float:
+    """When half of the pack's charge at power-up had been drawn (autopilot clock, s)."""
+    _, _, samples = _flight(name)
+    half_mah = 500.0 * battery["start_soc"] * battery["capacity_ah"]
+    return next(
+        s.time_s for s in samples if s.consumed_mah is not None and s.consumed_mah >= half_mah
+    )
+
+
+#: An estimate to vary in the warning's tests.
+BASE_ESTIMATE = Estimate(
+    time_s=100.0, speed_mps=0.0, accel_tangential_mps2=0.0, accel_centripetal_mps2=0.0,
+    climb_mps=0.0, power_model_w=300.0, power_measured_w=300.0, energy_remaining_wh=30.0,
+    energy_remaining_sigma_wh=1.0, endurance_s=300.0, endurance_sigma_s=10.0,
+    hover_endurance_s=300.0, vme_endurance_s=320.0, v_me_mps=5.0, range_vmr_m=3000.0,
+    bias=1.0, bias_sigma=0.01, model_only=False, stale=False,
+)  # fmt: skip

@@ -60,6 +60,9 @@ _S_PRIOR_SIGMA = 0.5
 #: Error of a resting curve measured on the pack itself (V per cell): what is left of the
 #: table's interpolation and of the pack's ageing since (the vehicle file's ``cell_ocv_v``).
 OWN_CURVE_SIGMA_V = 0.004
+#: Prior error of the label against the real pack (fraction, 1σ) where the capacity is
+#: learned: packs lose 20–40 % over a few hundred cycles.
+LEARNED_CAPACITY_SIGMA = 0.25
 #: Spread of one pack's resting curve about its chemistry's typical curve (V per cell):
 #: cells of one chemistry from different makers and ages differ by 10–30 mV at rest.
 TYPICAL_CURVE_SIGMA_V = 0.02
@@ -70,7 +73,9 @@ class PackSettings:
     """Noise figures of the pack filter (1σ).
 
     capacity_sigma_fraction: prior error of the configured (label) capacity against the real
-    pack, as a fraction (0: the label is exact and ``q`` stays 1).
+    pack, as a fraction (0: the label is exact and ``q`` stays 1; None:
+    :data:`LEARNED_CAPACITY_SIGMA` against a curve measured on the pack, 0 against a
+    chemistry's typical curve, too loose to tell a smaller pack from another curve).
     resistance_prior_ohm_per_cell, resistance_sigma_ohm_per_cell: prior resistance per cell
     and its error (Ω); internal_resistance_ohm: a fixed pack resistance instead (Ω).
     resistance_walk_ohm_per_sqrt_s: random walk of the resistance (it falls as the pack warms).
@@ -84,7 +89,7 @@ class PackSettings:
     used (a glitch, a forged or mis-scaled value).
     """
 
-    capacity_sigma_fraction: float = 0.25
+    capacity_sigma_fraction: float | None = None
     resistance_prior_ohm_per_cell: float = 0.004
     resistance_sigma_ohm_per_cell: float = 0.004
     internal_resistance_ohm: float | None = None
@@ -138,10 +143,11 @@ class PackFilter:
         self._counter_base: tuple[float, float] | None = None  # (charge_ah, counter Ah) then
         self.rejected = 0
         self.updates = 0
-        own_curve = pack.spec.cell_ocv_v is not None
+        #: The resting curve is the pack's own (measured), not its chemistry's typical one.
+        self.own_curve = pack.spec.cell_ocv_v is not None
         curve_sigma = settings.ocv_curve_sigma_v_per_cell
         if curve_sigma is None:
-            curve_sigma = OWN_CURVE_SIGMA_V if own_curve else TYPICAL_CURVE_SIGMA_V
+            curve_sigma = OWN_CURVE_SIGMA_V if self.own_curve else TYPICAL_CURVE_SIGMA_V
         #: 1σ of the curve error state d (V, pack).
         self.curve_sigma_v = curve_sigma * self.cells
 
@@ -156,7 +162,9 @@ class PackFilter:
             q_sigma = q0 * self.prior.capacity_sigma_ah / self.prior.capacity_ah
             r0, r_sigma = self.prior.resistance_ohm, self.prior.resistance_sigma_ohm
         else:
-            q0, q_sigma = 1.0, s.capacity_sigma_fraction
+            learned = LEARNED_CAPACITY_SIGMA if self.own_curve else 0.0
+            q0 = 1.0
+            q_sigma = learned if s.capacity_sigma_fraction is None else s.capacity_sigma_fraction
             r0 = s.resistance_prior_ohm_per_cell * cells
             r_sigma = s.resistance_sigma_ohm_per_cell * cells
         if fixed is not None:

@@ -48,6 +48,7 @@ from estimator.errors import UserError
 from estimator.estimation.airborne import AirborneGate, Phase
 from estimator.estimation.fusion import EnergyEstimate, EnergyFilter, FusionSettings
 from estimator.estimation.online_effects import OnlineEffects, TrackerReading
+from estimator.estimation.pack_state import PackFilter, PackPrior, PackSettings
 from estimator.estimation.return_home import (
     MissionEnergyFn,
     MissionSample,
@@ -116,6 +117,7 @@ class PipelineSettings:
 
     kinematics: KinematicsSettings = field(default_factory=KinematicsSettings)
     fusion: FusionSettings = field(default_factory=FusionSettings)
+    pack: PackSettings = field(default_factory=PackSettings)
     battery_stale_s: float = 5.0
     add_climb_effect: bool = True
     track_effects: bool = True
@@ -136,6 +138,9 @@ class Estimate:
     range_vmr_m: distance over ground (no wind) at V_mr until the reserve.
     bias: measured over modelled power (1 = the model is right).
     model_only: no measured current fused (uncertainty is wider).
+    pack_soc, capacity_ah, pack_resistance_ohm: the pack as learned in flight from its voltage,
+    current and charge (:mod:`estimator.estimation.pack_state`; NaN without a current):
+    state of charge (fraction of the real pack), real capacity (Ah), resistance (Ω).
     *_sigma_*: 1σ of the quantity named before it (first-order propagation).
     stale: battery telemetry older than the configured limit (or, in the daemon, a silent
     link).
@@ -176,6 +181,11 @@ class Estimate:
     soc: float = math.nan
     voltage_v: float = math.nan
     resistance_ohm: float = math.nan
+    pack_soc: float = math.nan
+    pack_soc_sigma: float = math.nan
+    capacity_ah: float = math.nan
+    capacity_sigma_ah: float = math.nan
+    pack_resistance_ohm: float = math.nan
     steady_power_w: float = math.nan
     hover_endurance_sigma_s: float = math.nan
     vme_endurance_sigma_s: float = math.nan
@@ -248,6 +258,7 @@ class _Resume:
     tracked_sq_w2: float
     file_sq_w2: float
     endurance_valid: bool
+    pack: PackFilter | None
 
 
 class Pipeline:
@@ -261,7 +272,10 @@ class Pipeline:
         vehicle: Vehicle,
         settings: PipelineSettings | None = None,
         mission_energy: MissionEnergyFn | None = None,
+        pack_prior: PackPrior | None = None,
     ) -> None:
+        """``pack_prior``: what is known of this pack (capacity, resistance; e.g. from its
+        last flight), else its label and the settings' prior."""
         self.vehicle = vehicle
         self.settings = settings or PipelineSettings()
         if not (self.settings.estimate_period_s > 0 and self.settings.track_period_s > 0):
@@ -287,6 +301,10 @@ class Pipeline:
         self.pack = PackModel(vehicle.battery)
         self.kinematics = KinematicsFilter(self.settings.kinematics)
         self.energy = EnergyFilter(self.pack, self.settings.fusion)
+        self.pack_prior = pack_prior
+        #: The pack learned in flight (started at the first battery reading with a current).
+        self.pack_state: PackFilter | None = None
+        self._pack_time_s: float | None = None
         self._gate = AirborneGate(vehicle.model.hover_power_w)
         self._phase = Phase.GROUND  # of the latest battery reading
         self._phases: dict[int, Phase] = {}  # of the open period's readings, by id
@@ -502,6 +520,7 @@ class Pipeline:
             "tracked_sq_w2": self._tracked_sq_w2,
             "file_sq_w2": self._file_sq_w2,
             "endurance_valid": self.endurance_valid,
+            "pack": None if self.pack_state is None else self.pack_state.snapshot(),
         }
 
     def resume(self, snapshot: Mapping[str, Any]) -> None:
@@ -512,12 +531,17 @@ class Pipeline:
         try:
             energy = EnergyFilter(self.pack, self.settings.fusion)
             energy.restore(snapshot["energy"])
+            pack = None
+            if snapshot.get("pack") is not None:
+                pack = PackFilter(self.pack, self.settings.pack, self.pack_prior)
+                pack.restore(snapshot["pack"])
             self._resume = _Resume(
                 energy,
                 tuple(effects_from_tables(snapshot["effects"])),
                 float(snapshot["tracked_sq_w2"]),
                 float(snapshot["file_sq_w2"]),
                 bool(snapshot["endurance_valid"]),
+                pack,
             )
         except (KeyError, TypeError, AttributeError, ValueError, UserError) as exc:
             raise ValueError(f"not a pipeline snapshot ({exc})") from None
@@ -536,6 +560,7 @@ class Pipeline:
                 resume.endurance_valid,
             )
             self._tracked_sq_w2, self._file_sq_w2 = resume.tracked_sq_w2, resume.file_sq_w2
+            self.pack_state, self._pack_time_s = resume.pack, sample.time_s
             if self.online is not None:
                 self.online = OnlineEffects(self.vehicle.model, self.vehicle.mass_kg, self.effects)
             self._refresh_speeds()
@@ -574,6 +599,8 @@ class Pipeline:
         self._armed = None
         self._battery = None
         self.returning.restart()
+        if self.pack_state is not None:
+            self.pack_state.rebase()
         if self.energy.initialized:
             self.energy.rebase(sample.time_s)
             self._resistance_time_s = sample.time_s
@@ -699,7 +726,30 @@ class Pipeline:
         dt = max(latest.time_s - self._resistance_time_s, 0.0)
         self._resistance_time_s = latest.time_s
         self.energy.voltage.update(dt, self.energy.soc, latest.voltage_v, current_a)
+        self._learn_pack(latest, consumed_mah=charge[-1] if charge else None)
         self._loss_factor = self.energy.loss_factor(self.energy.bias * self._power_model_w)
+
+    def _learn_pack(self, latest: BatterySample, consumed_mah: float | None) -> None:
+        """The period's latest reading with a current into the pack filter: the charge drawn
+        (the autopilot's counter, else the current over the time since the last), then the
+        voltage at that current."""
+        current_a = latest.current_a
+        if current_a is None:
+            return
+        if self.pack_state is None:
+            self.pack_state = PackFilter(self.pack, self.settings.pack, self.pack_prior)
+            self.pack_state.start(latest.voltage_v, current_a)
+            if consumed_mah is not None:
+                self.pack_state.count(consumed_mah)
+        else:
+            assert self._pack_time_s is not None
+            dt_s = max(latest.time_s - self._pack_time_s, 0.0)
+            if consumed_mah is not None:
+                self.pack_state.count(consumed_mah)
+            else:
+                self.pack_state.draw(current_a, dt_s)
+            self.pack_state.update(dt_s, latest.voltage_v, current_a)
+        self._pack_time_s = latest.time_s
 
     def _track_effects(self, time_s: float) -> None:
         """Follow wind and mass with the readings queued since the last tracker step, once
@@ -784,6 +834,7 @@ class Pipeline:
         stale = battery is None or time_s - battery.time_s > self.settings.battery_stale_s
         voltage = self.energy.voltage
         back = self.returning.figures(time_s, self._return_inputs(est, steady_w))
+        pack = None if self.pack_state is None else self.pack_state.estimate()
         estimate = Estimate(
             time_s=time_s,
             speed_mps=0.0 if state is None else state.speed_mps,
@@ -807,6 +858,11 @@ class Pipeline:
             soc=self.energy.soc,
             voltage_v=math.nan if battery is None else battery.voltage_v,
             resistance_ohm=math.nan if voltage is None else voltage.resistance_ohm,
+            pack_soc=math.nan if pack is None else pack.soc,
+            pack_soc_sigma=math.nan if pack is None else pack.soc_sigma,
+            capacity_ah=math.nan if pack is None else pack.capacity_ah,
+            capacity_sigma_ah=math.nan if pack is None else pack.capacity_sigma_ah,
+            pack_resistance_ohm=math.nan if pack is None else pack.resistance_ohm,
             steady_power_w=steady_w,
             hover_endurance_sigma_s=hover_sigma_s,
             vme_endurance_sigma_s=vme_sigma_s,

@@ -47,6 +47,10 @@ NAMED_VALUES: dict[str, tuple[str, Callable[[Estimate], float]]] = {
     "V_ME": ("m/s, maximum-endurance speed", lambda e: e.v_me_mps),
     "RANGE_VMR": ("m at V_mr (no wind)", lambda e: e.range_vmr_m),
     "RANGE_SIG": ("m, 1σ of RANGE_VMR", lambda e: e.range_vmr_sigma_m),
+    "PACK_AH": ("Ah, the pack's real capacity learned in flight", lambda e: e.capacity_ah),
+    "PACK_SIG": ("Ah, 1σ of PACK_AH", lambda e: e.capacity_sigma_ah),
+    "PACK_SOC": ("%, the pack's charge learned in flight", lambda e: 100.0 * e.pack_soc),
+    "SOC_SIG": ("%, 1σ of PACK_SOC", lambda e: 100.0 * e.pack_soc_sigma),
     "BIAS": ("measured / model power", lambda e: e.bias),
     "BIAS_SIG": ("1σ of BIAS", lambda e: e.bias_sigma),
     "FLAGS": (

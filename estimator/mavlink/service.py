@@ -50,6 +50,7 @@ from estimator.mavlink.margin_alerts import MarginAlerts
 from estimator.mavlink.mission_download import MESSAGE_IDS as MISSION_MESSAGE_IDS
 from estimator.mavlink.mission_download import MESSAGE_TYPES as MISSION_MESSAGES
 from estimator.mavlink.mission_download import MissionDownload
+from estimator.mavlink.pack_alerts import PackLabelAlert
 from estimator.mavlink.signing import LinkSigning, load_key
 from estimator.mavlink.state_file import StateKeeper
 from estimator.physics.vehicle import Vehicle
@@ -136,6 +137,7 @@ class Service:
             config.critical_margin_pct * per_pct_wh,
             config.hysteresis_pct * per_pct_wh,
         )
+        self.pack_alert = PackLabelAlert(self.pipeline.pack.spec.capacity_ah)
         self.mission: MissionDownload | None = None
         self._home_first = True  # ArduPilot's mission item 0 is home; PX4's is not
         self._first_position_s: float | None = None
@@ -235,6 +237,7 @@ class Service:
         if self.state is not None:
             out.update(state_writes=self.state.writes, state_write_errors=self.state.write_errors)
         out.update(home_requests=self.home_requests, alerts_sent=self.alerts.sent)
+        out.update(pack_alerts_sent=self.pack_alert.sent)
         return out
 
     # -- receive ----------------------------------------------------------------------------
@@ -429,6 +432,10 @@ class Service:
         if (alert := self.alerts.update(estimate)) is not None:
             log.warning("%s", alert.text)
             for link in self._ground_links(self.config.statustext_to_autopilot):
+                link.send(publish.statustext(link, alert.severity, alert.text))
+        if (alert := self.pack_alert.update(estimate)) is not None:
+            log.warning("%s", alert.text)
+            for link in self._ground_links(False):  # never towards the autopilot
                 link.send(publish.statustext(link, alert.severity, alert.text))
         if self.config.publish_rate_hz == 0:
             self._publish(estimate)
