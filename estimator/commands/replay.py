@@ -38,6 +38,7 @@ from rich.table import Table
 from estimator.analysis.replay import FlightReplay, Summary, replay_stream, summarize
 from estimator.commands.progress import logs_progress
 from estimator.errors import UserError
+from estimator.estimation.pack_memory import check_pack_id, load_prior, remember
 from estimator.estimation.pipeline import Estimate, Pipeline, PipelineSettings
 from estimator.estimation.return_home import MissionSample
 from estimator.logs import FORMATS, iter_samples
@@ -94,6 +95,15 @@ def register(subparsers: argparse._SubParsersAction[argparse.ArgumentParser]) ->
         help="the mission the autopilot flew (.plan or .waypoints), for the MIS_* figures "
         "the daemon computes from its download",
     )
+    parser.add_argument(
+        "--pack",
+        metavar="ID",
+        help="the pack flown (with --pack-dir): each log starts from what the pack's memory "
+        "holds and stores what it learnt, logs in the order given",
+    )
+    parser.add_argument(
+        "--pack-dir", type=Path, metavar="DIR", help="the packs' memory (one JSON file a pack)"
+    )
     parser.add_argument("--out", type=Path, metavar="FILE.csv", help="write every estimate")
     parser.add_argument("--report", type=Path, metavar="DIR", help="write plots and a summary")
     parser.add_argument("--json", action="store_true", help="print one JSON object")
@@ -137,6 +147,10 @@ def paced(samples: Iterable[Sample], speed: float) -> Iterator[Sample]:
 
 def run(args: argparse.Namespace) -> int:
     vehicle, settings = vehicle_and_settings(args.vehicle, args.config)
+    if (args.pack is None) != (args.pack_dir is None):
+        raise UserError("--pack ID and --pack-dir DIR go together")
+    if args.pack is not None:
+        check_pack_id(args.pack)
     mission = None if args.mission is None else load_mission(args.mission)
     names = flight_names(args.logs)
     console = Console(file=sys.stderr)
@@ -213,14 +227,20 @@ def _replay_one(
     samples: Iterable[Sample | MissionSample] = (
         stream if args.speed is None else paced(stream, args.speed)
     )
-    pipeline = None
+    mission_energy = None
     if mission is not None:  # the daemon's download, known before the first sample
         from estimator.analysis.mission_energy import remaining_energy_fn
 
-        pipeline = Pipeline(vehicle, settings, remaining_energy_fn(vehicle))
+        mission_energy = remaining_energy_fn(vehicle)
         samples = chain([MissionSample(0.0, mission.items)], samples)
+    label_ah = vehicle.battery.capacity_ah
+    prior = load_prior(args.pack_dir, args.pack, label_ah)
+    pipeline = Pipeline(vehicle, settings, mission_energy, pack_prior=prior)
     try:
         flight = replay_stream(stream, vehicle, name, settings, samples, on_sample, pipeline)
+        if args.pack is not None and pipeline.pack_state is not None:
+            when_s = stream.start_unix_s or path.stat().st_mtime
+            remember(args.pack_dir, args.pack, label_ah, pipeline.pack_state.estimate(), when_s)
         for warning in stream.warnings(vehicle.battery.cells):
             progress.console.print(
                 f"uav-energy replay: warning: {name}: {warning}",

@@ -28,6 +28,7 @@ def register(subparsers: Any) -> None:
         help="output link for ground stations (repeatable), e.g. udpout:127.0.0.1:14551",
     )
     parser.add_argument("--vehicle", metavar="FILE", help="vehicle TOML (default: built-in)")
+    parser.add_argument("--pack", metavar="ID", help="the pack flown (with [pack] dir)")
     parser.add_argument("--rate", type=float, metavar="HZ", help="publish rate (0: every estimate)")
     parser.add_argument("--json", metavar="DEST", help="JSON lines: '-' (stdout) or udp:HOST:PORT")
     parser.add_argument("--target", metavar="SYS:COMP", help="autopilot ids (default: first seen)")
@@ -51,6 +52,7 @@ def config_from_args(args: argparse.Namespace) -> ServiceConfig:
         "connect": args.connect,
         "publish": tuple(args.publish) if args.publish else None,
         "vehicle": args.vehicle,
+        "pack_id": args.pack,
         "publish_rate_hz": args.rate,
         "json": args.json,
         "target_system": target_system,

@@ -42,6 +42,9 @@ class ServiceConfig:
     "" = no signing); require_signing: reject unsigned frames.
     state_file: where the estimator's state is kept across restarts ("" = nowhere);
     state_max_age_s: an older state file is ignored; state_period_s: seconds between writes.
+    pack_id, pack_dir: the pack flown and the packs' memory (both or neither): the flight
+    starts from what the pack was learnt to hold and stores what it learns
+    (:mod:`estimator.estimation.pack_memory`).
     json: "" (off), "-" (stdout) or "udp:HOST:PORT"; json_rate_hz 0: every estimate.
     stale_after_s: no telemetry for this long marks estimates stale.
     vehicle: vehicle TOML file ("" = the built-in default vehicle). Paths in a config file
@@ -84,6 +87,8 @@ class ServiceConfig:
     state_file: str = ""
     state_max_age_s: float = 120.0
     state_period_s: float = 2.0
+    pack_id: str = ""
+    pack_dir: str = ""
     json: str = ""
     json_rate_hz: float = 0.0
     stale_after_s: float = 3.0
@@ -141,6 +146,8 @@ _KEYS = {
     ("state", "file"): "state_file",
     ("state", "max_age_s"): "state_max_age_s",
     ("state", "period_s"): "state_period_s",
+    ("pack", "id"): "pack_id",
+    ("pack", "dir"): "pack_dir",
     ("publish", "urls"): "publish",
     ("publish", "rate_hz"): "publish_rate_hz",
     ("publish", "battery_id"): "battery_id",
@@ -163,7 +170,7 @@ _KEYS = {
     ("return", "download_mission"): "download_mission",
 }
 #: Fields holding file paths: relative ones in a config file are relative to its directory.
-_PATH_FIELDS = frozenset({"vehicle", "signing_key_file", "state_file"})
+_PATH_FIELDS = frozenset({"vehicle", "signing_key_file", "state_file", "pack_dir"})
 
 
 def load_config_file(path: str | Path) -> dict[str, Any]:
@@ -251,6 +258,12 @@ def _fusion_pairs(table: Any) -> tuple[tuple[str, float], ...]:
 
 def validate(config: ServiceConfig) -> None:
     """Check ranges and connection strings; one UserError per first problem found."""
+    from estimator.estimation.pack_memory import check_pack_id
+
+    if bool(config.pack_id) != bool(config.pack_dir):
+        raise UserError("config [pack] id (--pack) and [pack] dir go together")
+    if config.pack_id:
+        check_pack_id(config.pack_id)
     parse_url(config.connect)
     for url in config.publish:
         parse_url(url)

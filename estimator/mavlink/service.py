@@ -35,10 +35,14 @@ import gc
 import logging
 import signal
 import sys
+import time
 from dataclasses import replace
+from pathlib import Path
 
 from pymavlink.dialects.v20 import common as mavlink
 
+from estimator.errors import UserError
+from estimator.estimation.pack_memory import load_prior, remember
 from estimator.estimation.pipeline import Estimate, Pipeline, PipelineSettings
 from estimator.estimation.return_home import MissionEnergyFn, MissionSample
 from estimator.logs.mission_files import MissionItem
@@ -76,6 +80,8 @@ JSON_BUFFER_LIMIT_BYTES = 1 << 20
 #: Wall seconds after the first position without HOME_POSITION before it is requested, and
 #: between requests.
 HOME_REQUEST_AFTER_S = 3.0
+#: Seconds (event loop) between writes of the pack's memory (and one at the end).
+PACK_MEMORY_PERIOD_S = 30.0
 HOME_REQUEST_RETRY_S = 10.0
 _STREAMS = (
     (mavlink.MAVLINK_MSG_ID_GLOBAL_POSITION_INT, "velocity"),
@@ -100,7 +106,15 @@ class Service:
         self.config = config
         if settings is None:
             settings = config.pipeline_settings()
-        self.pipeline = Pipeline(vehicle, settings, mission_energy)
+        self._pack_dir = Path(config.pack_dir) if config.pack_dir else None
+        self._pack_id = config.pack_id or None
+        label_ah = vehicle.battery.capacity_ah
+        prior = load_prior(self._pack_dir, self._pack_id, label_ah)
+        if prior is not None:
+            log.info("pack %s: its memory says %.2f Ah", self._pack_id, prior.capacity_ah)
+        self.pipeline = Pipeline(vehicle, settings, mission_energy, pack_prior=prior)
+        self._flight_unix_s = time.time()  # this run's row of the pack's history
+        self.pack_memory_errors = 0
         target = None
         if config.target_system:
             target = (config.target_system, config.target_component or 1)
@@ -199,6 +213,8 @@ class Service:
             ]
             if self.state is not None:
                 tasks.append(loop.create_task(self.state.run(lambda: self.decoder.target)))
+            if self._pack_dir is not None:
+                tasks.append(loop.create_task(self._pack_memory_loop()))
             await stop.wait()
             for task in tasks:
                 task.cancel()
@@ -209,6 +225,7 @@ class Service:
                 self._deliver(last, loop.time())
             if self.state is not None:
                 self.state.save(self.decoder.target)
+            self._remember_pack()
         finally:
             for link in [self.link, *self.outputs]:
                 await link.close()
@@ -238,7 +255,28 @@ class Service:
             out.update(state_writes=self.state.writes, state_write_errors=self.state.write_errors)
         out.update(home_requests=self.home_requests, alerts_sent=self.alerts.sent)
         out.update(pack_alerts_sent=self.pack_alert.sent)
+        if self._pack_dir is not None:
+            out.update(pack_memory_errors=self.pack_memory_errors)
         return out
+
+    # -- the pack's memory -------------------------------------------------------------------
+
+    async def _pack_memory_loop(self) -> None:
+        """Store what the pack was learnt to hold every :data:`PACK_MEMORY_PERIOD_S`."""
+        while True:
+            await asyncio.sleep(PACK_MEMORY_PERIOD_S)
+            self._remember_pack()
+
+    def _remember_pack(self) -> None:
+        pack = self.pipeline.pack_state
+        if self._pack_dir is None or self._pack_id is None or pack is None:
+            return
+        try:
+            label_ah = self.pipeline.pack.spec.capacity_ah
+            remember(self._pack_dir, self._pack_id, label_ah, pack.estimate(), self._flight_unix_s)
+        except (OSError, UserError) as exc:
+            self.pack_memory_errors += 1
+            log.warning("pack memory not written: %s", exc)
 
     # -- receive ----------------------------------------------------------------------------
 
