@@ -1,66 +1,79 @@
-"""The pack filter against the truth on the ArduCopter SITL pack flights.
+"""The pack learned in flight against the truth on the ArduCopter SITL pack flights.
 
-Runs :func:`estimator.estimation.pack_state.track_pack` over the battery readings of each
-``replay/sitl_packs/`` flight with the LABELLED capacity (5.0 Ah; vehicle
-``config/vehicles/ardupilot_sitl_quad.toml``) and prints per flight, with its half of the
-split (``split.json``): the charge at power-up, the capacity once half the pack's charge is
-used, and the resistance at the end, each against the truth with its 1σ; beside it, the
-error of the label the autopilot counts against (BATT_CAPACITY).
-Run: ``python scripts/pack_state_sitl.py``.
+Replays each ``replay/sitl_packs/`` flight through the daemon's pipeline with the LABELLED
+capacity (5.0 Ah; vehicle ``config/vehicles/ardupilot_sitl_quad.toml``) and prints per
+flight, with its half of the split (``split.json``): the charge at power-up and the capacity
+once half the pack's charge is used (each with its 1σ, the truth in brackets), and the
+endurance's median and worst |error| from 60 s after take-off until 60 s before the true
+reserve — ours, a PX4-style estimate and ArduPilot's own ``battery_remaining`` over the same
+readings (:mod:`estimator.analysis.peer_endurance`) — with our 1σ coverage; then the pooled
+figures of each half. Run: ``python scripts/pack_state_sitl.py``.
 """
 
 from __future__ import annotations
 
-import dataclasses
 import json
 from pathlib import Path
 
-from estimator.estimation.pack_state import track_pack
-from estimator.logs import iter_samples
-from estimator.physics.battery import PackModel
+import numpy as np
+
+from estimator.analysis.pack_flights import PackFlight, replay_pack_flight
 from estimator.physics.vehicle import load_vehicle
-from estimator.telemetry.samples import BatterySample
 
 REPO = Path(__file__).resolve().parent.parent
 FLIGHTS = REPO / "replay" / "sitl_packs"
 VEHICLE = REPO / "config" / "vehicles" / "ardupilot_sitl_quad.toml"
 
 
+def _pct(errors: np.ndarray) -> str:
+    a = 100 * np.abs(errors[np.isfinite(errors)])
+    return f"{np.median(a):.1f} / {a.max():.1f}" if len(a) else "–"
+
+
+def table_row(flight: PackFlight, half: str) -> str:
+    """One flight's row of the table (docs/pack.md)."""
+    battery = flight.truth["battery"]
+    first = next(e for e in flight.estimates if np.isfinite(e.pack_soc))
+    consumed = [(s.time_s, s.consumed_mah) for s in flight.readings if s.consumed_mah is not None]
+    half_mah = 500.0 * battery["start_soc"] * battery["capacity_ah"]
+    half_s = next(t for t, mah in consumed if mah >= half_mah)
+    at_half = [e for e in flight.estimates if e.time_s <= half_s][-1]
+    inside = f"{np.mean(np.abs(flight.z) <= 1):.0%}" if len(flight.z) else "–"
+    return (
+        f"| {flight.name} | {half} "
+        f"| {first.pack_soc:.3f} ± {first.pack_soc_sigma:.3f} ({battery['start_soc']:.3f}) "
+        f"| {at_half.capacity_ah:.2f} ± {at_half.capacity_sigma_ah:.2f} "
+        f"({battery['capacity_ah']:g}) "
+        f"| {_pct(flight.errors)} | {inside} | {_pct(flight.px4_errors)} "
+        f"| {_pct(flight.ardupilot_errors)} |"
+    )
+
+
 def main() -> None:
     vehicle = load_vehicle(VEHICLE)
     split = json.loads((FLIGHTS / "split.json").read_text())
     print(
-        "| flight | half | charge at power-up (truth) | capacity at half used, Ah (truth) "
-        "| error | label's error | R at the end, mΩ (truth) |"
+        "| flight | half | charge at power-up | capacity at half used, Ah "
+        "| endurance median / worst |error| % | within 1σ | PX4-style % | ArduPilot % |"
     )
-    print("|---|---|---|---|---:|---:|---|")
+    print("|---|---|---|---|---|---:|---|---|")
+    pooled: dict[str, list[PackFlight]] = {}
     for half in ("tuning", "held_out"):
         for name in split[half]:
-            truth = json.loads((FLIGHTS / name / "truth.json").read_text())
-            battery = truth["battery"]
-            label_ah = battery["labelled_capacity_ah"]
-            spec = dataclasses.replace(vehicle.battery, capacity_ah=label_ah)
-            path = FLIGHTS / name / "flight.tlog"
-            samples = [
-                s
-                for s in iter_samples(path, "auto", vehicle.input_limits())
-                if isinstance(s, BatterySample)
-            ]
-            track = track_pack(samples, PackModel(spec))
-            consumed = {s.time_s: s.consumed_mah for s in samples if s.consumed_mah is not None}
-            half_mah = 500.0 * battery["start_soc"] * battery["capacity_ah"]
-            at_half = next(e for t, e in track if consumed.get(t, 0.0) >= half_mah)
-            first, last = track[0][1], track[-1][1]
-            true_ah = battery["capacity_ah"]
-            print(
-                f"| {name} | {half.replace('_', '-')} "
-                f"| {first.soc:.3f} ± {first.soc_sigma:.3f} ({battery['start_soc']:.3f}) "
-                f"| {at_half.capacity_ah:.2f} ± {at_half.capacity_sigma_ah:.2f} ({true_ah:g}) "
-                f"| {100 * (at_half.capacity_ah / true_ah - 1):+.1f} % "
-                f"| {100 * (label_ah / true_ah - 1):+.0f} % "
-                f"| {1000 * last.resistance_ohm:.1f} "
-                f"({1000 * battery['internal_resistance_ohm']:g}) |"
-            )
+            flight = replay_pack_flight(FLIGHTS / name, vehicle)
+            pooled.setdefault(half, []).append(flight)
+            print(table_row(flight, half.replace("_", "-")))
+    for half, flights in pooled.items():
+        z = np.concatenate([f.z for f in flights])
+        z = z[np.isfinite(z)]
+        worst_above = float(np.max(z)) if len(z) else float("nan")
+        print(
+            f"\n{half}: {len(z)} estimates, {np.mean(np.abs(z) <= 1):.0%} within 1σ, "
+            f"{np.mean(np.abs(z) <= 3):.0%} within 3σ, highest above the truth "
+            f"{worst_above:+.2f}σ; |error| ours {_pct(np.concatenate([f.errors for f in flights]))}"
+            f" %, PX4-style {_pct(np.concatenate([f.px4_errors for f in flights]))} %, "
+            f"ArduPilot {_pct(np.concatenate([f.ardupilot_errors for f in flights]))} %"
+        )
 
 
 if __name__ == "__main__":

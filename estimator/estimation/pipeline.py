@@ -717,7 +717,7 @@ class Pipeline:
             flown_s = latest.time_s - self._flying_since_s
             self.endurance_valid |= flown_s >= self.settings.endurance_valid_after_s
         charge = [r.sample.consumed_mah for r in pending if r.sample.consumed_mah is not None]
-        if charge:
+        if charge and self.pack_state is None:
             self.energy.update_charge(charge[-1])
         current_a = latest.current_a
         if current_a is None:
@@ -727,6 +727,8 @@ class Pipeline:
         self._resistance_time_s = latest.time_s
         self.energy.voltage.update(dt, self.energy.soc, latest.voltage_v, current_a)
         self._learn_pack(latest, consumed_mah=charge[-1] if charge else None)
+        if self.pack_state is not None:
+            self.energy.anchor(self.pack_state.estimate())
         self._loss_factor = self.energy.loss_factor(self.energy.bias * self._power_model_w)
 
     def _learn_pack(self, latest: BatterySample, consumed_mah: float | None) -> None:

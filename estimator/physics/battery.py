@@ -9,6 +9,8 @@ deliver before resistive losses (those are I²R, counted by whoever knows the cu
 
 from __future__ import annotations
 
+import dataclasses
+
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
@@ -16,7 +18,6 @@ from estimator.physics.vehicle import BatterySpec
 
 #: State of charge (fraction) and the matching resting cell voltage (V), ascending.
 SOC_POINTS = np.linspace(0.0, 1.0, 21)
-_SEGMENTS = len(SOC_POINTS) - 1
 CELL_OCV_POINTS_V = np.array(
     [
         3.27,
@@ -64,7 +65,8 @@ class PackModel:
     def __init__(self, spec: BatterySpec, internal_resistance_ohm: float = 0.0) -> None:
         self.spec = spec
         self.internal_resistance_ohm = internal_resistance_ohm
-        #: Resting cell voltage (V) at each of :data:`SOC_POINTS`.
+        #: Resting cell voltage (V) at :attr:`soc_points` (evenly spaced from SoC 0 to 1:
+        #: :data:`SOC_POINTS` for the built-in curves, as many as a pack's own table has).
         self.cell_ocv_v = (
             CHEMISTRY_OCV_V[spec.chemistry]
             if spec.cell_ocv_v is None
@@ -72,37 +74,47 @@ class PackModel:
         )
         # energy per cell per Ah from SoC 0 up to each table point (Wh/Ah), trapezoids
         mid_v = 0.5 * (self.cell_ocv_v[1:] + self.cell_ocv_v[:-1])
-        self._cum_wh_per_ah = np.concatenate(([0.0], np.cumsum(np.diff(SOC_POINTS) * mid_v)))
+        self.soc_points = np.linspace(0.0, 1.0, len(self.cell_ocv_v))
+        self._segments = len(self.cell_ocv_v) - 1
+        self._cum_wh_per_ah = np.concatenate(([0.0], np.cumsum(mid_v / self._segments)))
         self._ocv_list = [float(v) for v in self.cell_ocv_v]
         self._cum_list = [float(v) for v in self._cum_wh_per_ah]
+
+    def with_capacity(self, capacity_ah: float) -> PackModel:
+        """The same pack (curve, cells, reserve, resistance) holding ``capacity_ah`` (Ah)."""
+        return PackModel(
+            dataclasses.replace(self.spec, capacity_ah=capacity_ah), self.internal_resistance_ohm
+        )
 
     def cell_ocv_slope_v(self, soc: float) -> tuple[float, float]:
         """Resting cell voltage (V) at ``soc`` and its slope dOCV/dSoC (V per unit SoC),
         the table's end segments extended in a straight line beyond SoC 0 and 1 (so that a
         filter whose state strays past an end still sees which way to go). Scalar."""
-        i = min(max(int(soc * _SEGMENTS), 0), _SEGMENTS - 1)
+        n = self._segments
+        i = min(max(int(soc * n), 0), n - 1)
         v0, v1 = self._ocv_list[i], self._ocv_list[i + 1]
-        slope = (v1 - v0) * _SEGMENTS
-        return v0 + slope * (soc - i / _SEGMENTS), slope
+        slope = (v1 - v0) * n
+        return v0 + slope * (soc - i / n), slope
 
     def cell_energy_wh_per_ah(self, soc: float) -> float:
         """Energy per cell and Ah from SoC 0 up to ``soc`` (Wh/Ah = V·unit SoC), clipped to
         [0, 1]. Scalar."""
         s = min(max(soc, 0.0), 1.0)
-        i = min(int(s * _SEGMENTS), _SEGMENTS - 1)
-        f = s * _SEGMENTS - i
+        n = self._segments
+        i = min(int(s * n), n - 1)
+        f = s * n - i
         v0, v1 = self._ocv_list[i], self._ocv_list[i + 1]
-        return self._cum_list[i] + (v0 + 0.5 * f * (v1 - v0)) * f / _SEGMENTS
+        return self._cum_list[i] + (v0 + 0.5 * f * (v1 - v0)) * f / n
 
     def ocv_v(self, soc: ArrayLike) -> NDArray[np.float64]:
         """Pack open-circuit voltage (V) at state of charge ``soc`` (clipped to [0, 1])."""
         s = np.clip(np.asarray(soc, dtype=float), 0.0, 1.0)
-        return np.asarray(self.spec.cells * np.interp(s, SOC_POINTS, self.cell_ocv_v))
+        return np.asarray(self.spec.cells * np.interp(s, self.soc_points, self.cell_ocv_v))
 
     def soc_from_ocv(self, pack_voltage_v: ArrayLike) -> NDArray[np.float64]:
         """State of charge of a pack resting at ``pack_voltage_v`` (V), clipped to [0, 1]."""
         cell_v = np.asarray(pack_voltage_v, dtype=float) / self.spec.cells
-        return np.asarray(np.interp(cell_v, self.cell_ocv_v, SOC_POINTS))
+        return np.asarray(np.interp(cell_v, self.cell_ocv_v, self.soc_points))
 
     def terminal_voltage_v(self, soc: ArrayLike, current_a: ArrayLike) -> NDArray[np.float64]:
         """Voltage at the pack's terminals under load: OCV − I·R (V)."""
@@ -111,7 +123,7 @@ class PackModel:
     def energy_wh(self, soc: ArrayLike) -> NDArray[np.float64]:
         """Chemical energy from empty (SoC 0) up to ``soc``, Wh."""
         s = np.clip(np.asarray(soc, dtype=float), 0.0, 1.0)
-        per_ah = np.interp(s, SOC_POINTS, self._cum_wh_per_ah)
+        per_ah = np.interp(s, self.soc_points, self._cum_wh_per_ah)
         return np.asarray(self.spec.cells * self.spec.capacity_ah * per_ah)
 
     def usable_energy_wh(self, soc: ArrayLike) -> NDArray[np.float64]:
@@ -122,4 +134,4 @@ class PackModel:
     def soc_from_energy(self, energy_wh: ArrayLike) -> NDArray[np.float64]:
         """Inverse of :meth:`energy_wh`: the SoC holding ``energy_wh`` above empty."""
         per_ah = np.asarray(energy_wh, dtype=float) / (self.spec.cells * self.spec.capacity_ah)
-        return np.asarray(np.interp(per_ah, self._cum_wh_per_ah, SOC_POINTS))
+        return np.asarray(np.interp(per_ah, self._cum_wh_per_ah, self.soc_points))

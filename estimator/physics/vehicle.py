@@ -27,8 +27,9 @@ from estimator.physics.model import COEFFICIENT_NAMES, PowerModel
 from estimator.telemetry.plausibility import InputLimits
 from estimator.toml_files import read_toml
 
-#: Resting cell voltages of a pack curve: one per state of charge 0, 0.05, …, 1.
-OCV_TABLE_POINTS = 21
+#: Resting cell voltages of a pack curve: evenly spaced from state of charge 0 to 1, at least
+#: this many (0, 0.1, …, 1) and at most that many (every 0.5 %).
+OCV_TABLE_POINTS = (11, 201)
 #: A cell voltage outside this range (V) is no lithium cell at rest.
 OCV_RANGE_V = (2.0, 4.5)
 #: Chemistries with a built-in resting curve (estimator.physics.battery.CHEMISTRY_OCV_V).
@@ -38,8 +39,8 @@ CHEMISTRIES = ("lipo", "lihv", "liion")
 @dataclass(frozen=True)
 class BatterySpec:
     """Pack as configured: rated (label) capacity (Ah), series cells, the reserve not to be
-    used, the chemistry, and the pack's resting cell voltage (V) at state of charge 0, 0.05,
-    …, 1 (``cell_ocv_v``; None: the chemistry's built-in curve in
+    used, the chemistry, and the pack's resting cell voltage (V) at evenly spaced states of
+    charge from 0 to 1 (``cell_ocv_v``; None: the chemistry's built-in curve in
     :mod:`estimator.physics.battery`)."""
 
     capacity_ah: float
@@ -174,7 +175,7 @@ def _number(table: dict[str, Any], key: str, where: str, positive: bool = False)
 
 
 def _ocv_table(value: Any, where: str) -> tuple[float, ...] | None:
-    """A pack curve from a vehicle file: None, or :data:`OCV_TABLE_POINTS` cell voltages
+    """A pack curve from a vehicle file: None, or cell voltages (:data:`OCV_TABLE_POINTS`)
     rising with the state of charge, each within :data:`OCV_RANGE_V`."""
     if value is None:
         return None
@@ -182,8 +183,12 @@ def _ocv_table(value: Any, where: str) -> tuple[float, ...] | None:
     numbers = isinstance(value, list) and all(
         isinstance(v, int | float) and not isinstance(v, bool) for v in value
     )
-    if not numbers or len(value) != OCV_TABLE_POINTS:
-        raise UserError(f"{where} must be a list of {OCV_TABLE_POINTS} cell voltages (V)")
+    lo_n, hi_n = OCV_TABLE_POINTS
+    if not numbers or not lo_n <= len(value) <= hi_n:
+        raise UserError(
+            f"{where} must be a list of {lo_n} to {hi_n} cell voltages (V) at evenly spaced "
+            "states of charge from 0 to 1"
+        )
     table = tuple(float(v) for v in value)
     if not all(lo <= v <= hi for v in table):
         raise UserError(f"{where} must hold cell voltages between {lo:g} and {hi:g} V")

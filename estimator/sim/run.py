@@ -4,6 +4,7 @@ autopilot's frames) out; the physics step ``DT_S``.
 
 from __future__ import annotations
 
+import dataclasses
 from collections.abc import Mapping
 from dataclasses import dataclass, field
 from typing import Any
@@ -11,13 +12,14 @@ from typing import Any
 import numpy as np
 from pymavlink.dialects.v20 import common as mavlink
 
+from estimator.physics.battery import PackModel
 from estimator.physics.effects import (
     Effect,
     FlightState,
     effects_from_tables,
 )
 from estimator.physics.model import FloatArray
-from estimator.physics.vehicle import Vehicle, default_vehicle
+from estimator.physics.vehicle import BatterySpec, Vehicle, default_vehicle
 from estimator.sim.plans import Plan, resolve_plan
 
 DT_S = 0.02
@@ -75,6 +77,10 @@ class SimConfig:
     hidden effects too). plan: a built-in plan name, a plan file path or a Plan. climb_legs:
     add altitude changes to a built-in plan. effects: hidden effects (the estimator is not
     told). internal_resistance_ohm: pack resistance. initial_soc: state of charge at boot.
+    capacity_fraction: the real pack's capacity over the vehicle file's (label) one (an aged
+    pack below 1; the autopilot still counts against the label). ocv_error_v_per_cell: the
+    real pack's resting curve minus the vehicle file's, V per cell at each of its table's
+    points (None: the same curve).
     idle_power_w: draw on the ground, disarmed. duration_s: None = fly the plan once (or to the
     reserve); else fly (repeating the plan) until then or until the pack is empty.
     """
@@ -85,6 +91,8 @@ class SimConfig:
     effects: tuple[Effect, ...] = ()
     internal_resistance_ohm: float = 0.025
     initial_soc: float = 1.0
+    capacity_fraction: float = 1.0
+    ocv_error_v_per_cell: tuple[float, ...] | None = None
     idle_power_w: float = 5.0
     noise: SensorNoise = field(default_factory=SensorNoise)
     rates_hz: Mapping[str, float] = field(default_factory=lambda: dict(DEFAULT_RATES_HZ))
@@ -98,6 +106,19 @@ class SimConfig:
     def resolved_plan(self) -> Plan:
         return (
             self.plan if isinstance(self.plan, Plan) else resolve_plan(self.plan, self.climb_legs)
+        )
+
+    def real_battery(self) -> BatterySpec:
+        """The pack that flies: the vehicle file's with the real capacity and curve."""
+        spec = self.vehicle.battery
+        curve = spec.cell_ocv_v
+        if self.ocv_error_v_per_cell is not None:
+            drawn = PackModel(spec).cell_ocv_v + np.asarray(self.ocv_error_v_per_cell)
+            # a resting curve rises with the charge, whatever the error drawn
+            rising = np.maximum.accumulate(drawn + 1e-4 * np.arange(len(drawn)))
+            curve = tuple(float(v) for v in rising)
+        return dataclasses.replace(
+            spec, capacity_ah=spec.capacity_ah * self.capacity_fraction, cell_ocv_v=curve
         )
 
     def all_effects(self) -> list[Effect]:

@@ -61,7 +61,7 @@ class _Physics:
         self.model, self.mass_kg = v.model, v.mass_kg
         self.effects = config.all_effects()
         self.coupled = any(e.name == "voltage" for e in self.effects)
-        self.pack = PackModel(v.battery, config.internal_resistance_ohm)
+        self.pack = PackModel(config.real_battery(), config.internal_resistance_ohm)
         self.idle_w = config.idle_power_w
 
     def power(self, rec: dict[str, np.ndarray], voltage_v: FloatArray) -> dict[str, np.ndarray]:

@@ -1,0 +1,87 @@
+"""Flights with a known pack (``truth.json`` beside the log, as ``uav-energy sitl-record``
+writes it) replayed with the LABELLED capacity: endurance against the true time to the
+pack's reserve, with the autopilots' own figures beside (:mod:`peer_endurance`).
+
+The endurance is scored from ``SETTLE_S`` after take-off until ``SETTLE_S`` before the true
+reserve (where the time left gets short), once a second (s, autopilot clock).
+"""
+
+from __future__ import annotations
+
+import json
+from dataclasses import dataclass, replace
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from estimator.analysis.peer_endurance import peer_endurance_s
+from estimator.analysis.replay import replay_stream
+from estimator.estimation.pipeline import Estimate, PipelineSettings
+from estimator.logs import iter_samples
+from estimator.physics.vehicle import Vehicle
+from estimator.telemetry.samples import BatterySample
+
+#: Scored from this long after take-off until this long before the reserve (s).
+SETTLE_S = 60.0
+
+
+@dataclass(frozen=True)
+class PackFlight:
+    """One flight's scores: relative endurance errors (ours, PX4-style, ArduPilot's) and
+    ours in σ (signed: + is more time than there is), at the scored estimates; the pack's
+    truth; the estimates and the battery readings."""
+
+    name: str
+    truth: dict[str, Any]
+    errors: np.ndarray
+    z: np.ndarray
+    px4_errors: np.ndarray
+    ardupilot_errors: np.ndarray
+    estimates: list[Estimate]
+    readings: list[BatterySample]
+
+
+def replay_pack_flight(
+    directory: Path, vehicle: Vehicle, settings: PipelineSettings | None = None
+) -> PackFlight:
+    """Replay ``directory``'s ``flight.tlog`` with ``vehicle`` under the pack's label."""
+    truth = json.loads((directory / "truth.json").read_text())
+    battery = truth["battery"]
+    label = replace(vehicle.battery, capacity_ah=battery["labelled_capacity_ah"])
+    labelled = replace(vehicle, battery=label)
+    stream = iter_samples(directory / "flight.tlog", "auto", labelled.input_limits())
+    readings: list[BatterySample] = []
+
+    def observed() -> Any:
+        for sample in stream:
+            if isinstance(sample, BatterySample):
+                readings.append(sample)
+            yield sample
+
+    samples: Any = observed()
+    flight = replay_stream(stream, labelled, directory.name, settings, samples)
+    takeoff_s, reserve_s = truth["events"]["takeoff_s"], truth["events"]["reserve_s"]
+    scored = [
+        e
+        for e in flight.estimates
+        if takeoff_s + SETTLE_S <= e.time_s <= reserve_s - SETTLE_S and e.endurance_valid
+    ]
+    left = np.array([reserve_s - e.time_s for e in scored])
+    ours = np.array([e.endurance_s for e in scored])
+    sigma = np.array([e.endurance_sigma_s for e in scored])
+    peers = peer_endurance_s(readings, label, vehicle.battery.cells * 0.004)
+    peer_t = np.array([t for t, _, _ in peers])
+    at = np.clip(np.searchsorted(peer_t, [e.time_s for e in scored], side="right") - 1, 0, None)
+    px4 = np.array([peers[i][1] for i in at]) if len(peers) else np.full(len(scored), np.nan)
+    ardupilot = np.array([peers[i][2] for i in at]) if len(peers) else px4
+    return PackFlight(
+        name=directory.name,
+        truth=truth,
+        errors=(ours - left) / left,
+        z=(ours - left) / np.where(sigma > 0, sigma, np.nan),
+        px4_errors=(px4 - left) / left,
+        ardupilot_errors=(ardupilot - left) / left,
+        estimates=flight.estimates,
+        readings=readings,
+    )
