@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import importlib.util
 import json
+from dataclasses import replace
 from pathlib import Path
 from typing import Any
 
@@ -16,6 +17,9 @@ import numpy as np
 import pytest
 
 from estimator.analysis.pack_flights import PackFlight, replay_pack_flight
+from estimator.analysis.replay import run
+from estimator.estimation.pipeline import Pipeline
+from estimator.logs import iter_samples
 from estimator.physics.vehicle import load_vehicle
 
 ROOT = Path(__file__).resolve().parent.parent
@@ -130,3 +134,37 @@ def test_the_table_of_docs_pack_md_is_what_the_script_prints(
     for half in ("tuning", "held_out"):
         for name in SPLIT[half]:
             assert script.table_row(flights[name], half.replace("_", "-")) in doc, name
+
+
+#: A daemon started mid-flight without a state file: why it does not converge in 60 s.
+RESTART_MISS = (
+    "under a steady load the start's charge and the resistance are one unknown (30 mΩ "
+    "against a 12 ± 12 mΩ prior), and the filter settles on a wrong pair too surely "
+    "(pack_c80_r3: −58 % at 9σ; pack_c65_r1: +66 %, the capacity still 4.27 ± 0.71 Ah)"
+)
+
+
+@pytest.mark.parametrize(
+    "name",
+    [
+        pytest.param("pack_c65_r1", marks=pytest.mark.xfail(strict=True, reason=RESTART_MISS)),
+        "pack_c100_r1",
+        pytest.param("pack_c80_r3", marks=pytest.mark.xfail(strict=True, reason=RESTART_MISS)),
+    ],
+)
+def test_a_daemon_started_mid_flight_without_state_converges_within_60_s(name: str) -> None:
+    """The pipeline fed from 90 s after take-off on (as a daemon restarted then, with no
+    state file): 60 s later, the endurance within 8 % of the truth and within 3σ."""
+    truth = json.loads((FLIGHTS / name / "truth.json").read_text())
+    labelled = replace(VEHICLE, battery=replace(VEHICLE.battery, capacity_ah=5.0))
+    start_s = truth["events"]["takeoff_s"] + 90.0
+    samples = [
+        s
+        for s in iter_samples(FLIGHTS / name / "flight.tlog", "auto", labelled.input_limits())
+        if getattr(s, "time_s", 0.0) >= start_s
+    ]
+    estimates, _, _ = run(samples, Pipeline(labelled))
+    at = min(estimates, key=lambda e: abs(e.time_s - start_s - 60.0))
+    left_s = truth["events"]["reserve_s"] - at.time_s
+    assert abs(at.endurance_s - left_s) <= 0.08 * left_s
+    assert abs(at.endurance_s - left_s) <= 3 * at.endurance_sigma_s

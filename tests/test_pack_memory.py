@@ -146,3 +146,22 @@ def test_the_daemon_starts_from_the_packs_memory_and_stores_what_it_learns(
     assert record.capacity_ah == pytest.approx(3.2, rel=0.05)
     with pytest.raises(UserError, match="go together"):
         validate(ServiceConfig(pack_id="pack-A"))
+
+
+def test_a_plan_with_the_pack_uses_its_learnt_capacity(tmp_path: Path) -> None:
+    """``plan --pack``: the usable energy of a pack learnt to hold 3.2 Ah, not its label."""
+    vehicle = ROOT / "config" / "vehicles" / "ardupilot_sitl_quad.toml"
+    mission = ROOT / "replay" / "sitl" / "missions" / "square_wind5" / "mission.waypoints"
+    remember(tmp_path, "pack-A", 2.2, LEARNT, when_s=1000.0)
+
+    def usable_wh(*extra: str) -> float:
+        out = subprocess.run(
+            [sys.executable, "-m", "estimator.cli", "plan", str(mission), "--vehicle",
+             str(vehicle), "--json", *extra],
+            capture_output=True, text=True, check=True, cwd=ROOT,
+        )  # fmt: skip
+        return float(json.loads(out.stdout)["usable_wh"])
+
+    label = usable_wh()
+    learnt = usable_wh("--pack", "pack-A", "--pack-dir", str(tmp_path))
+    assert learnt == pytest.approx(label * 3.2 / 2.2, rel=1e-3)

@@ -56,3 +56,14 @@ def test_an_absurd_endurance_never_reaches_time_remaining(estimate: Estimate) ->
     for endurance_s in (math.inf, -5.0, math.nan):
         status = battery_status(link(), replace(estimate, endurance_s=endurance_s), 9, 50.0)
         assert status.time_remaining == 0
+
+
+def test_battery_remaining_is_the_packs_learnt_charge(estimate: Estimate) -> None:
+    """BATTERY_STATUS.battery_remaining: the charge of the real pack as learnt in flight
+    (a pack holding less than its label shows its own charge, not the label's count)."""
+    learnt = replace(estimate, pack_soc=0.42, capacity_ah=3.1)
+    assert battery_status(link(), learnt, 9, 50.0).battery_remaining == 42
+    values = {m.name: m.value for m in named_values(link(), learnt)}
+    assert values["PACK_SOC"] == pytest.approx(42.0) and values["PACK_AH"] == pytest.approx(3.1)
+    unknown = replace(estimate, pack_soc=math.nan)
+    assert battery_status(link(), unknown, 9, 50.0).battery_remaining >= 0

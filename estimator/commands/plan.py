@@ -23,9 +23,10 @@ from rich.table import Table
 from estimator.analysis.mission_energy import FlightSettings, MissionEnergy, mission_energy
 from estimator.commands.sim import _number, _pair
 from estimator.errors import UserError
+from estimator.estimation.pack_memory import check_pack_id, load_record
 from estimator.logs.mission_files import load_mission
 from estimator.physics.route_energy import UNCERTAINTY_SOURCES, Conditions
-from estimator.physics.vehicle import load_vehicle
+from estimator.physics.vehicle import Vehicle, load_vehicle
 
 #: Characters the leg table needs (wider than a default 80-column pipe).
 TABLE_WIDTH = 132
@@ -50,13 +51,19 @@ def register(subparsers: argparse._SubParsersAction[argparse.ArgumentParser]) ->
         "--speed", default=str(d.cruise_mps), metavar="MPS", help="default waypoint ground speed"
     )
     p.add_argument("--start-soc", default="1.0", metavar="SOC", help="state of charge at start")
+    p.add_argument(
+        "--pack",
+        metavar="ID",
+        help="plan on this pack's learnt capacity (with --pack-dir; docs/pack.md)",
+    )
+    p.add_argument("--pack-dir", type=Path, metavar="DIR", help="the packs' memory")
     p.add_argument("--report", type=Path, metavar="DIR", help="write PNG plots and summary.md")
     p.add_argument("--json", action="store_true", help="print one JSON object to stdout")
     p.set_defaults(func=run)
 
 
 def run(args: argparse.Namespace) -> int:
-    vehicle = load_vehicle(args.vehicle)
+    vehicle = _with_pack(load_vehicle(args.vehicle), args.pack, args.pack_dir)
     mission = load_mission(args.mission)
     conditions = _conditions(args, vehicle.mass_kg)
     speed = _number(args.speed, "--speed", positive=True)
@@ -76,6 +83,18 @@ def run(args: argparse.Namespace) -> int:
     if args.report is not None:
         Console(stderr=True).print(f"wrote {args.report}/summary.md and plots")
     return 0
+
+
+def _with_pack(vehicle: Vehicle, pack_id: str | None, pack_dir: Path | None) -> Vehicle:
+    """The vehicle with the pack's learnt capacity (``--pack``, ``--pack-dir``)."""
+    if (pack_id is None) != (pack_dir is None):
+        raise UserError("--pack ID and --pack-dir DIR go together")
+    if pack_id is None or pack_dir is None:
+        return vehicle
+    record = load_record(pack_dir, check_pack_id(pack_id))
+    if record is None:
+        raise UserError(f"pack {pack_id!r} has no memory in {pack_dir} yet (fly or replay it)")
+    return replace(vehicle, battery=replace(vehicle.battery, capacity_ah=record.capacity_ah))
 
 
 def _conditions(args: argparse.Namespace, mass_kg: float) -> Conditions:

@@ -10,9 +10,10 @@ MAVLink (encoded with each link's own codec, system id from the config, componen
   :attr:`Estimate.endurance_valid` (FLAGS bit 2 set until then).
 - BATTERY_STATUS with our own ``id`` (default 9): ``time_remaining`` = endurance (s) at the
   current power (0, MAVLink's "not provided", until :attr:`Estimate.endurance_valid`),
-  ``battery_remaining`` = usable energy left above the reserve, % of the usable energy of a
-  full pack, pack voltage in ``voltages[0]`` (mV; UINT16_MAX if > 65.5 V), measured current
-  (cA, −1 unknown); charge state OK/LOW/CRITICAL at 30 % / 10 %.
+  ``battery_remaining`` = the pack's charge learned in flight, % of the real pack (before the
+  pack filter has a current: usable energy left above the reserve, % of a full pack's),
+  pack voltage in ``voltages[0]`` (mV; UINT16_MAX if > 65.5 V), measured current
+  (cA, −1 unknown); charge state OK/LOW/CRITICAL at 30 % / 10 % of the usable energy.
 
 JSON lines carry every field of the estimate; the endurance and range figures are null until
 ``endurance_valid``.
@@ -145,9 +146,12 @@ def battery_status(
     if estimate.power_measured_w is not None and estimate.voltage_v > 0:
         current_ca = round(estimate.power_measured_w / estimate.voltage_v * 100)
     percent = remaining_percent(estimate, full_usable_wh)
-    if percent < 0 or percent > 30:
+    state_percent = percent
+    if math.isfinite(estimate.pack_soc):
+        percent = round(min(max(estimate.pack_soc, 0.0), 1.0) * 100)
+    if state_percent < 0 or state_percent > 30:
         state = mavlink.MAV_BATTERY_CHARGE_STATE_OK
-    elif percent > 10:
+    elif state_percent > 10:
         state = mavlink.MAV_BATTERY_CHARGE_STATE_LOW
     else:
         state = mavlink.MAV_BATTERY_CHARGE_STATE_CRITICAL
