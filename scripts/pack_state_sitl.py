@@ -17,7 +17,7 @@ from pathlib import Path
 
 import numpy as np
 
-from estimator.analysis.pack_flights import PackFlight, replay_pack_flight
+from estimator.analysis.pack_flights import PackFlight, half_used_s, replay_pack_flight
 from estimator.physics.vehicle import load_vehicle
 
 REPO = Path(__file__).resolve().parent.parent
@@ -34,9 +34,7 @@ def table_row(flight: PackFlight, half: str) -> str:
     """One flight's row of the table (docs/pack.md)."""
     battery = flight.truth["battery"]
     first = next(e for e in flight.estimates if np.isfinite(e.pack_soc))
-    consumed = [(s.time_s, s.consumed_mah) for s in flight.readings if s.consumed_mah is not None]
-    half_mah = 500.0 * battery["start_soc"] * battery["capacity_ah"]
-    half_s = next(t for t, mah in consumed if mah >= half_mah)
+    half_s = half_used_s(flight.readings, battery)
     at_half = [e for e in flight.estimates if e.time_s <= half_s][-1]
     inside = f"{np.mean(np.abs(flight.z) <= 1):.0%}" if len(flight.z) else "–"
     return (

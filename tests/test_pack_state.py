@@ -15,7 +15,7 @@ from typing import Any
 import numpy as np
 import pytest
 
-from estimator.analysis.replay import replay_log
+from estimator.analysis.pack_flights import half_used_s, replay_pack_flight
 from estimator.estimation.pack_state import (
     PackEstimate,
     PackFilter,
@@ -155,9 +155,8 @@ def test_sitl_pack_charge_at_power_up_and_capacity_before_half_is_used(name: str
     battery = truth["battery"]
     first = track[0][1]
     assert abs(first.soc - battery["start_soc"]) <= min(0.05, 3 * first.soc_sigma)
-    half_mah = 500.0 * battery["start_soc"] * battery["capacity_ah"]
-    consumed = {s.time_s: s.consumed_mah for s in samples if s.consumed_mah is not None}
-    at_half = next(est for t, est in track if consumed.get(t, 0.0) >= half_mah)
+    half_s = half_used_s(samples, battery)
+    at_half = next(est for t, est in track if t >= half_s)
     error_ah = at_half.capacity_ah - battery["capacity_ah"]
     assert abs(error_ah) <= 0.05 * battery["capacity_ah"]
     assert abs(error_ah) <= 3 * at_half.capacity_sigma_ah
@@ -192,32 +191,22 @@ def test_the_pipeline_learns_the_pack_and_warns_of_a_wrong_label(name: str) -> N
     holding 65 or 80 % of its label is announced within 90 s of take-off, one that holds its
     label never; the published capacity is within 5 % (and 3σ) before half of the charge is
     used."""
-    truth = json.loads((PACK_FLIGHTS / name / "truth.json").read_text())
-    battery = truth["battery"]
     vehicle = load_vehicle(ROOT / "config" / "vehicles" / "ardupilot_sitl_quad.toml")
-    label = replace(vehicle, battery=replace(vehicle.battery, capacity_ah=5.0))
-    flight = replay_log(PACK_FLIGHTS / name / "flight.tlog", label)
-    alert = PackLabelAlert(label.battery.capacity_ah)
+    flight = replay_pack_flight(PACK_FLIGHTS / name, vehicle)  # under the pack's label
+    truth = flight.truth
+    battery = truth["battery"]
+    alert = PackLabelAlert(battery["labelled_capacity_ah"])
     warned_s = [e.time_s for e in flight.estimates if alert.update(e) is not None]
     takeoff_s = truth["events"]["takeoff_s"]
     if battery["capacity_ah"] < battery["labelled_capacity_ah"]:
         assert warned_s and warned_s[0] - takeoff_s <= 90.0, warned_s
     else:
         assert not warned_s
-    half_s = _half_used_s(name, battery)
+    half_s = half_used_s(flight.readings, battery)
     before_half = [e for e in flight.estimates if takeoff_s <= e.time_s <= half_s]
     last = before_half[-1]
     assert abs(last.capacity_ah - battery["capacity_ah"]) <= 0.05 * battery["capacity_ah"]
     assert abs(last.capacity_ah - battery["capacity_ah"]) <= 3 * last.capacity_sigma_ah
-
-
-def _half_used_s(name: str, battery: dict[str, Any]) -> float:
-    """When half of the pack's charge at power-up had been drawn (autopilot clock, s)."""
-    _, _, samples = _flight(name)
-    half_mah = 500.0 * battery["start_soc"] * battery["capacity_ah"]
-    return next(
-        s.time_s for s in samples if s.consumed_mah is not None and s.consumed_mah >= half_mah
-    )
 
 
 #: An estimate to vary in the warning's tests.

@@ -16,7 +16,7 @@ from __future__ import annotations
 import hashlib
 import math
 import time
-from collections.abc import Iterable, Iterator
+from collections.abc import Iterable
 from dataclasses import dataclass
 from datetime import UTC, datetime
 from itertools import pairwise
@@ -26,7 +26,7 @@ from typing import Any
 import numpy as np
 
 from estimator.analysis.fit_points import preprocess
-from estimator.analysis.replay import MAX_GAP_S, replay_stream, summarize
+from estimator.analysis.replay import MAX_GAP_S, replay_stream, summarize, with_batteries
 from estimator.analysis.residual_samples import ResidualOptions
 from estimator.analysis.residuals import analyze
 from estimator.analysis.theory_fit import fit_theory
@@ -35,7 +35,7 @@ from estimator.estimation.pipeline import Pipeline
 from estimator.logs import iter_samples, load_flights
 from estimator.physics.battery import PackModel
 from estimator.physics.vehicle import Vehicle
-from estimator.telemetry.samples import BatterySample, Sample
+from estimator.telemetry.samples import BatterySample
 
 MODES = ("replay", "fit", "residuals")
 #: Below this pack current (A) the pack counts as resting: its voltage, plus I·R, is its OCV.
@@ -104,7 +104,7 @@ def replay_columns(path: Path, job: FleetJob) -> dict[str, Any]:
     batteries: list[BatterySample] = []
     pipeline = Pipeline(vehicle)
     flight = replay_stream(
-        stream, vehicle, path.stem, samples=_observed(stream, batteries), pipeline=pipeline
+        stream, vehicle, path.stem, samples=with_batteries(stream, batteries), pipeline=pipeline
     )
     if not flight.estimates:
         raise UserError("no estimates: the log has no battery telemetry")
@@ -205,14 +205,6 @@ def resting_soc(
         return float(pack.soc_from_ocv(ocv_v))
 
     return soc(before), soc(after)
-
-
-def _observed(samples: Iterable[Sample], batteries: list[BatterySample]) -> Iterator[Sample]:
-    """``samples`` unchanged, with the battery readings copied into ``batteries``."""
-    for sample in samples:
-        if isinstance(sample, BatterySample):
-            batteries.append(sample)
-        yield sample
 
 
 def _last_finite(values: Iterable[float]) -> float | None:

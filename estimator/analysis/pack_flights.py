@@ -16,7 +16,7 @@ from typing import Any
 import numpy as np
 
 from estimator.analysis.peer_endurance import peer_endurance_s
-from estimator.analysis.replay import replay_stream
+from estimator.analysis.replay import replay_stream, with_batteries
 from estimator.estimation.pipeline import Estimate, PipelineSettings
 from estimator.logs import iter_samples
 from estimator.physics.vehicle import Vehicle
@@ -52,14 +52,7 @@ def replay_pack_flight(
     labelled = replace(vehicle, battery=label)
     stream = iter_samples(directory / "flight.tlog", "auto", labelled.input_limits())
     readings: list[BatterySample] = []
-
-    def observed() -> Any:
-        for sample in stream:
-            if isinstance(sample, BatterySample):
-                readings.append(sample)
-            yield sample
-
-    samples: Any = observed()
+    samples = with_batteries(stream, readings)
     flight = replay_stream(stream, labelled, directory.name, settings, samples)
     takeoff_s, reserve_s = truth["events"]["takeoff_s"], truth["events"]["reserve_s"]
     scored = [
@@ -84,4 +77,13 @@ def replay_pack_flight(
         ardupilot_errors=(ardupilot - left) / left,
         estimates=flight.estimates,
         readings=readings,
+    )
+
+
+def half_used_s(readings: list[BatterySample], battery: dict[str, Any]) -> float:
+    """When half of the pack's charge at power-up had been drawn (s, autopilot clock), from
+    the autopilot's counter and the truth's pack (``truth.json``'s ``battery``)."""
+    half_mah = 500.0 * battery["start_soc"] * battery["capacity_ah"]
+    return next(
+        s.time_s for s in readings if s.consumed_mah is not None and s.consumed_mah >= half_mah
     )

@@ -21,7 +21,7 @@ only after). Energies integrate both powers over the same airborne intervals (ga
 from __future__ import annotations
 
 import math
-from collections.abc import Callable, Iterable
+from collections.abc import Callable, Iterable, Iterator
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
 
@@ -34,7 +34,7 @@ from estimator.estimation.pipeline import Estimate, Pipeline, PipelineSettings, 
 from estimator.estimation.return_home import MissionSample
 from estimator.logs import SampleStream, iter_samples
 from estimator.physics.vehicle import Vehicle
-from estimator.telemetry.samples import Sample
+from estimator.telemetry.samples import BatterySample, Sample
 
 #: Below this measured power (W) a MAPE term is not formed (a pack on the bench).
 MAPE_FLOOR_W = 1.0
@@ -234,3 +234,14 @@ def _duration_s(flight: FlightReplay) -> float:
         return 0.0
     steps = np.diff(times)
     return float(np.sum(steps[steps > 0]))
+
+
+def with_batteries(
+    samples: Iterable[Sample | MissionSample], batteries: list[BatterySample]
+) -> Iterator[Sample | MissionSample]:
+    """``samples`` unchanged, with the battery readings copied into ``batteries`` as they
+    pass (a replay that needs them afterwards reads the log once)."""
+    for sample in samples:
+        if isinstance(sample, BatterySample):
+            batteries.append(sample)
+        yield sample

@@ -148,6 +148,9 @@ class PackFilter:
         self._counter_base: tuple[float, float] | None = None  # (charge_ah, counter Ah) then
         self.rejected = 0
         self.updates = 0
+        self.started = False
+        #: Sample time (s) of the last reading :meth:`take` folded in (None: not known).
+        self.last_time_s: float | None = None
         #: Variance of one terminal-voltage reading (V²): the configured one, then the data's.
         self.noise_var_v2 = settings.voltage_noise_v**2
         self._noise_mean_v2 = self.noise_var_v2
@@ -179,9 +182,30 @@ class PackFilter:
             r0, r_sigma = fixed, 0.0
         ocv_v = voltage_v + max(current_a, 0.0) * r0
         s0 = float(np.clip(self.pack.soc_from_ocv(ocv_v), 0.0, 1.0))
+        self.started = True
         self.x = np.array([s0, q0, r0, 0.0])
         self.P = np.diag([_S_PRIOR_SIGMA**2, q_sigma**2, r_sigma**2, self.curve_sigma_v**2])
         self._update(voltage_v, current_a, _FIRST_UPDATE_ITERATIONS, gate=False)
+
+    def take(
+        self, time_s: float, voltage_v: float, current_a: float, consumed_mah: float | None
+    ) -> None:
+        """One reading with a current (s, V, A; the autopilot's consumed-charge counter then,
+        mAh, or None): the first starts the filter; each later one moves the charge drawn
+        (the counter, else the current since the last reading), then folds in the voltage."""
+        if not self.started:
+            self.start(voltage_v, current_a)
+            if consumed_mah is not None:
+                self.count(consumed_mah)
+        else:
+            last_s = time_s if self.last_time_s is None else self.last_time_s
+            dt_s = max(time_s - last_s, 0.0)
+            if consumed_mah is not None:
+                self.count(consumed_mah)
+            else:
+                self.draw(current_a, dt_s)
+            self.update(dt_s, voltage_v, current_a)
+        self.last_time_s = time_s
 
     # -- the charge drawn ---------------------------------------------------------------------
 
@@ -351,6 +375,7 @@ class PackFilter:
         if counter_base is not None and not all(map(math.isfinite, counter_base)):
             raise ValueError("counter base is not finite")
         self.x, self.P, self.charge_ah, self._counter_base = x, p, charge_ah, counter_base
+        self.started = True
 
 
 def track_pack(
@@ -360,26 +385,12 @@ def track_pack(
     prior: PackPrior | None = None,
 ) -> list[tuple[float, PackEstimate]]:
     """The pack filter over a flight's battery readings that carry a current: (time s,
-    estimate) after each. The charge drawn is the autopilot's counter where the readings
-    carry one, else the current integrated."""
+    estimate) after each (:meth:`PackFilter.take`)."""
     tracker = PackFilter(pack, settings or PackSettings(), prior)
     out: list[tuple[float, PackEstimate]] = []
-    last_s: float | None = None
     for sample in samples:
-        current_a = sample.current_a
-        if current_a is None or not math.isfinite(sample.voltage_v):
+        if sample.current_a is None or not math.isfinite(sample.voltage_v):
             continue
-        if last_s is None:
-            tracker.start(sample.voltage_v, current_a)
-        else:
-            dt_s = max(sample.time_s - last_s, 0.0)
-            if sample.consumed_mah is not None:
-                tracker.count(sample.consumed_mah)
-            else:
-                tracker.draw(current_a, dt_s)
-            tracker.update(dt_s, sample.voltage_v, current_a)
-        if last_s is None and sample.consumed_mah is not None:
-            tracker.count(sample.consumed_mah)
-        last_s = sample.time_s
+        tracker.take(sample.time_s, sample.voltage_v, sample.current_a, sample.consumed_mah)
         out.append((sample.time_s, tracker.estimate()))
     return out

@@ -48,7 +48,7 @@ from estimator.errors import UserError
 from estimator.estimation.airborne import AirborneGate, Phase
 from estimator.estimation.fusion import EnergyEstimate, EnergyFilter, FusionSettings
 from estimator.estimation.online_effects import OnlineEffects, TrackerReading
-from estimator.estimation.pack_state import PackFilter, PackPrior, PackSettings
+from estimator.estimation.pack_state import PackEstimate, PackFilter, PackPrior, PackSettings
 from estimator.estimation.return_home import (
     MissionEnergyFn,
     MissionSample,
@@ -304,7 +304,7 @@ class Pipeline:
         self.pack_prior = pack_prior
         #: The pack learned in flight (started at the first battery reading with a current).
         self.pack_state: PackFilter | None = None
-        self._pack_time_s: float | None = None
+        self._pack_estimate: PackEstimate | None = None  # the pack filter's, last period
         self._gate = AirborneGate(vehicle.model.hover_power_w)
         self._phase = Phase.GROUND  # of the latest battery reading
         self._phases: dict[int, Phase] = {}  # of the open period's readings, by id
@@ -560,7 +560,10 @@ class Pipeline:
                 resume.endurance_valid,
             )
             self._tracked_sq_w2, self._file_sq_w2 = resume.tracked_sq_w2, resume.file_sq_w2
-            self.pack_state, self._pack_time_s = resume.pack, sample.time_s
+            self.pack_state = resume.pack
+            if resume.pack is not None:
+                resume.pack.last_time_s = sample.time_s
+                self._pack_estimate = resume.pack.estimate()
             if self.online is not None:
                 self.online = OnlineEffects(self.vehicle.model, self.vehicle.mass_kg, self.effects)
             self._refresh_speeds()
@@ -727,31 +730,19 @@ class Pipeline:
         self._resistance_time_s = latest.time_s
         self.energy.voltage.update(dt, self.energy.soc, latest.voltage_v, current_a)
         self._learn_pack(latest, consumed_mah=charge[-1] if charge else None)
-        if self.pack_state is not None:
-            self.energy.anchor(self.pack_state.estimate())
         self._loss_factor = self.energy.loss_factor(self.energy.bias * self._power_model_w)
 
     def _learn_pack(self, latest: BatterySample, consumed_mah: float | None) -> None:
-        """The period's latest reading with a current into the pack filter: the charge drawn
-        (the autopilot's counter, else the current over the time since the last), then the
-        voltage at that current."""
-        current_a = latest.current_a
-        if current_a is None:
-            return
-        if self.pack_state is None:
-            self.pack_state = PackFilter(self.pack, self.settings.pack, self.pack_prior)
-            self.pack_state.start(latest.voltage_v, current_a)
-            if consumed_mah is not None:
-                self.pack_state.count(consumed_mah)
-        else:
-            assert self._pack_time_s is not None
-            dt_s = max(latest.time_s - self._pack_time_s, 0.0)
-            if consumed_mah is not None:
-                self.pack_state.count(consumed_mah)
-            else:
-                self.pack_state.draw(current_a, dt_s)
-            self.pack_state.update(dt_s, latest.voltage_v, current_a)
-        self._pack_time_s = latest.time_s
+        """The period's latest reading, when it has a current, into the pack filter (with the
+        counter's last value of the period); the fusion's energy rests on the pack's."""
+        if latest.current_a is not None:
+            if self.pack_state is None:
+                self.pack_state = PackFilter(self.pack, self.settings.pack, self.pack_prior)
+            current_a, voltage_v = latest.current_a, latest.voltage_v
+            self.pack_state.take(latest.time_s, voltage_v, current_a, consumed_mah)
+            self._pack_estimate = self.pack_state.estimate()
+        if self._pack_estimate is not None:
+            self.energy.anchor(self._pack_estimate)
 
     def _track_effects(self, time_s: float) -> None:
         """Follow wind and mass with the readings queued since the last tracker step, once
@@ -836,7 +827,7 @@ class Pipeline:
         stale = battery is None or time_s - battery.time_s > self.settings.battery_stale_s
         voltage = self.energy.voltage
         back = self.returning.figures(time_s, self._return_inputs(est, steady_w))
-        pack = None if self.pack_state is None else self.pack_state.estimate()
+        pack = self._pack_estimate
         estimate = Estimate(
             time_s=time_s,
             speed_mps=0.0 if state is None else state.speed_mps,
