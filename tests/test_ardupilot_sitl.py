@@ -436,7 +436,8 @@ def test_daemon_live_against_sitl_to_the_reserve(tmp_path: Path) -> None:
     SITL's draining 3S 2.2 Ah pack, flown to its 20 % reserve (consumed charge as the autopilot
     counts it): the endurance against the real time from each moment to the reserve is within
     5 % from 30 s after take-off (to 30 s before the reserve, where the time left gets short),
-    the first one published after take-off within 10 %, and nothing absurd before. The figures
+    those of the first 30 s within 3σ (the capacity is being learnt then) and 15 %, and nothing
+    absurd before. The figures
     go to ``endurance.json`` (docs/sitl.md has them)."""
     truth = Truth("to_reserve", "", "quad", DRAINING_PACK, {}, SITL_SPEEDUP)
     with live_daemon(tmp_path, FITTED_VEHICLE, DRAINING_PACK) as live:
@@ -459,7 +460,17 @@ def test_daemon_live_against_sitl_to_the_reserve(tmp_path: Path) -> None:
     print(json.dumps(report))
     assert errors.n > 100
     assert errors.worst_pct < 5.0, report
-    assert errors.worst_before_pct is not None and abs(errors.worst_before_pct) < 10.0, report
+    # the first 30 s: the pack's capacity is still being learnt (±25 % before the voltage
+    # has said anything): within 3σ, and never more than 15 % off
+    assert errors.worst_before_pct is not None and abs(errors.worst_before_pct) < 15.0, report
+    early = [
+        e
+        for e in estimates
+        if e["endurance_s"] is not None and takeoff_s <= e["time_s"] < takeoff_s + 30.0
+    ]
+    for e in early:
+        left_s = reserve_s - e["time_s"]
+        assert abs(e["endurance_s"] - left_s) <= 3.0 * e["endurance_sigma_s"], (e, left_s)
     assert published and len(ours) > 50
     # never absurd: nothing published says more than SITL's pack could ever give (an hour)
     assert max(e["endurance_s"] for e in estimates if e["endurance_s"] is not None) < 3600.0
