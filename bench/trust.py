@@ -23,9 +23,10 @@ from pathlib import Path
 
 from pymavlink.dialects.v20 import common as mavlink
 
-from estimator.estimation.pipeline import Estimate, Pipeline
+from estimator.estimation.estimate import Estimate
+from estimator.estimation.pipeline import Pipeline
 from estimator.mavlink.signing import LinkSigning, SigningCodec
-from estimator.mavlink.state_file import SavedState, write_state
+from estimator.mavlink.state_file import SavedState, vehicle_identity, write_state
 from estimator.physics.vehicle import default_vehicle
 from estimator.sim.run import SimConfig
 from estimator.sim.simulator import simulate
@@ -119,7 +120,9 @@ def main() -> None:
             pipeline.process(sample)
     snapshot = pipeline.snapshot()
     assert snapshot is not None
-    state = SavedState(1, 1, time.time(), float(snapshot["energy"]["time_s"]), snapshot)
+    clock_s = float(snapshot["energy"]["time_s"])
+    identity = vehicle_identity(default_vehicle())
+    state = SavedState(1, 1, time.time(), clock_s, snapshot, identity)
     with tempfile.TemporaryDirectory() as tmp:
         path = Path(tmp) / "state.json"
         times_ms = []

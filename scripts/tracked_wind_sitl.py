@@ -16,7 +16,7 @@ from pathlib import Path
 import numpy as np
 
 from estimator.analysis.replay import replay_stream
-from estimator.estimation.pipeline import Estimate
+from estimator.estimation.estimate import Estimate
 from estimator.logs import iter_samples
 from estimator.physics.effects import Wind
 from estimator.physics.vehicle import Vehicle, load_vehicle

@@ -12,6 +12,7 @@ from estimator.errors import UserError
 from estimator.physics.battery import CELL_OCV_POINTS_V, PackModel
 from estimator.physics.vehicle import BatterySpec, default_vehicle, load_vehicle
 from estimator.sim.pack_drain import drain_pack
+from estimator.sitl.pack import SOC_TABLE, resting_cell_voltage_v
 
 REPO = Path(__file__).resolve().parent.parent
 #: ArduPilot SITL's pack curve as the SITL vehicle file carries it.
@@ -85,3 +86,28 @@ def test_the_simulator_drains_a_pack_along_its_curve() -> None:
     assert n == 5
     assert volts[0] == pytest.approx(3 * curve[(len(curve) - 1) // 2])
     assert np.all(np.diff(socs) < 0)
+
+
+def test_the_sitl_curve_is_as_good_as_its_file_says() -> None:
+    """``cell_ocv_sigma_v`` of the SITL vehicle file against SITL's own table (scaled to
+    4.2 V per cell as SITL does): RMS within the σ and no point beyond 2σ, from 5 % charge
+    (below, SITL's curve falls towards 0 V and is never flown)."""
+    battery = load_vehicle(SITL_VEHICLE).battery
+    assert battery.cell_ocv_sigma_v is not None and battery.cell_ocv_v is not None
+    soc = np.linspace(0.05, 1.0, 20001)
+    table_v = 4.2 / SOC_TABLE[0][0] * np.array([resting_cell_voltage_v(s) for s in soc])
+    file_v = np.interp(soc, np.linspace(0.0, 1.0, len(battery.cell_ocv_v)), battery.cell_ocv_v)
+    error_v = file_v - table_v
+    assert np.sqrt(np.mean(error_v**2)) <= battery.cell_ocv_sigma_v
+    assert np.abs(error_v).max() <= 2.0 * battery.cell_ocv_sigma_v
+
+
+def test_a_curve_sigma_comes_with_its_curve(tmp_path: Path) -> None:
+    doc = SITL_VEHICLE.read_text()
+    path = tmp_path / "v.toml"
+    path.write_text(doc.replace("cell_ocv_sigma_v = 0.001", "cell_ocv_sigma_v = -1"))
+    with pytest.raises(UserError, match="cell_ocv_sigma_v' must be between"):
+        load_vehicle(path)
+    path.write_text("\n".join(ln for ln in doc.splitlines() if not ln.startswith("cell_ocv_v")))
+    with pytest.raises(UserError, match="give both"):
+        load_vehicle(path)

@@ -12,12 +12,14 @@ stream for comparison (figures in docs/daemon.md).
 from __future__ import annotations
 
 from dataclasses import dataclass, replace
+from pathlib import Path
 
 import numpy as np
 import pytest
 
+from estimator.estimation.estimate import Estimate
 from estimator.estimation.pack_state import OWN_CURVE_SIGMA_V, PackSettings
-from estimator.estimation.pipeline import Estimate, Pipeline, PipelineSettings
+from estimator.estimation.pipeline import Pipeline, PipelineSettings
 from estimator.physics.battery import CHEMISTRY_OCV_V, SOC_POINTS
 from estimator.physics.effects import Avionics, Wind
 from estimator.physics.vehicle import default_vehicle
@@ -27,6 +29,7 @@ from estimator.sim.simulator import simulate
 from estimator.telemetry.decode import TelemetryDecoder
 from estimator.telemetry.samples import BatterySample
 
+ROOT = Path(__file__).resolve().parent.parent
 CHECK_AFTER_CHANGE_S = (10.0, 30.0, 120.0)
 #: Drawn flights of the calibration ensemble.
 ENSEMBLE_FLIGHTS = 12
@@ -249,20 +252,29 @@ def drawn() -> EnsembleErrors:
 @pytest.mark.slow
 def test_one_sigma_holds_55_to_80_percent_on_drawn_packs(drawn: EnsembleErrors) -> None:
     """Pooled over drawn packs (aged, mislabelled, part-charged, their curve a little off) on
-    the default settings, the true endurance is inside ±1σ for 55–80 % of the estimates (58 %
+    the default settings, the true endurance is inside ±1σ for 55–80 % of the estimates (57.6 %
     measured): σ neither too narrow nor too wide."""
     assert len(drawn.z) > 100
     assert 0.55 <= np.mean(drawn.z <= 1.0) <= 0.80
 
 
 @pytest.mark.slow
-@pytest.mark.xfail(
-    strict=True,
-    reason="3σ holds 96.7 % (16 of 488 outside): packs powered up part-charged on the flat of "
-    "the LiPo curve learn their capacity late, and their endurance runs up to 4σ off meanwhile",
-)
 def test_three_sigma_holds_97_percent_on_drawn_packs(drawn: EnsembleErrors) -> None:
     assert np.mean(drawn.z <= 3.0) >= 0.97
+
+
+@pytest.mark.slow
+def test_the_docs_give_the_ensemble_as_measured(drawn: EnsembleErrors) -> None:
+    """The ensemble's coverage and median error in README.md, docs/pack.md and
+    docs/daemon.md are what this ensemble measures: a figure that drifts fails here."""
+    one, three = np.mean(drawn.z <= 1.0), np.mean(drawn.z <= 3.0)
+    median = np.median(100 * np.abs(np.concatenate(drawn.ours)))
+    docs = {name: (ROOT / name).read_text() for name in ("README.md", "docs/pack.md")}
+    docs["docs/daemon.md"] = (ROOT / "docs" / "daemon.md").read_text()
+    for name, text in docs.items():
+        flat = " ".join(text.split())
+        assert f"{100 * one:.1f} %" in flat and f"{100 * three:.1f} %" in flat, name
+        assert f"{median:.2f} %" in flat, name
 
 
 def ensemble(flights: int = ENSEMBLE_FLIGHTS) -> None:
@@ -276,28 +288,58 @@ def ensemble(flights: int = ENSEMBLE_FLIGHTS) -> None:
         )
     z = result.z
     print(
-        f"ensemble of {flights} drawn packs, default settings: {np.mean(z <= 1):.0%} within "
-        f"1σ, {np.mean(z <= 3):.0%} within 3σ (n = {len(z)}), mean |error|/σ {np.mean(z):.2f}"
+        f"ensemble of {flights} drawn packs, default settings: {np.mean(z <= 1):.1%} within "
+        f"1σ, {np.mean(z <= 3):.1%} within 3σ (n = {len(z)}), mean |error|/σ {np.mean(z):.2f}"
     )
 
 
-def table(flown: Flown, title: str) -> None:
-    run = flown.run
-    print(title)
-    print(f"hover→cruise at {flown.change_s:.1f} s, reserve reached at {run.reserve_time_s:.1f} s")
-    print("after change | truth s | estimate ± 1σ s      | error  | PX4-style s | error")
+def _signed_pct(fraction: float) -> str:
+    return f"{100 * fraction:+.2f} %".replace("-", "−")
+
+
+def _after_label(after_s: float) -> str:
+    return f"{after_s:.0f} s" if after_s < 120 else f"{after_s / 60:.0f} min"
+
+
+def table_rows(flown: Flown) -> list[str]:
+    """The rows of a docs/daemon.md table: truth, ours ± 1σ and PX4-style after the change."""
+    rows = []
     for after_s in (*CHECK_AFTER_CHANGE_S, 300.0, 600.0, 1200.0):
         t = flown.change_s + after_s
         e = flown.estimate_at(t)
         truth_s = flown.truth_left_s(e.time_s)
         px4_s = flown.px4_at(t)
-        print(
-            f"{after_s:10.0f} s | {truth_s:7.0f} | {e.endurance_s:7.0f} ± "
-            f"{e.endurance_sigma_s:4.0f}        "
-            f"| {100 * (e.endurance_s - truth_s) / truth_s:+5.2f}%"
-            f" | {px4_s:11.0f}"
-            f" | {100 * (px4_s - truth_s) / truth_s:+6.2f}%"
+        rows.append(
+            f"| {_after_label(after_s)} | {truth_s:.0f} | {e.endurance_s:.0f} ± "
+            f"{e.endurance_sigma_s:.0f} | {_signed_pct((e.endurance_s - truth_s) / truth_s)} "
+            f"| {px4_s:.0f} | {_signed_pct((px4_s - truth_s) / truth_s)} |"
         )
+    return rows
+
+
+def table(flown: Flown, title: str) -> None:
+    print(title)
+    print(
+        f"hover→cruise at {flown.change_s:.1f} s, "
+        f"reserve reached at {flown.run.reserve_time_s:.1f} s"
+    )
+    print("| after change | truth s | estimate ± 1σ s | error | PX4-style s | error |")
+    print("|---:|---:|---:|---:|---:|---:|")
+    print("\n".join(table_rows(flown)))
+
+
+@pytest.mark.slow
+def test_the_docs_give_the_hover_cruise_tables_as_measured(hover_cruise: Flown) -> None:
+    """docs/daemon.md's tables and the README's summary come from this flight: a figure
+    that drifts fails here."""
+    doc = (ROOT / "docs" / "daemon.md").read_text()
+    rows = table_rows(hover_cruise)
+    for row in rows:
+        assert row in doc, row
+    cells = [row.strip("| ").split(" | ") for row in rows[:3]]
+    ours = " / ".join(c[3].removesuffix(" %") for c in cells)
+    px4 = " / ".join(c[5].removesuffix(" %") for c in cells)
+    assert f"| +10 s / +30 s / +2 min | {ours} % | {px4} % |" in (ROOT / "README.md").read_text()
 
 
 if __name__ == "__main__":

@@ -5,6 +5,7 @@ failed rows with their reason, resume by content hash, trends, and the CLI as a 
 from __future__ import annotations
 
 import json
+import os
 import shutil
 import subprocess
 import sys
@@ -140,6 +141,29 @@ def test_trends_give_a_slope_per_vehicle_and_per_pack_and_a_mass_ratio() -> None
     assert "mass ×1.066" in hover.line()  # (165/150)^(2/3)
     window = fleet_trends(to_table(rows), since=date(2016, 3, 21), until=date(2016, 4, 10))
     assert window.dated == 3  # days 20, 30 and 40
+
+
+def test_every_glob_match_gets_a_row_with_its_reason_in_plain_words(
+    client: Client, tmp_path: Path
+) -> None:
+    shutil.copy(LOGS[0], tmp_path / "good.log")
+    (tmp_path / "folder.log").mkdir()
+    (tmp_path / "dangling.log").symlink_to(tmp_path / "gone.log")
+    (tmp_path / "loop.log").symlink_to(tmp_path / "loop.log")
+    os.mkfifo(tmp_path / "fifo.log")
+    found = expand_inputs([str(tmp_path / "*.log")])
+    assert len(found) == 5
+    out = tmp_path / "results.parquet"
+    counts = run_fleet(
+        client, found, FleetJob("replay", load_vehicle(REPLAY / "vehicle.toml")), out
+    )
+    assert (counts.logs, counts.ok, counts.failed, counts.unexpected) == (5, 1, 4, 0)
+    errors = {Path(r["path"]).name: r["error"] for r in pq.read_table(out).to_pylist()}
+    assert errors["good.log"] is None
+    assert errors["folder.log"].endswith("folder.log is a directory")
+    assert errors["dangling.log"].endswith("dangling.log is a symbolic link to a missing file")
+    assert errors["loop.log"].endswith("loop.log is a symbolic link loop")
+    assert errors["fifo.log"].endswith("fifo.log is a FIFO, not a regular file")
 
 
 def test_inputs_expand_globs_and_reject_directories(tmp_path: Path) -> None:

@@ -15,6 +15,7 @@ PACKAGE = Path(__file__).resolve().parent.parent / "estimator"
 #: Bottom to top; folders (or top-level modules) on one line are peers.
 LAYERS: list[set[str]] = [
     {"errors"},
+    {"file_checks"},
     {"toml_files"},
     {"telemetry"},
     {"physics"},

@@ -151,8 +151,11 @@ async def test_serial_link_over_a_pseudo_terminal() -> None:
 async def test_opening_a_missing_serial_device_is_unavailable_not_a_user_error(
     tmp_path: Path,
 ) -> None:
-    """Missing: it may come back (exit 75, systemd restarts); not a serial port: a mistake."""
+    """A missing USB device may come back (exit 75, systemd restarts); a missing on-board
+    port, or one that is not a serial port: a mistake."""
     with pytest.raises(Unavailable, match="cannot open"):
+        await open_link("/dev/serial/by-id/usb-does-not-exist-uav:115200")
+    with pytest.raises(UserError, match="serial device /dev/does-not-exist-uav does not exist"):
         await open_link("/dev/does-not-exist-uav:115200")
     (tmp_path / "plain").write_text("")
     with pytest.raises(UserError, match="not a serial port"):

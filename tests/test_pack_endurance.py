@@ -18,6 +18,7 @@ import pytest
 
 from estimator.analysis.pack_flights import PackFlight, replay_pack_flight
 from estimator.analysis.replay import run
+from estimator.estimation.estimate import Estimate
 from estimator.estimation.pipeline import Pipeline
 from estimator.logs import iter_samples
 from estimator.physics.vehicle import load_vehicle
@@ -35,10 +36,6 @@ SCORED = [n for n in NAMES if n not in UNSCORED]
 MISSES = {
     "pack_c80_r1_wind": "worst −9.4 % 75 s before the reserve: the steady power in the wind "
     "the model predicts there (403 W at 4.4 m/s) runs 5 % above the measured (382 W)",
-    "pack_c65_r3_soc75": "median 3.9 %, worst +8.4 % at 69 s after take-off: powered up at "
-    "75 %, the first minute narrows the capacity to 3.42 ± 0.21 Ah only (truth 3.25)",
-    "pack_c80_r3_soc75_wind_payload": "median 3.04 %: a steady +3 % with the capacity right "
-    "(4.01 Ah); not traced yet",
 }
 
 
@@ -108,16 +105,11 @@ def test_three_sigma_pooled_over_the_pack_flights_holds_97_percent(
     assert np.mean(np.abs(z) <= 3.0) >= 0.97
 
 
-@pytest.mark.xfail(
-    strict=True,
-    reason="94 % inside ±1σ: σ too wide on SITL, whose pack has no temperature drift, no "
-    "ripple and this exact curve; the filter keeps a real pack's resistance walk and the "
-    "model scale's state-change uncertainty",
-)
-def test_one_sigma_pooled_over_the_pack_flights_holds_55_to_80_percent(
-    flights: dict[str, PackFlight],
+@pytest.mark.parametrize("half", ["tuning", "held_out"])
+def test_one_sigma_pooled_over_each_half_holds_55_to_80_percent(
+    flights: dict[str, PackFlight], half: str
 ) -> None:
-    z = np.concatenate([flights[n].z for n in SCORED])
+    z = np.concatenate([flights[n].z for n in SPLIT[half] if n in SCORED])
     assert 0.55 <= np.mean(np.abs(z) <= 1.0) <= 0.80
 
 
@@ -134,27 +126,31 @@ def test_the_table_of_docs_pack_md_is_what_the_script_prints(
     for half in ("tuning", "held_out"):
         for name in SPLIT[half]:
             assert script.table_row(flights[name], half.replace("_", "-")) in doc, name
+    held_out = [flights[n] for n in SPLIT["held_out"]]
+
+    def median_pct(errors: list[np.ndarray]) -> float:
+        pooled = np.abs(np.concatenate(errors))
+        return float(100 * np.median(pooled[np.isfinite(pooled)]))
+
+    readme = (ROOT / "README.md").read_text()
+    ours = median_pct([f.errors for f in held_out])
+    px4 = median_pct([f.px4_errors for f in held_out])
+    ardupilot = median_pct([f.ardupilot_errors for f in held_out])
+    assert f"{ours:.1f} % held out (PX4-style {px4:.0f} %, ArduPilot {ardupilot:.0f} %)" in readme
 
 
 #: A daemon started mid-flight without a state file: why it does not converge in 60 s.
 RESTART_MISS = (
-    "under a steady load the start's charge and the resistance are one unknown (30 mΩ "
-    "against a 12 ± 12 mΩ prior), and the filter settles on a wrong pair too surely "
-    "(pack_c80_r3: −58 % at 9σ; pack_c65_r1: +66 %, the capacity still 4.27 ± 0.71 Ah)"
+    "started under load, the charge and the resistance are one unknown until the current "
+    "moves; the bank of starts (estimation/pack_bank.py) weighs the right resistance up only "
+    "over 60-100 s on SITL's small current swings (1-3 A), while the learnt reading noise "
+    "is still 15-20 mV against SITL's 1.5 mV: {}"
 )
 
 
-@pytest.mark.parametrize(
-    "name",
-    [
-        pytest.param("pack_c65_r1", marks=pytest.mark.xfail(strict=True, reason=RESTART_MISS)),
-        "pack_c100_r1",
-        pytest.param("pack_c80_r3", marks=pytest.mark.xfail(strict=True, reason=RESTART_MISS)),
-    ],
-)
-def test_a_daemon_started_mid_flight_without_state_converges_within_60_s(name: str) -> None:
-    """The pipeline fed from 90 s after take-off on (as a daemon restarted then, with no
-    state file): 60 s later, the endurance within 8 % of the truth and within 3σ."""
+def _restarted(name: str) -> tuple[dict[str, Any], list[Estimate]]:
+    """The pipeline fed from 90 s after take-off on, as a daemon restarted then with no
+    state file, under the pack's label."""
     truth = json.loads((FLIGHTS / name / "truth.json").read_text())
     labelled = replace(VEHICLE, battery=replace(VEHICLE.battery, capacity_ah=5.0))
     start_s = truth["events"]["takeoff_s"] + 90.0
@@ -164,7 +160,56 @@ def test_a_daemon_started_mid_flight_without_state_converges_within_60_s(name: s
         if getattr(s, "time_s", 0.0) >= start_s
     ]
     estimates, _, _ = run(samples, Pipeline(labelled))
+    return truth, estimates
+
+
+@pytest.mark.parametrize(
+    "name",
+    [
+        pytest.param(
+            "pack_c65_r1",
+            marks=pytest.mark.xfail(
+                strict=True,
+                reason=RESTART_MISS.format("+32 % at 60 s, 3.9 ± 1.1 Ah (3.25); 3 % at 96 s"),
+            ),
+        ),
+        "pack_c100_r1",
+        "pack_c80_r3",
+    ],
+)
+def test_a_daemon_started_mid_flight_without_state_converges_within_60_s(name: str) -> None:
+    """60 s after the restart, the endurance within 8 % of the truth and within 3σ."""
+    truth, estimates = _restarted(name)
+    start_s = estimates[0].time_s
     at = min(estimates, key=lambda e: abs(e.time_s - start_s - 60.0))
     left_s = truth["events"]["reserve_s"] - at.time_s
     assert abs(at.endurance_s - left_s) <= 0.08 * left_s
     assert abs(at.endurance_s - left_s) <= 3 * at.endurance_sigma_s
+
+
+@pytest.mark.parametrize(
+    "name",
+    [
+        "pack_c65_r1",
+        "pack_c100_r1",
+        pytest.param(
+            "pack_c80_r3",
+            marks=pytest.mark.xfail(
+                strict=True,
+                reason="the bank settles on the start at 24 mΩ 96 s after the restart; that "
+                "filter holds 27-28 mΩ against the pack's 30 and a charge 0.03-0.05 low, "
+                "surely (-5.7σ); from power-up the same flight learns 30.0 mΩ off the "
+                "take-off's current step",
+            ),
+        ),
+    ],
+)
+def test_a_daemon_started_mid_flight_is_never_surer_than_it_is_right(name: str) -> None:
+    """From 10 s after the restart until 60 s before the reserve, the truth is inside 3σ of
+    every endurance (one filter started under load was 9σ off: pack_c80_r3, −58 %)."""
+    truth, estimates = _restarted(name)
+    start_s, reserve_s = estimates[0].time_s, truth["events"]["reserve_s"]
+    scored = [e for e in estimates if start_s + 10.0 <= e.time_s <= reserve_s - 60.0]
+    assert len(scored) > 30
+    z = [(e.endurance_s - (reserve_s - e.time_s)) / e.endurance_sigma_s for e in scored]
+    assert max(abs(v) for v in z) <= 3.0, max(z, key=abs)

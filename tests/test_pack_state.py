@@ -16,14 +16,10 @@ import numpy as np
 import pytest
 
 from estimator.analysis.pack_flights import half_used_s, replay_pack_flight
-from estimator.estimation.pack_state import (
-    PackEstimate,
-    PackFilter,
-    PackPrior,
-    PackSettings,
-    track_pack,
-)
-from estimator.estimation.pipeline import Estimate, Pipeline
+from estimator.estimation.estimate import Estimate
+from estimator.estimation.pack_bank import track_pack
+from estimator.estimation.pack_state import PackEstimate, PackFilter, PackPrior, PackSettings
+from estimator.estimation.pipeline import Pipeline
 from estimator.logs import iter_samples
 from estimator.mavlink.pack_alerts import PackLabelAlert
 from estimator.physics.battery import CHEMISTRY_OCV_V, SOC_POINTS, PackModel
@@ -236,3 +232,15 @@ def test_the_charge_before_take_off_is_read_within_5_percent_on_the_simulator(
     assert first is not None and not run.truth.flying[run.truth.at(first.time_s)]
     assert abs(first.pack_soc - soc0) <= 0.05
     assert abs(first.pack_soc - soc0) <= 2 * first.pack_soc_sigma
+
+
+def test_a_resistance_measured_on_the_pack_is_the_prior() -> None:
+    """``[battery] internal_resistance_ohm`` (written by ``uav-energy fit``) starts the filter,
+    ± 30 %; the pack's memory, where there is one, wins."""
+    spec = replace(OWN, internal_resistance_ohm=0.021)
+    assert PackFilter(PackModel(spec), PackSettings()).resistance_prior() == pytest.approx(
+        (0.021, 0.0063)
+    )
+    memory = PackPrior(capacity_ah=4.0, capacity_sigma_ah=0.1, resistance_ohm=0.03,
+                       resistance_sigma_ohm=0.002)  # fmt: skip
+    assert PackFilter(PackModel(spec), PackSettings(), memory).resistance_prior() == (0.03, 0.002)

@@ -8,7 +8,8 @@ from dataclasses import replace
 
 import pytest
 
-from estimator.estimation.pipeline import Estimate, Pipeline
+from estimator.estimation.estimate import Estimate
+from estimator.estimation.pipeline import Pipeline
 from estimator.mavlink.link import MavlinkLink, parse_url
 from estimator.mavlink.publish import ENDURANCE_FIELDS, battery_status, json_line, named_values
 from estimator.physics.vehicle import default_vehicle

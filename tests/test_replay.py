@@ -16,12 +16,14 @@ from pathlib import Path
 import pytest
 from fixtures.dataflash_writer import DataFlashWriter
 from fixtures.flight import write_bin, write_ulg
+from pymavlink.dialects.v20 import common as mavlink
 
 from estimator.analysis.replay import replay_log, summarize
 from estimator.cli import main
 from estimator.commands.replay import CSV_COLUMNS, flight_names, parse_speed
+from estimator.estimation.estimate import Estimate
 from estimator.estimation.fusion import FusionSettings
-from estimator.estimation.pipeline import Estimate, Pipeline, PipelineSettings
+from estimator.estimation.pipeline import Pipeline, PipelineSettings
 from estimator.logs import iter_samples
 from estimator.mavlink.config import ServiceConfig
 from estimator.mavlink.publish import json_line
@@ -115,6 +117,23 @@ def _free_udp_port() -> int:
         return int(s.getsockname()[1])
 
 
+def _with_clock_gaps(frames: list[bytes]) -> list[tuple[bytes, bool]]:
+    """Each frame, and whether the autopilot's clock (time_boot_ms) moved more than 5 s
+    or back since the last stamped frame: a gap in the recording, where a live link is
+    silent for as long."""
+    parser = mavlink.MAVLink(None)
+    parser.robust_parsing = True
+    out, last_ms = [], None
+    for frame in frames:
+        stamps = [
+            m.time_boot_ms for m in parser.parse_buffer(frame) or [] if hasattr(m, "time_boot_ms")
+        ]
+        gap = bool(stamps) and last_ms is not None and not 0 <= stamps[0] - last_ms <= 5000
+        last_ms = stamps[-1] if stamps else last_ms
+        out.append((frame, gap))
+    return out
+
+
 def _tlog_frames(path: Path) -> list[bytes]:
     """The MAVLink frames of a tlog, in order (each record: 8-byte stamp + frame)."""
     data, frames, pos = path.read_bytes(), [], 0
@@ -148,7 +167,9 @@ async def test_the_daemon_fed_a_logs_bytes_over_udp_publishes_the_replays_estima
     while service.link is None:
         await asyncio.sleep(0.01)
     with socket.socket(socket.AF_INET, socket.SOCK_DGRAM) as autopilot:
-        for i, frame in enumerate(_tlog_frames(IRIS_LOG)):
+        for i, (frame, gap) in enumerate(_with_clock_gaps(_tlog_frames(IRIS_LOG))):
+            if gap:  # the link was silent there (the daemon proves a new clock by silence)
+                await asyncio.sleep(1.2)
             autopilot.sendto(frame, ("127.0.0.1", daemon_port))
             if i % 5 == 4:  # paced: no datagram may be lost
                 await asyncio.sleep(0.002)

@@ -14,7 +14,7 @@ import pytest
 from pymavlink.dialects.v20 import common as mavlink
 from test_service import Messages, first_mavsdk_system, running, wait_for
 
-from estimator.estimation.pipeline import Estimate
+from estimator.estimation.estimate import Estimate
 from estimator.logs.mission_files import M_PER_DEG
 from estimator.mavlink import service as service_module
 from estimator.mavlink.config import ServiceConfig

@@ -23,7 +23,6 @@ from test_service import (
 )
 
 from estimator.cli import main as cli_main
-from estimator.mavlink import autopilot_lock
 from estimator.mavlink.config import ServiceConfig
 from estimator.mavlink.signing import load_key, signing_timestamp
 from estimator.telemetry.decode import USED_MESSAGE_IDS
@@ -212,76 +211,61 @@ def _conf(tmp_path: Path) -> Path:
 async def test_autopilot_is_locked_after_its_telemetry_confirms_it_not_first_speaker(
     flight: Messages,  # noqa: F811
     caplog: pytest.LogCaptureFixture,
-    monkeypatch: pytest.MonkeyPatch,
 ) -> None:
-    """A forger's autopilot HEARTBEAT comes first but no telemetry confirms it: after the
-    candidate timeout the real autopilot (second to speak) is locked, its held frames
-    decoded, so the estimates equal a replay; the forger, now a second autopilot sending
-    telemetry, is logged once and ignored; the locked autopilot rebooting confirms itself
-    again."""
+    """A forger's autopilot HEARTBEAT comes first but no telemetry: it is no candidate; the
+    real autopilot (second to speak) is locked, its held frames decoded, so the estimates
+    equal a replay; the forger, now a second autopilot sending telemetry, is logged once and
+    ignored; the locked autopilot rebooting (its old clock stopped) is believed and keeps the
+    lock."""
     caplog.set_level(logging.INFO)
-    monkeypatch.setattr(autopilot_lock, "CANDIDATE_TIMEOUT_S", 1.0)
     messages = [m for _, m in flight]
     expected = replay(messages)[-1]  # nothing lost, nothing of the forger's
     async with running(ServiceConfig(stale_after_s=30.0)) as (service, sender):
         forger = await autopilot_to(daemon_port(service), system=7)
         forger.send_raw(forger.pack(messages[0]))  # HEARTBEAT of a quadrotor, nothing more
-        await wait_for(lambda: service.lock.candidate == (7, 1))
-        await asyncio.sleep(1.1)
         await play(sender, messages[:200])
         await wait_for(lambda: service.lock.locked == (1, 1))
         for _ in range(3):  # the forger now plays a whole flight
             await forger.play(messages[:200])
         await play(sender, messages[200:])
         await wait_for(lambda: service.latest == expected)
-        assert service.lock.counts["candidates_dropped"] == 1
+        assert service.lock.counts["candidates"] >= 1
         used = sum(m.get_msgId() in USED_MESSAGE_IDS for m in messages[:200])
         assert service.lock.counts["other_autopilot_frames"] >= 3 * used
         assert service.decoder.counts["other_source"] >= 3 * used
-        # the autopilot reboots: it confirms itself again with its new clock
+        # the autopilot reboots: its new clock runs alone, and is believed
         await play(sender, messages[: len(messages) // 3])
         await wait_for(lambda: service.decoder.counts["reboots"] == 1)
-        await wait_for(lambda: not service.lock.rechecking)
-        assert service.lock.locked == (1, 1)
+        assert service.lock.locked == (1, 1) and service.lock.counts["off_clock_frames"] == 0
     log = caplog.text
-    assert "autopilot candidate: system 7 component 1" in log
-    assert "not confirmed by its telemetry" in log
     assert "autopilot found: system 1 component 1, locked" in log
-    assert log.count("second autopilot system 7 component 1 ignored") == 1
-    assert "system 1 component 1 confirmed after its reboot" in log
+    assert log.count("other autopilots ignored") == 1
+    assert "latest from system 7 component 1 (listening to system 1 component 1)" in log
 
 
-async def test_a_rebooted_autopilot_that_does_not_confirm_itself_is_released(
+async def test_a_reboot_is_believed_when_the_old_clock_stops_and_no_heartbeat_releases_it(
     flight: Messages,  # noqa: F811
-    caplog: pytest.LogCaptureFixture,
-    monkeypatch: pytest.MonkeyPatch,
 ) -> None:
-    monkeypatch.setattr(autopilot_lock, "CANDIDATE_TIMEOUT_S", 1.0)
+    """Five frames of an earlier clock and then silence: after REBOOT_CONFIRM_WALL_S of the
+    new clock alone, a reboot. A HEARTBEAT of another vehicle type with the autopilot's ids
+    while its clock runs is dropped: the lock stays."""
     messages = [m for _, m in flight[:300]]
     async with running(ServiceConfig(stale_after_s=30.0)) as (service, sender):
         await play(sender, messages)
         await wait_for(lambda: service.lock.locked == (1, 1))
-        for j in range(5):  # five frames of an earlier clock: a reboot, and then silence
+        for j in range(5):  # five frames of an earlier clock, and then silence
             sender.send(sender.mav.attitude_encode(1_000 + 100 * j, 0, 0, 0, 0, 0, 0))
-        await wait_for(lambda: service.decoder.counts["reboots"] == 1)
-        await wait_for(lambda: service.lock.locked is None, timeout_s=5)
-        assert service.decoder.target is None
-        await play(sender, messages)  # it speaks again: selected and locked again
-        await wait_for(lambda: service.lock.locked == (1, 1))
-        # another reboot, and a HEARTBEAT of another vehicle type with those ids: released
-        # at once, that HEARTBEAT the new candidate
-        for j in range(5):
-            sender.send(sender.mav.attitude_encode(1_000 + 100 * j, 0, 0, 0, 0, 0, 0))
-        await wait_for(lambda: service.decoder.counts["reboots"] == 2)
+        await wait_for(lambda: service.decoder.counts["reboots"] == 1, timeout_s=5)
+        assert service.lock.counts["clock_changes"] == 1
         sender.send(
             sender.mav.heartbeat_encode(
                 mavlink.MAV_TYPE_FIXED_WING, mavlink.MAV_AUTOPILOT_ARDUPILOTMEGA, 0, 0, 3
             )
         )
-        await wait_for(lambda: service.lock.candidate == (1, 1))
-        assert service.lock.counts["released"] == 2 and service.decoder.target is None
-    assert "did not confirm itself after its reboot" in caplog.text
-    assert "sent a HEARTBEAT of type 1, autopilot 3 after its reboot" in caplog.text
+        await play(sender, messages)  # its clock runs on from the reboot
+        await wait_for(lambda: service.lock.counts["heartbeat_mismatch"] == 1)
+        assert service.lock.locked == (1, 1) and service.decoder.target == (1, 1)
+        assert service.decoder.counts["reboots"] == 1
 
 
 # -- udpin answers only the autopilot -----------------------------------------------------------
@@ -307,28 +291,25 @@ async def test_udpin_answers_only_the_locked_autopilot(
             await asyncio.sleep(1.0)  # a HEARTBEAT period and a publish period each
         # datagrams of unused ids only are dropped by their header before the peer check
         used = sum(m.get_msgId() in USED_MESSAGE_IDS for m in messages[:100])
-        await wait_for(lambda: service.link.counts["foreign_peer"] >= 2 * used)  # type: ignore[union-attr]
+        await wait_for(lambda: service.lock.counts["foreign_peer"] >= 2 * used)
         assert service.pipeline.counts["velocity"] < 400  # the forger's frames were dropped
     kinds = {m.get_type() for m in autopilot.received}
     assert {"REQUEST_DATA_STREAM", "COMMAND_LONG", "HEARTBEAT", "NAMED_VALUE_FLOAT"} <= kinds
     assert forger.datagrams == 0 and other.datagrams == 0
 
 
-async def test_stream_requests_stay_rate_limited_whatever_asks(
+async def test_autopilot_heartbeats_of_thirty_systems_are_never_asked_or_answered(
     flight: Messages,  # noqa: F811
-    monkeypatch: pytest.MonkeyPatch,
 ) -> None:
-    """30 autopilot HEARTBEATs of new systems, each a candidate that never confirms (timeout
-    0.2 s here), in 7.5 s: each candidate is asked for telemetry, but at most one round of
-    stream requests goes out per REQUEST_RETRY_S (5 s), not thirty."""
-    monkeypatch.setattr(autopilot_lock, "CANDIDATE_TIMEOUT_S", 0.2)
+    """30 autopilot HEARTBEATs of new systems: none is a candidate (a HEARTBEAT alone is no
+    evidence), none gets a stream request or anything else."""
     heartbeat = next(m for _, m in flight if m.get_type() == "HEARTBEAT")
-    async with running(ServiceConfig(stale_after_s=30.0)) as (service, _sender):
+    config = ServiceConfig(stale_after_s=30.0, heartbeat_to_autopilot=True)
+    async with running(config) as (service, _sender):
         forgers = [await autopilot_to(daemon_port(service), system=10 + k) for k in range(30)]
         for forger in forgers:
             forger.send_raw(forger.pack(heartbeat))
-            await asyncio.sleep(0.25)
-        await wait_for(lambda: service.lock.counts["candidates"] == 30)
-    rounds = sum(m.get_type() == "REQUEST_DATA_STREAM" for f in forgers for m in f.received) / 2
-    assert service.lock.counts["candidates_dropped"] >= 29
-    assert 1 <= rounds <= 3  # 7.5 s: at 0, 5 (and a late one at 10 s at most)
+        await wait_for(lambda: service.lock.counts["before_autopilot"] == 30)
+        await asyncio.sleep(1.1)  # a HEARTBEAT period and a stream request round
+    assert service.lock.counts["candidates"] == 0
+    assert sum(f.datagrams for f in forgers) == 0

@@ -56,3 +56,31 @@ def flight_frames(
 def write_tlog(path: Path, frames: list[tuple[int, bytes]]) -> Path:
     path.write_bytes(b"".join(struct.pack(">Q", us) + frame for us, frame in frames))
     return path
+
+
+def smart_battery_info(serial: bytes, battery_id: int = 0) -> mavlink.MAVLink_message:
+    """SMART_BATTERY_INFO of a 3S 5 Ah pack with ``serial`` (char[32], NUL-padded)."""
+    return mavlink.MAVLink_smart_battery_info_message(
+        battery_id, 0, 0, 5000, 5000, 3, serial, b"3S 5000", 0, 0, 0, 0, 0, 0, 0, 0, b""
+    )
+
+
+def with_pack(data: bytes, serial: bytes, shift_s: float = 0.0) -> bytes:
+    """A tlog's bytes with a SMART_BATTERY_INFO naming ``serial`` after its first record (from
+    the autopilot, system 1 component 1) and every receive stamp moved by ``shift_s``."""
+    from estimator.logs.tlog import STAMP_BYTES, frame_length
+
+    codec = _codec()
+    out = bytearray()
+    pos = 0
+    while pos < len(data):
+        header = frame_length(data, pos + STAMP_BYTES)
+        assert header is not None, f"no frame at {pos + STAMP_BYTES}"
+        end = pos + STAMP_BYTES + header[0]
+        (stamp_us,) = struct.unpack_from(">Q", data, pos)
+        stamp = struct.pack(">Q", stamp_us + round(shift_s * 1e6))
+        out += stamp + data[pos + STAMP_BYTES : end]
+        if pos == 0:
+            out += stamp + smart_battery_info(serial).pack(codec)
+        pos = end
+    return bytes(out)

@@ -14,6 +14,7 @@ from __future__ import annotations
 
 import glob
 import logging
+import os
 import time
 from collections.abc import Callable, Iterator, Sequence
 from contextlib import contextmanager
@@ -22,27 +23,38 @@ from pathlib import Path
 from typing import Any
 
 import pyarrow as pa
-from distributed import Client, LocalCluster, as_completed
+from distributed import Client, KilledWorker, LocalCluster, as_completed
 
-from estimator.analysis.fleet_flight import FleetJob, failure_reason, file_sha256, flight_row
+from estimator.analysis.fleet_flight import (
+    UNEXPECTED,
+    FleetJob,
+    failure_reason,
+    file_sha256,
+    flight_row,
+)
 from estimator.analysis.fleet_table import done_keys, read_table, to_table, without, write_table
 from estimator.errors import UserError
+from estimator.file_checks import regular_file
 
 #: Seconds between rewrites of the results file during a run.
 FLUSH_S = 10.0
 #: Seconds to wait for a scheduler given by address.
 CONNECT_TIMEOUT_S = 5.0
 _GLOB_CHARS = frozenset("*?[")
+#: Reason of a log whose workers died on it (dask gives up after its allowed failures).
+_WORKER_DIED = "the workers analysing the log died on it (out of memory or crashed)"
 
 
 @dataclass
 class FleetRun:
-    """Counts of one run: logs given, processed (ok / failed), skipped as already in the
-    results file, skipped as duplicates of another log in this run; wall time, s."""
+    """Counts of one run: logs given, processed (ok / failed; ``unexpected``: of the failed,
+    those no known cause explains, their reason naming the exception), skipped as already in
+    the results file, skipped as duplicates of another log in this run; wall time, s."""
 
     logs: int = 0
     ok: int = 0
     failed: int = 0
+    unexpected: int = 0
     already_done: int = 0
     duplicates: int = 0
     wall_s: float = 0.0
@@ -52,14 +64,16 @@ class FleetRun:
 
 
 def expand_inputs(patterns: Sequence[str]) -> list[Path]:
-    """Files named or matched by glob patterns (``**`` recurses), sorted, each once."""
+    """Files named or matched by glob patterns (``**`` recurses), sorted, each once. Every
+    match is kept, also a directory, a dangling or looping symbolic link or a FIFO: its row
+    then says what it is (regular files by their real path, the others as matched)."""
     found: set[Path] = set()
     for pattern in patterns:
         if _GLOB_CHARS & set(pattern):
-            matches = [Path(m) for m in glob.glob(pattern, recursive=True) if Path(m).is_file()]
+            matches = [Path(m) for m in glob.glob(pattern, recursive=True)]
             if not matches:
                 raise UserError(f"no file matches {pattern!r}")
-            found.update(m.resolve() for m in matches)
+            found.update(m.resolve() if m.is_file() else Path(os.path.abspath(m)) for m in matches)
             continue
         path = Path(pattern)
         if path.is_dir():
@@ -78,7 +92,7 @@ def connect(scheduler: str | None, workers: int) -> Iterator[Client]:
         try:
             client = Client(scheduler, timeout=f"{CONNECT_TIMEOUT_S}s")
         except (OSError, TimeoutError, ValueError) as exc:
-            reason = failure_reason(exc)
+            reason = (str(exc).strip().splitlines() or [type(exc).__name__])[0]
             raise UserError(f"cannot reach the dask scheduler at {scheduler} ({reason})") from None
         with client:
             yield client
@@ -117,7 +131,10 @@ def run_fleet(
     rows: list[dict[str, Any]] = []
     for path in paths:
         try:
-            digest = file_sha256(path)
+            digest = file_sha256(regular_file(path, "log"))
+        except UserError as exc:
+            rows.append(_failed(str(path), None, job, str(exc)))
+            continue
         except OSError as exc:
             rows.append(_failed(str(path), None, job, f"cannot read {path}: {exc.strerror}"))
             continue
@@ -146,7 +163,10 @@ def run_fleet(
             for future in as_completed(futures):
                 try:
                     row = future.result()
-                except Exception as exc:  # the worker died or the task could not run
+                except KilledWorker:
+                    name, digest = keys[future.key]
+                    row = _failed(name, digest, job, _WORKER_DIED)
+                except Exception as exc:  # the task could not run
                     name, digest = keys[future.key]
                     row = _failed(name, digest, job, failure_reason(exc))
                 future.release()
@@ -179,6 +199,7 @@ def _count(
         counts.ok += 1
     else:
         counts.failed += 1
+        counts.unexpected += str(row["error"]).startswith(UNEXPECTED)
     if on_row is not None:
         on_row(row)
 

@@ -2,10 +2,11 @@
 
 Every mode replays the log through the daemon's pipeline (:func:`replay_stream`): identity
 (start time, autopilot, pack), duration, airborne time, energy, the model's power error, the
-pipeline's internal resistance and online mass, and a usable-capacity estimate from the resting
-voltage before and after the flight. ``fit`` adds a per-flight fit of the theory model
-(:func:`fit_theory`: hover power, V_me); ``residuals`` adds the residual analysis
-(:func:`analyze`: effects the model lacks). Column meanings and units: ``docs/fleet.md``.
+pipeline's internal resistance and online mass, a usable-capacity estimate from the resting
+voltage before and after the flight, and the capacity the pack filter learnt (with its σ).
+``fit`` adds a per-flight fit of the theory model (:func:`fit_theory`: hover power, V_me);
+``residuals`` adds the residual analysis (:func:`analyze`: effects the model lacks). Column
+meanings and units: ``docs/fleet.md``.
 
 A log that cannot be read or analysed gives a row with ``status`` "failed" and the reason in
 ``error``, never an exception: one bad file must not stop a fleet run.
@@ -32,7 +33,7 @@ from estimator.analysis.residuals import analyze
 from estimator.analysis.theory_fit import fit_theory
 from estimator.errors import UserError
 from estimator.estimation.pipeline import Pipeline
-from estimator.logs import iter_samples, load_flights
+from estimator.logs import iter_samples, load_flights, voltage_window_problem
 from estimator.physics.battery import PackModel
 from estimator.physics.vehicle import Vehicle
 from estimator.telemetry.samples import BatterySample
@@ -91,10 +92,32 @@ def flight_row(path: str, sha256: str, job: FleetJob) -> dict[str, Any]:
     return row
 
 
+#: Start of the reason of a failure no known cause explains (counted apart by the fleet run).
+UNEXPECTED = "unexpected error"
+#: Exceptions a damaged log can still provoke past the readers, in plain words.
+_KNOWN_FAILURES: tuple[tuple[type[BaseException] | tuple[type[BaseException], ...], str], ...] = (
+    (MemoryError, "the log is too large for the worker's memory"),
+    (RecursionError, "the log nests too deeply to be read"),
+    (np.linalg.LinAlgError, "the log's data leave the fit without a solution (too few points?)"),
+    (
+        (OverflowError, FloatingPointError, ZeroDivisionError, ValueError),
+        "a value in the log is beyond what the analysis can compute with",
+    ),
+    (EOFError, "the log ends in the middle of a record"),
+    (TimeoutError, "the log took too long to be read"),
+    (OSError, "the log could not be read"),
+)
+
+
 def failure_reason(exc: BaseException) -> str:
-    """One line naming an unexpected exception."""
+    """One line in plain words for an exception a log provoked; one of no known cause starts
+    with :data:`UNEXPECTED` and names its class and first line."""
+    for kinds, reason in _KNOWN_FAILURES:
+        if isinstance(exc, kinds):
+            return reason
     text = str(exc).strip().splitlines()
-    return f"{type(exc).__name__}: {text[0]}" if text else type(exc).__name__
+    detail = f"{type(exc).__name__}: {text[0]}" if text else type(exc).__name__
+    return f"{UNEXPECTED} ({detail})"
 
 
 def replay_columns(path: Path, job: FleetJob) -> dict[str, Any]:
@@ -107,7 +130,8 @@ def replay_columns(path: Path, job: FleetJob) -> dict[str, Any]:
         stream, vehicle, path.stem, samples=with_batteries(stream, batteries), pipeline=pipeline
     )
     if not flight.estimates:
-        raise UserError("no estimates: the log has no battery telemetry")
+        problem = voltage_window_problem(stream, vehicle.battery.cells, vehicle.input_limits())
+        raise UserError(problem or "no estimates: the log has no battery telemetry")
     summary = summarize([flight])
     resistance_ohm = _last_finite(e.resistance_ohm for e in flight.estimates)
     mass_delta_kg = None if pipeline.online is None else pipeline.online.mass_delta_kg
@@ -117,6 +141,7 @@ def replay_columns(path: Path, job: FleetJob) -> dict[str, Any]:
     capacity_ah = None
     if soc_start is not None and soc_end is not None and soc_start - soc_end >= MIN_SOC_DROP:
         capacity_ah = charge_ah / (soc_start - soc_end)
+    learnt = learnt_capacity(pipeline)
     autopilot = stream.autopilot
     return {
         "format": flight.format,
@@ -142,7 +167,21 @@ def replay_columns(path: Path, job: FleetJob) -> dict[str, Any]:
         "soc_rest_start": soc_start,
         "soc_rest_end": soc_end,
         "capacity_ah": capacity_ah,
+        "pack_capacity_ah": None if learnt is None else learnt[0],
+        "pack_capacity_sigma_ah": None if learnt is None else learnt[1],
     }
+
+
+def learnt_capacity(pipeline: Pipeline) -> tuple[float, float] | None:
+    """The pack filter's capacity and its 1σ (Ah) at the end of the flight; None when the
+    filter did not run (no current) or did not learn it (σ 0: the label trusted, as against
+    a chemistry's typical curve)."""
+    if pipeline.pack_state is None:
+        return None
+    pack = pipeline.pack_state.estimate()
+    if not (pack.capacity_sigma_ah > 0 and math.isfinite(pack.capacity_ah)):
+        return None
+    return pack.capacity_ah, pack.capacity_sigma_ah
 
 
 def fit_columns(path: Path, job: FleetJob) -> dict[str, Any]:

@@ -3,7 +3,8 @@ keys a resumed run skips.
 
 Columns a mode does not produce are null (``fit_*`` outside ``fleet fit``, ``residual_*``
 outside ``fleet residuals``), so rows of every mode share one file and one schema. The
-meaning of each column is in :data:`COLUMNS` and ``docs/fleet.md``.
+meaning of each column is in :data:`COLUMNS` and ``docs/fleet.md``. A file written before a
+column was added reads with that column null (:data:`KEY_COLUMNS` must be there).
 """
 
 from __future__ import annotations
@@ -47,6 +48,8 @@ COLUMNS: tuple[tuple[str, pa.DataType, str], ...] = (
     ("soc_rest_start", pa.float64(), "state of charge from the resting voltage before flight"),
     ("soc_rest_end", pa.float64(), "state of charge from the resting voltage after landing"),
     ("capacity_ah", pa.float64(), "charge used ÷ resting-SoC drop (drop ≥ 0.15), Ah"),
+    ("pack_capacity_ah", pa.float64(), "pack filter's learnt capacity at the end, Ah"),
+    ("pack_capacity_sigma_ah", pa.float64(), "its 1σ, Ah"),
     ("fit_points", pa.int64(), "fit: points kept by the paper's preprocessing"),
     ("hover_power_fit_w", pa.float64(), "fit: hover power of this flight's fit, W"),
     ("hover_power_fit_stderr_w", pa.float64(), "fit: its 1σ, W"),
@@ -61,6 +64,8 @@ COLUMNS: tuple[tuple[str, pa.DataType, str], ...] = (
     ("cpu_s", pa.float64(), "worker CPU time for this log (less than wall_s: waiting), s"),
 )
 SCHEMA = pa.schema([(name, kind) for name, kind, _ in COLUMNS])
+#: Columns every results file has had: without them a file is not one.
+KEY_COLUMNS = ("path", "sha256", "mode", "status")
 
 
 def to_table(rows: Iterable[Mapping[str, Any]]) -> pa.Table:
@@ -77,10 +82,16 @@ def read_table(path: Path) -> pa.Table | None:
         table = pq.read_table(path)
     except (OSError, pa.ArrowException) as exc:
         raise UserError(f"{path} is not a readable Parquet file ({exc})") from None
-    missing = [name for name in SCHEMA.names if name not in table.column_names]
+    missing = [name for name in KEY_COLUMNS if name not in table.column_names]
     if missing:
         raise UserError(f"{path} is not a fleet results file (no column {missing[0]!r})")
-    return table.select(SCHEMA.names).cast(SCHEMA)
+    for field in SCHEMA:
+        if field.name not in table.column_names:  # added since the file was written
+            table = table.append_column(field, pa.nulls(table.num_rows, field.type))
+    try:
+        return table.select(SCHEMA.names).cast(SCHEMA)
+    except (pa.ArrowException, ValueError) as exc:
+        raise UserError(f"{path} is not a fleet results file ({exc})") from None
 
 
 def write_table(path: Path, table: pa.Table) -> None:

@@ -3,13 +3,18 @@
 Per vehicle (vehicle file name and autopilot system id) and per pack (where the logs name
 it), over the flights with status ok and a start time: hover power (the per-flight fit's
 where there is one, else the vehicle model's at the online-tracked mass), internal
-resistance and usable capacity. Each series gets per-day medians and a robust slope
-(Theil–Sen, with its 95 % interval) per 30 days. A hover-power change reads as a mass change
-through momentum theory (P_hover ∝ m^1.5 at constant air density): m₂/m₁ = (P₂/P₁)^(2/3).
+resistance, usable capacity from the resting voltage and the capacity the pack filter
+learnt (capacity fade). Each series gets per-day medians and a robust slope (Theil–Sen, with
+its 95 % interval) per 30 days; a series whose flights carry a 1σ (the learnt capacity) gets
+per-day inverse-variance weighted means and a weighted least-squares slope instead, its
+interval widened by the scatter beyond the σ (√(χ²/dof) when above 1). A hover-power change
+reads as a mass change through momentum theory (P_hover ∝ m^1.5 at constant air density):
+m₂/m₁ = (P₂/P₁)^(2/3).
 """
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 from datetime import date
 from typing import Any
@@ -24,7 +29,12 @@ METRICS = (
     ("hover_power_w", "W", "hover power"),
     ("resistance_ohm", "Ω", "internal resistance"),
     ("capacity_ah", "Ah", "usable capacity"),
+    ("pack_capacity_ah", "Ah", "learnt capacity"),
 )
+#: The column of each metric's per-flight 1σ, where it has one.
+SIGMA_COLUMNS = {"pack_capacity_ah": "pack_capacity_sigma_ah"}
+#: Two-sided 95 % quantile of the normal distribution.
+_Z95 = 1.959964
 _DAYS_PER_SLOPE = 30.0
 #: Fewer distinct days than this: no slope.
 MIN_DAYS = 2
@@ -32,7 +42,8 @@ MIN_DAYS = 2
 
 @dataclass(frozen=True)
 class Series:
-    """One metric of one vehicle or pack: per-flight values and per-day medians."""
+    """One metric of one vehicle or pack: per-flight values (with their 1σ where the metric
+    has one) and per-day figures."""
 
     kind: str  # "vehicle" or "pack"
     group: str
@@ -41,20 +52,30 @@ class Series:
     label: str
     days: NDArray[np.float64]  # days since 1970-01-01 (UTC), per flight
     values: NDArray[np.float64]
+    sigmas: NDArray[np.float64] | None = None
 
     def per_day(self) -> list[tuple[date, float, int]]:
-        """(day, median, flights) per day, in date order."""
+        """(day, value, flights) per day, in date order: the median, or with σ the
+        inverse-variance weighted mean."""
         out = []
         for day in np.unique(np.floor(self.days)):
             on = np.floor(self.days) == day
-            out.append((_date(day), float(np.median(self.values[on])), int(on.sum())))
+            if self.sigmas is None:
+                value = float(np.median(self.values[on]))
+            else:
+                weights = self.sigmas[on] ** -2.0
+                value = float(np.sum(weights * self.values[on]) / np.sum(weights))
+            out.append((_date(day), value, int(on.sum())))
         return out
 
     def slope_per_30d(self) -> tuple[float, float, float] | None:
-        """Theil–Sen slope per 30 days over the per-day medians, with its 95 % interval."""
+        """Slope per 30 days with its 95 % interval: Theil–Sen over the per-day medians, or
+        with σ weighted least squares over the flights."""
         daily = self.per_day()
         if len(daily) < MIN_DAYS:
             return None
+        if self.sigmas is not None:
+            return self._weighted_slope_per_30d(self.sigmas)
         x = np.array([d.toordinal() for d, _, _ in daily], dtype=float)
         y = np.array([v for _, v, _ in daily])
         slope, _, low, high = theilslopes(y, x)
@@ -64,8 +85,22 @@ class Series:
             float(high * _DAYS_PER_SLOPE),
         )
 
+    def _weighted_slope_per_30d(self, sigmas: NDArray[np.float64]) -> tuple[float, float, float]:
+        x = self.days - float(np.mean(self.days))
+        (slope, intercept), cov = np.polyfit(x, self.values, 1, w=1.0 / sigmas, cov="unscaled")
+        dof = len(x) - 2
+        chi2 = float(np.sum(((self.values - slope * x - intercept) / sigmas) ** 2))
+        scale = max(chi2 / dof, 1.0) if dof > 0 else 1.0
+        half = _Z95 * float(np.sqrt(cov[0, 0] * scale))
+        return (
+            float(slope * _DAYS_PER_SLOPE),
+            float((slope - half) * _DAYS_PER_SLOPE),
+            float((slope + half) * _DAYS_PER_SLOPE),
+        )
+
     def as_dict(self) -> dict[str, Any]:
         slope = self.slope_per_30d()
+        per_day = "median" if self.sigmas is None else "weighted_mean"
         return {
             "kind": self.kind,
             "group": self.group,
@@ -73,7 +108,7 @@ class Series:
             "unit": self.unit,
             "flights": len(self.values),
             "per_day": [
-                {"date": d.isoformat(), "median": v, "flights": n} for d, v, n in self.per_day()
+                {"date": d.isoformat(), per_day: v, "flights": n} for d, v, n in self.per_day()
             ],
             "slope_per_30d": None if slope is None else slope[0],
             "slope_95pct_per_30d": None if slope is None else list(slope[1:]),
@@ -89,6 +124,8 @@ class Series:
         slope = self.slope_per_30d()
         if slope is not None:
             text += f"; slope {slope[0]:+.3g} {self.unit}/30 d [{slope[1]:+.3g}, {slope[2]:+.3g}]"
+        if self.sigmas is not None:
+            text += " (σ-weighted)"
         if self.metric == "hover_power_w" and v0 > 0:
             text += f"; mass ×{(v1 / v0) ** (2 / 3):.3f} (momentum theory)"
         return text
@@ -142,14 +179,30 @@ def fleet_trends(
                 groups.setdefault(name, []).append(row)
         for name, members in sorted(groups.items()):
             for metric, unit, label in METRICS:
+                sigma_column = SIGMA_COLUMNS.get(metric)
                 points = [
-                    (r["start_utc"].timestamp() / 86400.0, value)
+                    (r["start_utc"].timestamp() / 86400.0, value, sigma)
                     for r in members
-                    if (value := _value(r, metric)) is not None and np.isfinite(value)
+                    if (value := _value(r, metric)) is not None
+                    and np.isfinite(value)
+                    and (sigma := _sigma(r, sigma_column)) is not None
                 ]
                 if points:
-                    days, values = (np.array(c, dtype=float) for c in zip(*points, strict=True))
-                    series.append(Series(kind, name, metric, unit, label, days, values))
+                    days, values, sigmas = (
+                        np.array(c, dtype=float) for c in zip(*points, strict=True)
+                    )
+                    series.append(
+                        Series(
+                            kind,
+                            name,
+                            metric,
+                            unit,
+                            label,
+                            days,
+                            values,
+                            None if sigma_column is None else sigmas,
+                        )
+                    )
     return FleetTrends(series, len(rows), len(ok), len(dated))
 
 
@@ -179,6 +232,14 @@ def _value(row: dict[str, Any], metric: str) -> float | None:
         return row["hover_power_tracked_w"] if fitted is None else fitted
     value = row[metric]
     return None if value is None else float(value)
+
+
+def _sigma(row: dict[str, Any], column: str | None) -> float | None:
+    """The row's 1σ in ``column`` (finite and > 0, else None); NaN for metrics without one."""
+    if column is None:
+        return math.nan
+    sigma = row[column]
+    return float(sigma) if sigma is not None and math.isfinite(sigma) and sigma > 0 else None
 
 
 def _date(days: float) -> date:

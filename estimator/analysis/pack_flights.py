@@ -2,8 +2,10 @@
 writes it) replayed with the LABELLED capacity: endurance against the true time to the
 pack's reserve, with the autopilots' own figures beside (:mod:`peer_endurance`).
 
-The endurance is scored from ``SETTLE_S`` after take-off until ``SETTLE_S`` before the true
-reserve (where the time left gets short), once a second (s, autopilot clock).
+The endurance is scored as ``uav-energy replay`` scores it against a truth
+(:func:`estimator.analysis.endurance_truth.score_endurance`): from 60 s after take-off until
+60 s before the true reserve (where the time left gets short), once a second (s, autopilot
+clock).
 """
 
 from __future__ import annotations
@@ -15,15 +17,14 @@ from typing import Any
 
 import numpy as np
 
+from estimator.analysis.endurance_truth import score_endurance
 from estimator.analysis.peer_endurance import peer_endurance_s
 from estimator.analysis.replay import replay_stream, with_batteries
-from estimator.estimation.pipeline import Estimate, PipelineSettings
+from estimator.estimation.estimate import Estimate
+from estimator.estimation.pipeline import PipelineSettings
 from estimator.logs import iter_samples
 from estimator.physics.vehicle import Vehicle
 from estimator.telemetry.samples import BatterySample
-
-#: Scored from this long after take-off until this long before the reserve (s).
-SETTLE_S = 60.0
 
 
 @dataclass(frozen=True)
@@ -54,25 +55,19 @@ def replay_pack_flight(
     readings: list[BatterySample] = []
     samples = with_batteries(stream, readings)
     flight = replay_stream(stream, labelled, directory.name, settings, samples)
-    takeoff_s, reserve_s = truth["events"]["takeoff_s"], truth["events"]["reserve_s"]
-    scored = [
-        e
-        for e in flight.estimates
-        if takeoff_s + SETTLE_S <= e.time_s <= reserve_s - SETTLE_S and e.endurance_valid
-    ]
-    left = np.array([reserve_s - e.time_s for e in scored])
-    ours = np.array([e.endurance_s for e in scored])
-    sigma = np.array([e.endurance_sigma_s for e in scored])
+    events = truth["events"]
+    scores = score_endurance(flight.estimates, events["takeoff_s"], events["reserve_s"])
+    left = scores.left_s
     peers = peer_endurance_s(readings, label, vehicle.battery.cells * 0.004)
     peer_t = np.array([t for t, _, _ in peers])
-    at = np.clip(np.searchsorted(peer_t, [e.time_s for e in scored], side="right") - 1, 0, None)
-    px4 = np.array([peers[i][1] for i in at]) if len(peers) else np.full(len(scored), np.nan)
+    at = np.clip(np.searchsorted(peer_t, scores.time_s, side="right") - 1, 0, None)
+    px4 = np.array([peers[i][1] for i in at]) if len(peers) else np.full(len(left), np.nan)
     ardupilot = np.array([peers[i][2] for i in at]) if len(peers) else px4
     return PackFlight(
         name=directory.name,
         truth=truth,
-        errors=(ours - left) / left,
-        z=(ours - left) / np.where(sigma > 0, sigma, np.nan),
+        errors=scores.errors,
+        z=scores.z,
         px4_errors=(px4 - left) / left,
         ardupilot_errors=(ardupilot - left) / left,
         estimates=flight.estimates,

@@ -29,8 +29,9 @@ import numpy as np
 from numpy.typing import NDArray
 
 from estimator.estimation.airborne import AIRBORNE_ALT_M
+from estimator.estimation.estimate import Estimate, PowerReading
 from estimator.estimation.online_effects import OnlineSettings
-from estimator.estimation.pipeline import Estimate, Pipeline, PipelineSettings, PowerReading
+from estimator.estimation.pipeline import Pipeline, PipelineSettings
 from estimator.estimation.return_home import MissionSample
 from estimator.logs import SampleStream, iter_samples
 from estimator.physics.vehicle import Vehicle
@@ -95,7 +96,9 @@ class PowerTrace:
 
 @dataclass
 class FlightReplay:
-    """What one log gave: every estimate, the power trace, and the reader's counters."""
+    """What one log gave: every estimate, the power trace, and the reader's counters;
+    ``missing``: what the log lacks for an estimate, as its reader says (None: nothing, or
+    the reader cannot tell)."""
 
     name: str
     path: Path | None
@@ -106,6 +109,7 @@ class FlightReplay:
     skipped: int = 0
     bad_frames: int = 0
     truncated: bool = False
+    missing: str | None = None
 
 
 @dataclass(frozen=True)
@@ -180,6 +184,7 @@ def replay_stream(
         skipped=stream.skipped,
         bad_frames=stream.bad_frames,
         truncated=stream.truncated,
+        missing=stream.missing,
     )
 
 

@@ -24,7 +24,7 @@ IntArray = NDArray[np.int64]
 
 
 #: Extras of a log that are not physical channels.
-_NOT_CHANNELS = ("armed",)
+_NOT_CHANNELS = ("armed", "consumed_mah")
 
 
 @dataclass(frozen=True)

@@ -3,6 +3,8 @@
 Reads tlogs / CMU CSVs (format by content), applies the paper's preprocessing, fits eq. (2)
 with standard errors, scores theory / polynomial / network on held-out flights, and optionally
 writes a vehicle file (``--out``), a report (``--report``) and a JSON summary (``--json``).
+With ``--capacity-ah``, logs with a rest and a long discharge also give the pack's resistance
+and resting curve (:mod:`estimator.analysis.pack_fit`), written into the vehicle file.
 """
 
 from __future__ import annotations
@@ -20,11 +22,12 @@ from rich.console import Console
 
 from estimator.analysis.fit import FitOptions, FitReport, fit_all
 from estimator.analysis.fit_points import PreprocessOptions, preprocess
+from estimator.analysis.pack_fit import PackFit, fit_pack
 from estimator.analysis.theory_fit import Priors
 from estimator.errors import UserError
 from estimator.logs import FORMATS, FlightSeries, load_flights
 from estimator.logs.sanity import flight_warnings
-from estimator.physics.vehicle import BatterySpec, Vehicle
+from estimator.physics.vehicle import CHEMISTRIES, BatterySpec, Vehicle
 
 #: Highest per-cell voltage of a charged LiPo under light load, V (for inferring the cell count).
 MAX_CELL_VOLTAGE_V = 4.25
@@ -58,7 +61,17 @@ def register(subparsers: argparse._SubParsersAction[argparse.ArgumentParser]) ->
         help="take-off mass without payload; with payload columns (CMU) the model is "
         "fitted for this mass and each flight is rescaled to mass + payload",
     )
-    v.add_argument("--capacity-ah", type=float, help="rated battery capacity")
+    v.add_argument(
+        "--capacity-ah",
+        type=float,
+        help="the pack's capacity (also the charge axis of its fitted resting curve)",
+    )
+    v.add_argument(
+        "--chemistry",
+        default="lipo",
+        choices=CHEMISTRIES,
+        help="the pack's chemistry: its full voltage and typical curve beyond the fitted one",
+    )
     v.add_argument("--cells", type=int, help="series cells (default: from the peak voltage)")
     v.add_argument("--reserve-fraction", type=float, default=0.2)
     v.add_argument(
@@ -114,15 +127,25 @@ def run(args: argparse.Namespace) -> int:
         status.update(f"preprocessing {len(flights)} flights")
         points = preprocess(flights, options.preprocess, mass_kg, args.mass_kg)
         report = fit_all(points, options, progress=lambda msg: status.update(f"fitting: {msg}"))
+        status.update("fitting the pack")
+        pack, pack_notes = _fit_pack(flights, args)
         if args.report is not None:
             from estimator.reports.fit_report import write_report
 
             status.update("writing the report")
             title = args.title or f"Power model fit: {_describe(args.logs)}"
-            write_report(report, args.report, title)
+            write_report(report, args.report, title, pack)
+    for line in pack_lines(pack, pack_notes):
+        console.print(f"uav-energy fit: {line}", highlight=False, soft_wrap=True, markup=False)
     if args.out is not None:
-        _save_vehicle(_vehicle(report, flights, args), args.out, args.note)
+        _save_vehicle(
+            _vehicle(report, flights, args, pack),
+            args.out,
+            [*args.note, *pack_note(pack, args.chemistry)],
+        )
     summary = report.summary()
+    summary["pack"] = None if pack is None else pack.summary()
+    summary["pack_left_out"] = pack_notes
     if args.json:
         print(json.dumps(summary, indent=2))
     else:
@@ -147,6 +170,8 @@ def _check_args(args: argparse.Namespace) -> None:
         raise UserError("--reserve-fraction must be in [0, 1)")
     if args.out is not None and (args.mass_kg is None or args.capacity_ah is None):
         raise UserError("--out needs --mass-kg and --capacity-ah (logs do not record them)")
+    if args.out is not None and not args.out.parent.is_dir():
+        raise UserError(f"--out {args.out}: folder {args.out.parent} does not exist")
 
 
 def _flight_masses(flights: list[FlightSeries], mass_kg: float | None) -> np.ndarray | None:
@@ -158,23 +183,49 @@ def _flight_masses(flights: list[FlightSeries], mass_kg: float | None) -> np.nda
     )
 
 
-def _vehicle(report: FitReport, flights: list[FlightSeries], args: argparse.Namespace) -> Vehicle:
-    cells = args.cells
-    if cells is None:
-        peaks = [
-            float(np.nanpercentile(f.voltage_v, 99))
-            for f in flights
-            if np.isfinite(f.voltage_v).any()
-        ]
-        if not peaks:
-            raise UserError("the logs have no pack voltage: give --cells")
-        # the typical flight's near-peak voltage: robust to one glitching sensor or log
-        cells = max(1, math.ceil(float(np.median(peaks)) / MAX_CELL_VOLTAGE_V))
+def _fit_pack(
+    flights: list[FlightSeries], args: argparse.Namespace
+) -> tuple[PackFit | None, list[str]]:
+    """The pack's fit when the logs can give it (with ``--capacity-ah`` and a pack voltage),
+    and the notes on what was left out."""
+    if args.capacity_ah is None:
+        return None, ["its charge axis needs --capacity-ah"]
+    if args.cells is None and not any(np.isfinite(f.voltage_v).any() for f in flights):
+        return None, ["the logs have no pack voltage"]
+    return fit_pack(flights, _cells(flights, args.cells), args.capacity_ah, args.chemistry)
+
+
+def _cells(flights: list[FlightSeries], cells: int | None) -> int:
+    """Series cells: ``cells`` (``--cells``), else from the flights' peak voltage."""
+    if cells is not None:
+        return cells
+    peaks = [
+        float(np.nanpercentile(f.voltage_v, 99)) for f in flights if np.isfinite(f.voltage_v).any()
+    ]
+    if not peaks:
+        raise UserError("the logs have no pack voltage: give --cells")
+    # the typical flight's near-peak voltage: robust to one glitching sensor or log
+    return max(1, math.ceil(float(np.median(peaks)) / MAX_CELL_VOLTAGE_V))
+
+
+def _vehicle(
+    report: FitReport, flights: list[FlightSeries], args: argparse.Namespace, pack: PackFit | None
+) -> Vehicle:
+    curve = None if pack is None or pack.cell_ocv_v is None else pack.cell_ocv_v
+    resistance_ohm = None if pack is None or pack.resistance_ohm <= 0 else pack.resistance_ohm
+    battery = BatterySpec(
+        args.capacity_ah,
+        _cells(flights, args.cells),
+        args.reserve_fraction,
+        cell_ocv_v=None if curve is None else tuple(float(v) for v in curve),
+        chemistry=args.chemistry,
+        internal_resistance_ohm=resistance_ohm,
+    )
     return Vehicle(
         name=args.name or args.logs[0].stem,
         mass_kg=args.mass_kg,
         model=report.theory.model,
-        battery=BatterySpec(args.capacity_ah, cells, args.reserve_fraction),
+        battery=battery,
         model_stderr=dict(report.theory.coeff_stderr),
     )
 
@@ -182,12 +233,45 @@ def _vehicle(report: FitReport, flights: list[FlightSeries], args: argparse.Name
 def _save_vehicle(vehicle: Vehicle, path: Path, notes: list[str]) -> None:
     """Write the vehicle file with ``notes`` as leading TOML comments (sources, assumptions)."""
     header = "".join(f"# {line}\n" for line in notes)
-    path.parent.mkdir(parents=True, exist_ok=True)
     path.write_text(header + tomli_w.dumps(vehicle.to_toml()))
 
 
 def _describe(paths: list[Path]) -> str:
     return paths[0].name if len(paths) == 1 else f"{len(paths)} logs"
+
+
+def pack_note(pack: PackFit | None, chemistry: str) -> list[str]:
+    """The vehicle file's comment on a fitted curve: where it was fitted, what fills the rest."""
+    if pack is None or pack.fitted_soc is None or pack.sigma_v is None:
+        return []
+    lo, hi = (100 * s for s in pack.fitted_soc)
+    return [
+        f"[battery] cell_ocv_v fitted by uav-energy fit from {lo:.0f} to {hi:.0f} % charge "
+        f"(RMS residual {1000 * pack.sigma_v:.1f} mV/cell: the readings' noise, not the "
+        "curve's error, so cell_ocv_sigma_v is left to its default); beyond, the "
+        f"{chemistry} typical curve shifted to join it",
+    ]
+
+
+def pack_lines(pack: PackFit | None, notes: list[str], shown: int = 3) -> list[str]:
+    """What the pack fit gave, and the first ``shown`` notes on what it left out (one line
+    each; ``--json`` has them all)."""
+    lines = [f"pack: {note}" for note in notes[:shown]]
+    if len(notes) > shown:
+        lines.append(f"pack: … and {len(notes) - shown} more (--json lists them)")
+    if pack is None:
+        lines.append("pack: not fitted (the power model is)")
+        return lines
+    curve = (
+        ""
+        if pack.fitted_soc is None or pack.sigma_v is None
+        else f"; resting curve fitted from {100 * pack.fitted_soc[0]:.0f} to "
+        f"{100 * pack.fitted_soc[1]:.0f} % charge, σ {1000 * pack.sigma_v:.1f} mV/cell"
+    )
+    lines.append(
+        f"pack: {1000 * pack.resistance_ohm:.1f} mΩ from {len(pack.flights)} flight(s){curve}"
+    )
+    return lines
 
 
 def format_summary(s: dict[str, Any]) -> str:

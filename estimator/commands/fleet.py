@@ -100,8 +100,9 @@ def run(args: argparse.Namespace) -> int:
             on_row=on_row,
         )
     print(
-        f"fleet {args.fleet_mode}: {counts.logs} logs: {counts.ok} ok, {counts.failed} failed, "
-        f"{counts.already_done} already in {args.out}, {counts.duplicates} duplicates; "
+        f"fleet {args.fleet_mode}: {counts.logs} logs: {counts.ok} ok, {counts.failed} failed "
+        f"({counts.unexpected} unexpected), {counts.already_done} already in {args.out}, "
+        f"{counts.duplicates} duplicates; "
         f"{counts.wall_s:.1f} s on {workers} worker(s)",
         flush=True,
     )

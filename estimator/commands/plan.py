@@ -24,12 +24,18 @@ from estimator.analysis.mission_energy import FlightSettings, MissionEnergy, mis
 from estimator.commands.sim import _number, _pair
 from estimator.errors import UserError
 from estimator.estimation.pack_memory import check_pack_id, load_record
-from estimator.logs.mission_files import load_mission
+from estimator.logs import detect_format
+from estimator.logs.mission_files import MissionFile, load_mission
 from estimator.physics.route_energy import UNCERTAINTY_SOURCES, Conditions
 from estimator.physics.vehicle import Vehicle, load_vehicle
 
 #: Characters the leg table needs (wider than a default 80-column pipe).
 TABLE_WIDTH = 132
+#: Heaviest take-off mass a multirotor lifts, as a multiple of the vehicle file's mass: the
+#: usual design thrust-to-weight of 2 (hover near half throttle) spent on hover alone, with no
+#: margin left to climb or steer. The vehicle file records no thrust, so this is the rule of
+#: thumb, not the airframe's own figure.
+MAX_LIFT_PER_MASS = 2.0
 
 
 def register(subparsers: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
@@ -64,8 +70,8 @@ def register(subparsers: argparse._SubParsersAction[argparse.ArgumentParser]) ->
 
 def run(args: argparse.Namespace) -> int:
     vehicle = _with_pack(load_vehicle(args.vehicle), args.pack, args.pack_dir)
-    mission = load_mission(args.mission)
-    conditions = _conditions(args, vehicle.mass_kg)
+    mission = _load_mission(args.mission)
+    conditions = _conditions(args, vehicle)
     speed = _number(args.speed, "--speed", positive=True)
     soc = _number(args.start_soc, "--start-soc")
     if not 0 <= soc <= 1:
@@ -97,20 +103,48 @@ def _with_pack(vehicle: Vehicle, pack_id: str | None, pack_dir: Path | None) -> 
     return replace(vehicle, battery=replace(vehicle.battery, capacity_ah=record.capacity_ah))
 
 
-def _conditions(args: argparse.Namespace, mass_kg: float) -> Conditions:
+def _load_mission(path: Path) -> MissionFile:
+    """The mission file; a flight log given in its place is named for what it is."""
+    try:
+        fmt = detect_format(path)
+    except UserError:  # not a log (or not readable): the mission reader says what is wrong
+        return load_mission(path)
+    raise UserError(
+        f"{path} is a flight log ({fmt}), not a mission: plan takes a .plan or .waypoints "
+        "file (uav-energy replay takes logs)"
+    )
+
+
+def _conditions(args: argparse.Namespace, vehicle: Vehicle) -> Conditions:
     speed, from_deg = 0.0, 0.0
     if args.wind is not None:
         speed, from_deg = _pair(args.wind, "--wind", "SPEED@FROM_DEG")
         if not 0 <= speed <= 30:
             raise UserError("--wind speed must be between 0 and 30 m/s")
     payload = _number(args.payload, "--payload")
-    if mass_kg + payload <= 0:
-        raise UserError("--payload must leave a positive mass")
+    _check_lift(vehicle, payload)
     wind_sigma = _number(args.wind_sigma, "--wind-sigma")
     payload_sigma = _number(args.payload_sigma, "--payload-sigma")
     if wind_sigma < 0 or payload_sigma < 0:
         raise UserError("--wind-sigma and --payload-sigma must be ≥ 0")
     return Conditions(speed, from_deg % 360.0, payload, wind_sigma, payload_sigma)
+
+
+def _check_lift(vehicle: Vehicle, payload_kg: float) -> None:
+    """A payload that leaves no positive mass, or more than the rotors lift (a take-off mass
+    beyond :data:`MAX_LIFT_PER_MASS` × the vehicle file's), is a UserError."""
+    mass_kg = vehicle.mass_kg + payload_kg
+    if mass_kg <= 0:
+        raise UserError("--payload must leave a positive mass")
+    ratio = mass_kg / vehicle.mass_kg
+    if ratio > MAX_LIFT_PER_MASS:
+        hover_w = vehicle.model.rescaled(mass_ratio=ratio).hover_power_w
+        raise UserError(
+            f"--payload {payload_kg:g} kg: the vehicle cannot lift it ({mass_kg:g} kg is "
+            f"{ratio:.1f}× the vehicle file's {vehicle.mass_kg:g} kg, a multirotor lifts at most "
+            f"about {MAX_LIFT_PER_MASS:g}×; hover would need {hover_w:.0f} W against "
+            f"{vehicle.model.hover_power_w:.0f} W empty)"
+        )
 
 
 def summary(result: MissionEnergy, mission: str, vehicle: str) -> dict[str, Any]:

@@ -1,13 +1,19 @@
 """``uav-energy replay LOG... [--vehicle FILE.toml] [--config FILE.toml] [--mission FILE]
-[--out CSV] [--report DIR] [--json] [--speed max|N]``: recorded flights through the daemon's
-pipeline (:mod:`estimator.analysis.replay`), with the daemon's settings when given its
-``--config`` file. ``--mission`` gives the pipeline the mission the autopilot flew (a QGC
-``.plan`` or ``.waypoints``), as the daemon's download does, for the MIS_* figures.
+[--pack ID] [--pack-dir DIR] [--out CSV] [--report DIR] [--json] [--speed max|N]``: recorded
+flights through the daemon's pipeline (:mod:`estimator.analysis.replay`), with the daemon's
+settings when given its ``--config`` file. ``--mission`` gives the pipeline the mission the
+autopilot flew (a QGC ``.plan`` or ``.waypoints``), as the daemon's download does, for the
+MIS_* figures. ``--pack-dir`` keeps the packs' memory as the daemon does
+(:mod:`estimator.estimation.pack_identity`), logs in the order given: the pack is ``--pack``,
+else the one each log's SMART_BATTERY_INFO serial names.
 
 Output: a table of the power error per flight on stdout (or one JSON object with ``--json``),
-the estimates as CSV with ``--out``, plots with ``--report``. ``--speed N`` paces the samples at
-N times the log's own time (``max``, the default, as fast as possible); pacing happens here,
-outside the pipeline, so it never changes an estimate. A progress bar shows on a terminal.
+the estimates as CSV with ``--out``, plots with ``--report``. A log with a ``truth.json``
+beside it flown to the pack's reserve (``uav-energy sitl-record``) has its endurance and σ
+scored against the true time left (:mod:`estimator.analysis.endurance_truth`).
+``--speed N`` paces the samples at N times the log's own time (``max``, the default, as fast
+as possible); pacing happens here, outside the pipeline, so it never changes an estimate. A
+progress bar shows on a terminal.
 With several logs, one that cannot be read is reported and skipped (``logs_skipped``); with a
 single log, or when none can be read, the error ends the command (exit 2).
 """
@@ -22,7 +28,7 @@ import math
 import os
 import sys
 import time
-from collections.abc import Iterable, Iterator, Sequence
+from collections.abc import Callable, Iterable, Iterator, Sequence
 from dataclasses import fields
 from itertools import chain
 from pathlib import Path
@@ -35,14 +41,18 @@ from rich.progress import (
 )
 from rich.table import Table
 
+from estimator.analysis.endurance_truth import coverage_json, score_replays
 from estimator.analysis.replay import FlightReplay, Summary, replay_stream, summarize
 from estimator.commands.progress import logs_progress
 from estimator.errors import UserError
-from estimator.estimation.pack_memory import check_pack_id, load_prior, remember
-from estimator.estimation.pipeline import Estimate, Pipeline, PipelineSettings
+from estimator.estimation.estimate import Estimate
+from estimator.estimation.pack_identity import FlightPack
+from estimator.estimation.pack_memory import check_pack_id
+from estimator.estimation.pipeline import Pipeline, PipelineSettings
 from estimator.estimation.return_home import MissionSample
-from estimator.logs import FORMATS, iter_samples
+from estimator.logs import FORMATS, SampleStream, iter_samples, voltage_window_problem
 from estimator.logs.mission_files import MissionFile, load_mission
+from estimator.logs.sanity import RunWarnings
 from estimator.mavlink.config import build_config, load_config_file
 from estimator.physics.vehicle import Vehicle, default_vehicle, load_vehicle
 from estimator.telemetry.samples import Sample
@@ -98,11 +108,15 @@ def register(subparsers: argparse._SubParsersAction[argparse.ArgumentParser]) ->
     parser.add_argument(
         "--pack",
         metavar="ID",
-        help="the pack flown (with --pack-dir): each log starts from what the pack's memory "
+        help="the pack flown (needs --pack-dir): each log starts from what the pack's memory "
         "holds and stores what it learnt, logs in the order given",
     )
     parser.add_argument(
-        "--pack-dir", type=Path, metavar="DIR", help="the packs' memory (one JSON file a pack)"
+        "--pack-dir",
+        type=Path,
+        metavar="DIR",
+        help="the packs' memory (one JSON file a pack); without --pack, each log's pack "
+        "serial (SMART_BATTERY_INFO) names its pack",
     )
     parser.add_argument("--out", type=Path, metavar="FILE.csv", help="write every estimate")
     parser.add_argument("--report", type=Path, metavar="DIR", help="write plots and a summary")
@@ -147,8 +161,8 @@ def paced(samples: Iterable[Sample], speed: float) -> Iterator[Sample]:
 
 def run(args: argparse.Namespace) -> int:
     vehicle, settings = vehicle_and_settings(args.vehicle, args.config)
-    if (args.pack is None) != (args.pack_dir is None):
-        raise UserError("--pack ID and --pack-dir DIR go together")
+    if args.pack is not None and args.pack_dir is None:
+        raise UserError("--pack ID needs --pack-dir DIR")
     if args.pack is not None:
         check_pack_id(args.pack)
     mission = None if args.mission is None else load_mission(args.mission)
@@ -156,12 +170,13 @@ def run(args: argparse.Namespace) -> int:
     console = Console(file=sys.stderr)
     flights: list[FlightReplay] = []
     skipped_logs: list[dict[str, str]] = []
+    said = RunWarnings()  # each cause's warning once per run
     gc.freeze()  # modules and codecs loaded so far leave the collector's scans (as the daemon)
     wall_start = time.perf_counter()
     with _progress(console, len(args.logs)) as progress:
         for path, name in zip(args.logs, names, strict=True):
             try:
-                flight = _replay_one(path, name, vehicle, settings, mission, args, progress)
+                flight = _replay_one(path, name, vehicle, settings, mission, args, progress, said)
             except UserError as exc:
                 if len(args.logs) == 1:
                     raise
@@ -171,22 +186,35 @@ def run(args: argparse.Namespace) -> int:
                 skipped_logs.append({"log": str(path), "error": str(exc)})
                 continue
             if not flight.estimates:
+                why = flight.missing or "no battery telemetry?"
                 console.print(
-                    f"uav-energy replay: {path} gave no estimates (no battery telemetry?)",
+                    f"uav-energy replay: {path} gave no estimates: {why}",
                     highlight=False,
                     soft_wrap=True,
                 )
             flights.append(flight)
     wall_s = time.perf_counter() - wall_start
+    for line in said.repeats():
+        console.print(f"uav-energy replay: warning: {line}", highlight=False, soft_wrap=True)
     if not flights:
         raise UserError(f"no log could be replayed ({skipped_logs[0]['error']})")
     if args.out is not None:
         write_csv(args.out, flights)
+    scored, truth_problems = score_replays(flights)
+    for problem in truth_problems:
+        console.print(
+            f"uav-energy replay: warning: {problem}: endurance not scored",
+            highlight=False,
+            soft_wrap=True,
+            markup=False,
+        )
     if args.report is not None:
         from estimator.reports.replay_report import write_report  # matplotlib only when asked
 
-        write_report(flights, args.report, vehicle.name)
+        write_report(flights, args.report, vehicle.name, scored, vehicle.battery.capacity_ah)
     result = result_json(flights, wall_s, vehicle, skipped_logs)
+    if scored:
+        result["endurance_truth"] = coverage_json(scored)
     if args.json:
         print(json.dumps(result, indent=2))
     else:
@@ -216,6 +244,7 @@ def _replay_one(
     mission: MissionFile | None,
     args: argparse.Namespace,
     progress: Progress,
+    said: RunWarnings,
 ) -> FlightReplay:
     stream = iter_samples(path, args.format, vehicle.input_limits())
     task = progress.add_task(name, total=None)
@@ -233,25 +262,52 @@ def _replay_one(
 
         mission_energy = remaining_energy_fn(vehicle)
         samples = chain([MissionSample(0.0, mission.items)], samples)
-    label_ah = vehicle.battery.capacity_ah
-    prior = load_prior(args.pack_dir, args.pack, label_ah)
-    pipeline = Pipeline(vehicle, settings, mission_energy, pack_prior=prior)
-    try:
-        flight = replay_stream(stream, vehicle, name, settings, samples, on_sample, pipeline)
-        if args.pack is not None and pipeline.pack_state is not None:
-            when_s = stream.start_unix_s or path.stat().st_mtime
-            remember(args.pack_dir, args.pack, label_ah, pipeline.pack_state.estimate(), when_s)
-        for warning in stream.warnings(vehicle.battery.cells):
+    pipeline = Pipeline(vehicle, settings, mission_energy)
+    when_s = stream.start_unix_s or path.stat().st_mtime
+    pack = FlightPack(pipeline, args.pack_dir, args.pack, when_s)
+
+    def note(text: str | None, what: str = "note") -> None:
+        if text is not None:
             progress.console.print(
-                f"uav-energy replay: warning: {name}: {warning}",
+                f"uav-energy replay: {what}: {name}: {text}",
                 highlight=False,
                 soft_wrap=True,
                 markup=False,
             )
+
+    try:
+        samples = _naming_pack(stream, pack, samples, note)
+        flight = replay_stream(stream, vehicle, name, settings, samples, on_sample, pipeline)
+        if not flight.estimates:
+            limits = vehicle.input_limits()
+            problem = voltage_window_problem(stream, vehicle.battery.cells, limits)
+            if problem is not None:
+                raise UserError(f"{path}: {problem}")
+        note(pack.remember(), "warning")
+        note(pack.unnamed())
+        for cause, warning in stream.problems(vehicle.battery.cells):
+            if said.first(cause):
+                note(warning, "warning")
         return flight
     finally:
         progress.remove_task(task)
         progress.advance(_LOGS_TASK)
+
+
+def _naming_pack(
+    stream: SampleStream,
+    pack: FlightPack,
+    samples: Iterable[Sample | MissionSample],
+    note: Callable[[str | None], None],
+) -> Iterator[Sample | MissionSample]:
+    """``samples`` unchanged; the log's pack serial goes to ``pack`` as soon as the reader has
+    met it, before the next sample reaches the pipeline (as the daemon does)."""
+    reported = False
+    for sample in samples:
+        if not reported and stream.pack_id is not None and pack.wants_serial:
+            reported = True
+            note(pack.reported(stream.pack_id))
+        yield sample
 
 
 def _progress(console: Console, n_logs: int) -> Progress:
@@ -369,6 +425,15 @@ def _print_table(flights: Sequence[FlightReplay], result: dict[str, Any], vehicl
         highlight=False,
         soft_wrap=True,
     )
+    truth = result.get("endurance_truth")
+    if truth is not None and truth["estimates"]:
+        console.print(
+            f"endurance against truth.json: {100 * truth['within_1sigma']:.1f} % within 1σ, "
+            f"{100 * truth['within_3sigma']:.1f} % within 3σ, {truth['estimates']} estimates of "
+            f"{truth['flights']} flight{'' if truth['flights'] == 1 else 's'}",
+            highlight=False,
+            soft_wrap=True,
+        )
 
 
 def _cells(s: Summary) -> list[str]:

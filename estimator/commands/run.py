@@ -28,7 +28,11 @@ def register(subparsers: Any) -> None:
         help="output link for ground stations (repeatable), e.g. udpout:127.0.0.1:14551",
     )
     parser.add_argument("--vehicle", metavar="FILE", help="vehicle TOML (default: built-in)")
-    parser.add_argument("--pack", metavar="ID", help="the pack flown (with [pack] dir)")
+    parser.add_argument(
+        "--pack",
+        metavar="ID",
+        help="the pack flown (with [pack] dir; default: its serial from the autopilot)",
+    )
     parser.add_argument("--rate", type=float, metavar="HZ", help="publish rate (0: every estimate)")
     parser.add_argument("--json", metavar="DEST", help="JSON lines: '-' (stdout) or udp:HOST:PORT")
     parser.add_argument("--target", metavar="SYS:COMP", help="autopilot ids (default: first seen)")
@@ -48,21 +52,29 @@ def config_from_args(args: argparse.Namespace) -> ServiceConfig:
         if not sys_text.isdigit() or (comp_text and not comp_text.isdigit()):
             raise UserError(f"--target must be SYS or SYS:COMP, got {args.target!r}")
         target_system, target_component = int(sys_text), int(comp_text or 1)
-    overrides = {
-        "connect": args.connect,
-        "publish": tuple(args.publish) if args.publish else None,
-        "vehicle": args.vehicle,
-        "pack_id": args.pack,
-        "publish_rate_hz": args.rate,
-        "json": args.json,
-        "target_system": target_system,
-        "target_component": target_component,
-        "system_id": args.system_id,
-        "battery_id": args.battery_id,
-        "stale_after_s": args.stale_after,
-        "log_level": args.log_level,
+    flags = {  # ServiceConfig key → (flag, value or None when not given)
+        "connect": ("--connect", args.connect),
+        "publish": ("--publish", tuple(args.publish) if args.publish else None),
+        "vehicle": ("--vehicle", args.vehicle),
+        "pack_id": ("--pack", args.pack),
+        "publish_rate_hz": ("--rate", args.rate),
+        "json": ("--json", args.json),
+        "target_system": ("--target", target_system),
+        "target_component": ("--target", target_component),
+        "system_id": ("--system-id", args.system_id),
+        "battery_id": ("--battery-id", args.battery_id),
+        "stale_after_s": ("--stale-after", args.stale_after),
+        "log_level": ("--log-level", args.log_level),
     }
-    return build_config(file_values, overrides)
+    try:
+        return build_config(file_values, {key: value for key, (_, value) in flags.items()})
+    except UserError as exc:
+        # a value from a flag is named by the flag, not by the config key it sets
+        message = str(exc)
+        for key, (flag, value) in flags.items():
+            if value is not None and f"config '{key}'" in message:
+                raise UserError(message.replace(f"config '{key}'", flag)) from None
+        raise
 
 
 def run(args: argparse.Namespace) -> int:

@@ -1,7 +1,8 @@
 """Whether a power reading comes from flight: ground, take-off transient, or flying.
 
-Readings on the ground (disarmed, below :data:`AIRBORNE_ALT_M` over home, or drawing less
-than the idle share of the model's hover power: motors spinning up at arming while the
+Readings on the ground (disarmed; on the ground by the autopilot's landed detector where it
+reports one, PX4's EXTENDED_SYS_STATE, else below :data:`AIRBORNE_ALT_M` over home; or drawing
+less than the idle share of the model's hover power: motors spinning up at arming while the
 barometer drifts) and in the take-off transient (the first ``settle_s`` of flight and the
 climb after it, until the vertical speed first falls to ``level_mps``: spool-up, ground
 effect, and the climb term, the least certain part of the model, at its largest) carry no
@@ -36,7 +37,8 @@ class Phase(Enum):
 class AirborneGate:
     """Classifies readings in time order; ``since_s`` is when the current flight left the
     ground (sample clock, s; None on the ground). An unknown armed state, height or vertical
-    speed (None) does not count against flight: a log without them is judged on the rest."""
+    speed (None) does not count against flight: a log without them is judged on the rest; a
+    known landed state (the autopilot's detector) replaces the height test."""
 
     def __init__(
         self,
@@ -56,13 +58,16 @@ class AirborneGate:
         alt_m: float | None,
         power_w: float | None,
         vd_mps: float | None = None,
+        on_ground: bool | None = None,
     ) -> Phase:
         """The phase of a reading at ``time_s`` (s) with the armed state, height over home
-        (m), measured power (W, None without a current sensor) and vertical speed (m/s NED,
-        down positive) then."""
+        (m), measured power (W, None without a current sensor), vertical speed (m/s NED,
+        down positive) and the autopilot's landed state (None: it reports none) then."""
+        if on_ground is None:
+            on_ground = alt_m is not None and not alt_m > AIRBORNE_ALT_M
         ground = (
             armed is False
-            or (alt_m is not None and not alt_m > AIRBORNE_ALT_M)
+            or on_ground
             or (power_w is not None and not power_w >= self.idle_below_w)
         )
         if ground or not math.isfinite(time_s):

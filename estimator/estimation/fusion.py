@@ -40,6 +40,13 @@ from estimator.telemetry.samples import BatterySample
 
 #: Energy levels (fractions of what is left) at which endurance integrates the pack.
 _UNIT_GRID = np.linspace(0.0, 1.0, 24)
+#: The model's scale a state may hold (a model off by more is no model of the vehicle).
+BIAS_RANGE = (0.2, 5.0)
+#: The real pack may hold up to this multiple of its label: the pack filter's capacity bound
+#: (:mod:`estimator.estimation.pack_state`, q = label / real ≥ 0.4).
+MAX_CAPACITY_PER_LABEL = 2.5
+#: The autopilot's clock (s) ends here (time_boot_ms is an unsigned 32-bit count).
+_MAX_CLOCK_S = 2**32 / 1000.0
 
 
 @dataclass(frozen=True, slots=True)
@@ -114,8 +121,8 @@ class ResistanceFilter:
     def restore(self, state: Mapping[str, Any]) -> None:
         """Continue from :meth:`snapshot` (a fixed resistance stays fixed)."""
         if not self._fixed:
-            self._kf.x = np.array([_finite(state["ohm"], 0.0, 1.0)])
-            self._kf.P = np.array([[_finite(state["var_ohm2"], 0.0, 1.0)]])
+            self._kf.x = np.array([_finite(state["ohm"], 0.0, 1.0, "resistance (Ω)")])
+            self._kf.P = np.array([[_finite(state["var_ohm2"], 0.0, 1.0, "resistance variance")]])
 
     def update(self, dt_s: float, soc: float, voltage_v: float, current_a: float) -> None:
         """Fold in a terminal voltage (V) at ``current_a`` (A) and state of charge ``soc``."""
@@ -137,12 +144,25 @@ class ResistanceFilter:
         return np.asarray(0.5 * (ocv + np.sqrt(disc)))
 
 
-def _finite(value: Any, low: float, high: float) -> float:
-    """``value`` as a float within [low, high]; ValueError otherwise."""
-    number = float(value)
+def _finite(value: Any, low: float, high: float, what: str = "value") -> float:
+    """``value`` as a float within [low, high]; ValueError naming ``what`` otherwise (a
+    boolean, or an integer too large for a float, included)."""
+    if isinstance(value, bool):
+        raise ValueError(f"{what} {value!r} is not a number")
+    try:
+        number = float(value)
+    except OverflowError:
+        raise ValueError(f"{what} is beyond a float's range") from None
     if not (math.isfinite(number) and low <= number <= high):
-        raise ValueError(f"{number} is not within [{low}, {high}]")
+        raise ValueError(f"{what} {number:g} is not within [{low:g}, {high:g}]")
     return number
+
+
+def _flag(value: Any) -> bool:
+    """``value`` if it is a JSON boolean; ValueError otherwise."""
+    if not isinstance(value, bool):
+        raise ValueError(f"{value!r} is not true or false")
+    return value
 
 
 def _ocv_slope_v(pack: PackModel, soc: float) -> float:
@@ -282,19 +302,31 @@ class EnergyFilter:
         }
 
     def restore(self, state: Mapping[str, Any]) -> None:
-        """Continue from :meth:`snapshot`; ValueError/KeyError/TypeError on a bad one."""
+        """Continue from :meth:`snapshot`; ValueError/KeyError/TypeError on a bad one. Every
+        value must lie in its range: E from minus the reserve to the most energy above it
+        of the largest pack (:data:`MAX_CAPACITY_PER_LABEL`), b within :data:`BIAS_RANGE`,
+        the covariance symmetric positive semi-definite with b's variance within the prior's
+        (the filter's cap), E's within the pack's energy squared."""
         x, p = state_from_json(state["x"], state["P"], 2, "energy state [E, b]")
+        most_wh = MAX_CAPACITY_PER_LABEL * float(self.pack.energy_wh(1.0))
+        _finite(x[0], -MAX_CAPACITY_PER_LABEL * self._reserve_wh, most_wh, "energy (Wh)")
+        _finite(x[1], *BIAS_RANGE, "bias")
+        _finite(p[0, 0], 0.0, most_wh**2, "energy variance (Wh²)")
+        bias_var_cap = self.settings.bias_prior_sigma**2 * (1.0 + 1e-9)
+        _finite(p[1, 1], 0.0, bias_var_cap, "bias variance")
         voltage = ResistanceFilter(self.pack, self.settings)
         voltage.restore(state["resistance"])
         anchor = state["anchor_power_w"]
         self._kf, self.voltage = LinearKalman(x, p), voltage
-        self._time_s = _finite(state["time_s"], 0.0, math.inf)
-        self._soc_ref = _finite(state["soc_ref"], 0.0, 1.0)
-        self._offset_sigma_wh = _finite(state["offset_sigma_wh"], 0.0, math.inf)
-        self._initial_wh = _finite(state["initial_wh"], 0.0, math.inf)
-        self._anchor_power_w = None if anchor is None else float(anchor)
-        self.has_current = bool(state["has_current"])
-        self.has_charge = bool(state["has_charge"])
+        self._time_s = _finite(state["time_s"], 0.0, _MAX_CLOCK_S, "time (s)")
+        self._soc_ref = _finite(state["soc_ref"], 0.0, 1.0, "soc_ref")
+        self._offset_sigma_wh = _finite(state["offset_sigma_wh"], 0.0, most_wh, "offset (Wh)")
+        self._initial_wh = _finite(state["initial_wh"], 0.0, most_wh, "initial energy (Wh)")
+        if anchor is not None:
+            anchor = _finite(anchor, 0.0, math.inf, "anchor power (W)")
+        self._anchor_power_w = anchor
+        self.has_current = _flag(state["has_current"])
+        self.has_charge = _flag(state["has_charge"])
 
     def rebase(self, time_s: float) -> None:
         """The autopilot rebooted: its clock restarts at ``time_s`` and its consumed-charge

@@ -95,9 +95,15 @@ class MerweSigmaPoints:
 
 def state_from_json(x_doc: Any, p_doc: Any, n: int, what: str) -> tuple[np.ndarray, np.ndarray]:
     """A filter's state (n,) and covariance (n × n) from their JSON lists; ValueError (or
-    TypeError) when they are not finite arrays of those shapes."""
+    TypeError) when they are not finite arrays of those shapes, or the covariance is not
+    symmetric positive semi-definite (to rounding)."""
     x = np.array([float(v) for v in x_doc])
     p = np.array([[float(v) for v in row] for row in p_doc])
     if x.shape != (n,) or p.shape != (n, n) or not (np.isfinite(x).all() and np.isfinite(p).all()):
         raise ValueError(f"{what} is not a finite state of {n} with its {n}×{n} covariance")
+    scale = max(float(np.abs(p).max()), 1e-300)
+    if not np.allclose(p, p.T, rtol=1e-9, atol=1e-12 * scale):
+        raise ValueError(f"{what}: the covariance is not symmetric")
+    if np.linalg.eigvalsh(0.5 * (p + p.T)).min() < -1e-9 * scale:
+        raise ValueError(f"{what}: the covariance is not positive semi-definite")
     return x, p

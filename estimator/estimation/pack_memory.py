@@ -7,8 +7,9 @@ resistance Ω), which ``fleet`` can plot as capacity fade. The next flight with 
 from it (:class:`~estimator.estimation.pack_state.PackPrior`), its σ widened by what a pack
 may change between flights (:data:`BETWEEN_FLIGHTS_FRACTION`).
 
-Pack ids come from the user (``--pack ID``, ``[battery] pack_id``); a memory file is read as
-hostile input: bounded by schema and physics; a bad one is a user mistake
+Pack ids come from the user (``--pack ID``, ``[pack] id``) or from the pack's serial number
+as the autopilot reports it (:func:`pack_id_from_serial`); a memory file is read as hostile
+input: bounded by schema and physics; a bad one is a user mistake
 (:class:`~estimator.errors.UserError`) and never becomes a prior.
 """
 
@@ -27,6 +28,8 @@ from estimator.estimation.pack_state import PackEstimate, PackPrior
 
 #: A pack id: letters, digits, ``._-``, 1–64 characters, not starting with a dot.
 PACK_ID = re.compile(r"[A-Za-z0-9_-][A-Za-z0-9._-]{0,63}")
+#: Runs of characters a pack id may not hold (a serial's spaces, slashes, colons).
+_NOT_IN_PACK_ID = re.compile(r"[^A-Za-z0-9._-]+")
 #: What a pack may change between two flights (capacity and resistance, fraction, 1σ):
 #: a cycle's fade, a colder or warmer day.
 BETWEEN_FLIGHTS_FRACTION = 0.03
@@ -69,6 +72,20 @@ def check_pack_id(pack_id: str) -> str:
             f"pack id {pack_id!r} must be 1–64 letters, digits, '.', '_' or '-' "
             "(not starting with '.')"
         )
+    return pack_id
+
+
+def pack_id_from_serial(serial: str) -> str | None:
+    """The pack id of a reported serial number (forged or garbage ones included): trimmed of
+    NULs and spaces; printable ASCII only, else None; each run of other characters than
+    letters, digits and ``._-`` becomes ``_``, leading dots go; None when no letter or digit
+    is left or it is longer than :data:`PACK_ID` allows. ``SN 12/34`` → ``SN_12_34``."""
+    text = serial.strip("\x00 ")
+    if not text.isascii() or not text.isprintable():
+        return None
+    pack_id = _NOT_IN_PACK_ID.sub("_", text).lstrip(".")
+    if not PACK_ID.fullmatch(pack_id) or not any(c.isalnum() for c in pack_id):
+        return None
     return pack_id
 
 

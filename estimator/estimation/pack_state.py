@@ -34,7 +34,7 @@ its σ is first order in the state's covariance.
 from __future__ import annotations
 
 import math
-from collections.abc import Iterable, Mapping
+from collections.abc import Mapping
 from dataclasses import dataclass
 from typing import Any
 
@@ -42,7 +42,6 @@ import numpy as np
 
 from estimator.estimation.kalman import state_from_json
 from estimator.physics.battery import PackModel
-from estimator.telemetry.samples import BatterySample
 
 #: Iterations of the first (iterated) update.
 _FIRST_UPDATE_ITERATIONS = 6
@@ -59,12 +58,18 @@ _MAX_SLOPE_HALF_WIDTH = 0.1
 #: terminal voltage is read in mV, and below 5 mV the filter would trust its curve and its
 #: current sensor more than either deserves.
 _NOISE_MEMORY = 200.0
+#: Readings the configured noise counts for in that average: the data's own noise takes
+#: over within a few dozen readings, not after the whole memory.
+_NOISE_PRIOR_READINGS = 10.0
 _NOISE_FLOOR_V = 0.005
 #: Prior 1σ of the starting state of charge before the first reading (uninformative).
 _S_PRIOR_SIGMA = 0.5
 #: Error of a resting curve measured on the pack itself (V per cell): what is left of the
 #: table's interpolation and of the pack's ageing since (the vehicle file's ``cell_ocv_v``).
 OWN_CURVE_SIGMA_V = 0.004
+#: Error of a resistance measured on the pack (``uav-energy fit``), as a fraction: it falls
+#: as the pack warms and rises as it ages.
+MEASURED_RESISTANCE_SIGMA = 0.3
 #: Prior error of the label against the real pack (fraction, 1σ) where the capacity is
 #: learned: packs lose 20–40 % over a few hundred cycles.
 LEARNED_CAPACITY_SIGMA = 0.25
@@ -86,8 +91,9 @@ class PackSettings:
     resistance_walk_ohm_per_sqrt_s: random walk of the resistance (it falls as the pack warms).
     voltage_noise_v: error of one terminal-voltage reading, pack (V; with the pack's fast
     polarisation, which no state here follows).
-    ocv_curve_sigma_v_per_cell: error of the configured resting curve (V per cell; None:
-    :data:`OWN_CURVE_SIGMA_V` for a curve measured on the pack, ``[battery] cell_ocv_v``,
+    ocv_curve_sigma_v_per_cell: error of the configured resting curve (V per cell; None: the
+    vehicle file's ``[battery] cell_ocv_sigma_v``, else :data:`OWN_CURVE_SIGMA_V`, for a curve
+    measured on the pack, ``[battery] cell_ocv_v``,
     :data:`TYPICAL_CURVE_SIGMA_V` for a chemistry's typical curve), and
     ocv_curve_correlation_soc the state-of-charge distance over which it decorrelates.
     innovation_gate_sigma: a reading further than this many σ from the prediction is not
@@ -135,9 +141,16 @@ class PackFilter:
     """The EKF over ``[s, q, R, d]`` of the module docstring, for one pack."""
 
     def __init__(
-        self, pack: PackModel, settings: PackSettings, prior: PackPrior | None = None
+        self,
+        pack: PackModel,
+        settings: PackSettings,
+        prior: PackPrior | None = None,
+        resistance: tuple[float, float] | None = None,
     ) -> None:
+        """``resistance``: the resistance (Ω) and its 1σ to start from, in place of the
+        prior's or the settings' (one hypothesis of :mod:`estimator.estimation.pack_bank`)."""
         self.pack = pack
+        self._resistance = resistance
         self.settings = settings
         self.prior = prior
         self.cells = pack.spec.cells
@@ -148,38 +161,60 @@ class PackFilter:
         self._counter_base: tuple[float, float] | None = None  # (charge_ah, counter Ah) then
         self.rejected = 0
         self.updates = 0
+        #: log p(readings so far | the filter's model), each reading from its prediction
+        #: (a reading outside the gate counts at the gate's edge): what a bank of starts
+        #: weighs its hypotheses by (:mod:`estimator.estimation.pack_bank`).
+        self.log_likelihood = 0.0
         self.started = False
         #: Sample time (s) of the last reading :meth:`take` folded in (None: not known).
         self.last_time_s: float | None = None
         #: Variance of one terminal-voltage reading (V²): the configured one, then the data's.
         self.noise_var_v2 = settings.voltage_noise_v**2
         self._noise_mean_v2 = self.noise_var_v2
+        self._noise_readings = _NOISE_PRIOR_READINGS
         #: The resting curve is the pack's own (measured), not its chemistry's typical one.
         self.own_curve = pack.spec.cell_ocv_v is not None
         curve_sigma = settings.ocv_curve_sigma_v_per_cell
         if curve_sigma is None:
-            curve_sigma = OWN_CURVE_SIGMA_V if self.own_curve else TYPICAL_CURVE_SIGMA_V
+            curve_sigma = (
+                (pack.spec.cell_ocv_sigma_v or OWN_CURVE_SIGMA_V)
+                if self.own_curve
+                else TYPICAL_CURVE_SIGMA_V
+            )
         #: 1σ of the curve error state d (V, pack).
         self.curve_sigma_v = curve_sigma * self.cells
 
     # -- start ------------------------------------------------------------------------------
 
+    def resistance_prior(self) -> tuple[float, float]:
+        """The resistance (Ω) and its 1σ the filter starts from: fixed, the one it was made
+        with, the pack's memory, the vehicle file's measured one (``[battery]
+        internal_resistance_ohm``, ± :data:`MEASURED_RESISTANCE_SIGMA`), or the settings'
+        per-cell prior."""
+        s = self.settings
+        if s.internal_resistance_ohm is not None:
+            return s.internal_resistance_ohm, 0.0
+        if self._resistance is not None:
+            return self._resistance
+        if self.prior is not None:
+            return self.prior.resistance_ohm, self.prior.resistance_sigma_ohm
+        measured_ohm = self.pack.spec.internal_resistance_ohm
+        if measured_ohm is not None:
+            return measured_ohm, MEASURED_RESISTANCE_SIGMA * measured_ohm
+        cells = self.cells
+        return s.resistance_prior_ohm_per_cell * cells, s.resistance_sigma_ohm_per_cell * cells
+
     def start(self, voltage_v: float, current_a: float) -> None:
         """Start from one reading (V, A): the prior, then an iterated update with it."""
-        s, cells = self.settings, self.cells
-        fixed = s.internal_resistance_ohm
+        s = self.settings
         if self.prior is not None:
             q0 = self.label_ah / self.prior.capacity_ah
             q_sigma = q0 * self.prior.capacity_sigma_ah / self.prior.capacity_ah
-            r0, r_sigma = self.prior.resistance_ohm, self.prior.resistance_sigma_ohm
         else:
             learned = LEARNED_CAPACITY_SIGMA if self.own_curve else 0.0
             q0 = 1.0
             q_sigma = learned if s.capacity_sigma_fraction is None else s.capacity_sigma_fraction
-            r0 = s.resistance_prior_ohm_per_cell * cells
-            r_sigma = s.resistance_sigma_ohm_per_cell * cells
-        if fixed is not None:
-            r0, r_sigma = fixed, 0.0
+        r0, r_sigma = self.resistance_prior()
         ocv_v = voltage_v + max(current_a, 0.0) * r0
         s0 = float(np.clip(self.pack.soc_from_ocv(ocv_v), 0.0, 1.0))
         self.started = True
@@ -278,27 +313,47 @@ class PackFilter:
             innovation = voltage_v - z_pred - float(h @ (x0 - x))
             if gate and innovation**2 > self.settings.innovation_gate_sigma**2 * s_var:
                 self.rejected += 1
+                self.log_likelihood -= 0.5 * (
+                    self.settings.innovation_gate_sigma**2 + math.log(2.0 * math.pi * s_var)
+                )
                 return
             gain = pht / s_var
             x = x0 + gain * innovation
-        if gate:
-            self._learn_noise(innovation**2 - float(h @ pht))
+        self.log_likelihood -= 0.5 * (innovation**2 / s_var + math.log(2.0 * math.pi * s_var))
         i_kh = np.eye(4) - np.outer(gain, h)
         self.P = i_kh @ p0 @ i_kh.T + r_var * np.outer(gain, gain)
+        if gate:
+            # residual after the update, plus what the state's remaining uncertainty explains
+            residual_v = innovation * (1.0 - float(h @ gain))
+            self._learn_noise(residual_v**2 + float(h @ self.P @ h))
         x[0] = min(max(x[0], _S_RANGE[0]), _S_RANGE[1])
         x[1] = min(max(x[1], _Q_RANGE[0]), _Q_RANGE[1])
         x[2] = min(max(x[2], _R_RANGE[0]), _R_RANGE[1])
         self.x = x
         self.updates += 1
 
-    def _learn_noise(self, excess_v2: float) -> None:
-        """The readings' noise from the data: the innovation's square beyond what the
-        state's uncertainty explains, averaged over :data:`_NOISE_MEMORY` readings, kept
-        between (:data:`_NOISE_FLOOR_V`)² and 4 × the configured variance."""
+    def _learn_noise(self, sample_v2: float) -> None:
+        """The readings' noise from the data: the square of each reading's residual after
+        its update plus the state's remaining uncertainty in it (an estimate that stays
+        positive while the state is still uncertain), averaged over the readings so far (the
+        configured noise counting as :data:`_NOISE_PRIOR_READINGS`) and at most
+        :data:`_NOISE_MEMORY`, kept between (:data:`_NOISE_FLOOR_V`)² and 4 × the configured
+        variance."""
+        self._noise_readings = min(self._noise_readings + 1.0, _NOISE_MEMORY)
+        mean = self._noise_mean_v2 + (sample_v2 - self._noise_mean_v2) / self._noise_readings
+        self.share_noise(mean)
+
+    @property
+    def noise_mean_v2(self) -> float:
+        """The running mean behind :attr:`noise_var_v2` (V², before its bounds)."""
+        return self._noise_mean_v2
+
+    def share_noise(self, mean_v2: float) -> None:
+        """Take ``mean_v2`` (V²) as the running mean of the readings' noise: the starts of a
+        bank learn one noise, so none is favoured for a noise it learnt on its own."""
+        self._noise_mean_v2 = mean_v2
         configured = self.settings.voltage_noise_v**2
-        mean = self._noise_mean_v2 + (excess_v2 - self._noise_mean_v2) / _NOISE_MEMORY
-        self._noise_mean_v2 = mean
-        self.noise_var_v2 = min(max(mean, _NOISE_FLOOR_V**2), 4.0 * configured)
+        self.noise_var_v2 = min(max(mean_v2, _NOISE_FLOOR_V**2), 4.0 * configured)
 
     # -- what it says -------------------------------------------------------------------------
 
@@ -372,25 +427,9 @@ class PackFilter:
             raise ValueError("charge drawn is not within the pack's reach")
         base = state["counter_base"]
         counter_base = None if base is None else (float(base[0]), float(base[1]))
-        if counter_base is not None and not all(map(math.isfinite, counter_base)):
-            raise ValueError("counter base is not finite")
+        if counter_base is not None and not (
+            0.0 <= counter_base[0] <= 10.0 * self.label_ah and 0.0 <= counter_base[1] <= 1e3
+        ):  # the charge drawn, and a consumed-charge counter (Ah) the decoder believes
+            raise ValueError("counter base is not within the pack's reach")
         self.x, self.P, self.charge_ah, self._counter_base = x, p, charge_ah, counter_base
         self.started = True
-
-
-def track_pack(
-    samples: Iterable[BatterySample],
-    pack: PackModel,
-    settings: PackSettings | None = None,
-    prior: PackPrior | None = None,
-) -> list[tuple[float, PackEstimate]]:
-    """The pack filter over a flight's battery readings that carry a current: (time s,
-    estimate) after each (:meth:`PackFilter.take`)."""
-    tracker = PackFilter(pack, settings or PackSettings(), prior)
-    out: list[tuple[float, PackEstimate]] = []
-    for sample in samples:
-        if sample.current_a is None or not math.isfinite(sample.voltage_v):
-            continue
-        tracker.take(sample.time_s, sample.voltage_v, sample.current_a, sample.consumed_mah)
-        out.append((sample.time_s, tracker.estimate()))
-    return out

@@ -39,16 +39,18 @@ from __future__ import annotations
 import math
 from collections import Counter
 from collections.abc import Mapping, Sequence
-from dataclasses import dataclass, field, fields
+from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
 
 from estimator.errors import UserError
 from estimator.estimation.airborne import AirborneGate, Phase
+from estimator.estimation.estimate import Estimate, PowerReading
 from estimator.estimation.fusion import EnergyEstimate, EnergyFilter, FusionSettings
 from estimator.estimation.online_effects import OnlineEffects, TrackerReading
-from estimator.estimation.pack_state import PackEstimate, PackFilter, PackPrior, PackSettings
+from estimator.estimation.pack_bank import PackBank
+from estimator.estimation.pack_state import PackEstimate, PackPrior, PackSettings
 from estimator.estimation.return_home import (
     MissionEnergyFn,
     MissionSample,
@@ -67,11 +69,13 @@ from estimator.physics.effects import (
 )
 from estimator.physics.kinematics import KinematicsFilter, KinematicsSettings, KinematicState
 from estimator.physics.vehicle import Vehicle
+from estimator.telemetry.plausibility import MAX_POWER_PER_HOVER
 from estimator.telemetry.samples import (
     ArmedSample,
     BatterySample,
     GripperSample,
     HomeSample,
+    LandedSample,
     MissionCurrentSample,
     PositionSample,
     RebootSample,
@@ -128,114 +132,17 @@ class PipelineSettings:
 
 
 @dataclass(frozen=True, slots=True)
-class Estimate:
-    """One published estimate. Powers in W, energy in Wh, times in s, speeds m/s, range m.
-
-    power_model_w: the model's power for the current flight state (before the bias).
-    power_measured_w: latest V·I, None without a current sensor.
-    endurance_s: time to the reserve if the current steady power continues (1σ alongside).
-    hover_endurance_s / vme_endurance_s: the same when hovering / flying at V_me.
-    range_vmr_m: distance over ground (no wind) at V_mr until the reserve.
-    bias: measured over modelled power (1 = the model is right).
-    model_only: no measured current fused (uncertainty is wider).
-    pack_soc, capacity_ah, pack_resistance_ohm: the pack as learned in flight from its voltage,
-    current and charge (:mod:`estimator.estimation.pack_state`; NaN without a current):
-    state of charge (fraction of the real pack), real capacity (Ah), resistance (Ω).
-    *_sigma_*: 1σ of the quantity named before it (first-order propagation).
-    stale: battery telemetry older than the configured limit (or, in the daemon, a silent
-    link).
-    endurance_valid: the endurance figures rest on flight: False from start-up until the
-    first reading after take-off (:mod:`estimator.estimation.airborne`) has been fused, since the
-    model's
-    scale is learnt only in flight. Publishers do not give the endurance figures before
-    (:mod:`estimator.mavlink.publish`).
-    home_distance_m, rth_*, margin_*, pnr_s, mission_*, rth_flags: the return home and the
-    mission (:mod:`estimator.estimation.return_home`): distance to home over ground (m), the
-    electrical energy (Wh) and time (s) of the return, the ground speed home (m/s) and the
-    wind assumed (m/s, from °), the margin (usable energy above the
-    reserve left after it, Wh), the point of no return (s until the margin is 0 at the current
-    power), the energy of the rest of the mission and the return after it (Wh), and whether it
-    leaves the reserve (None: unknown); NaN with a bit of ``rth_flags`` set when an input is
-    missing (:data:`~estimator.estimation.return_home.FLAG_NAMES`).
-    """
-
-    time_s: float
-    speed_mps: float
-    accel_tangential_mps2: float
-    accel_centripetal_mps2: float
-    climb_mps: float
-    power_model_w: float
-    power_measured_w: float | None
-    energy_remaining_wh: float
-    energy_remaining_sigma_wh: float
-    endurance_s: float
-    endurance_sigma_s: float
-    hover_endurance_s: float
-    vme_endurance_s: float
-    v_me_mps: float
-    range_vmr_m: float
-    bias: float
-    bias_sigma: float
-    model_only: bool
-    stale: bool
-    soc: float = math.nan
-    voltage_v: float = math.nan
-    resistance_ohm: float = math.nan
-    pack_soc: float = math.nan
-    pack_soc_sigma: float = math.nan
-    capacity_ah: float = math.nan
-    capacity_sigma_ah: float = math.nan
-    pack_resistance_ohm: float = math.nan
-    steady_power_w: float = math.nan
-    hover_endurance_sigma_s: float = math.nan
-    vme_endurance_sigma_s: float = math.nan
-    range_vmr_sigma_m: float = math.nan
-    endurance_valid: bool = True
-    home_distance_m: float = math.nan
-    rth_energy_wh: float = math.nan
-    rth_sigma_wh: float = math.nan
-    rth_time_s: float = math.nan
-    rth_speed_mps: float = math.nan
-    rth_wind_mps: float = math.nan
-    rth_wind_from_deg: float = math.nan
-    margin_wh: float = math.nan
-    margin_sigma_wh: float = math.nan
-    pnr_s: float = math.nan
-    mission_energy_wh: float = math.nan
-    mission_sigma_wh: float = math.nan
-    mission_feasible: bool | None = None
-    rth_flags: int = 0
-
-    def as_dict(self) -> dict[str, float | bool | None]:
-        return {name: getattr(self, name) for name in _ESTIMATE_FIELDS}
-
-
-_ESTIMATE_FIELDS = tuple(f.name for f in fields(Estimate))
-
-
-@dataclass(frozen=True, slots=True)
-class PowerReading:
-    """A battery reading with a current, against the model power in force when it arrived
-    (a prediction: the reading was not yet fused). Powers W, time s; armed None = unknown;
-    alt_m: height over home of the latest velocity sample (None = unknown)."""
-
-    time_s: float
-    measured_w: float
-    model_w: float
-    armed: bool | None
-    alt_m: float | None
-
-
-@dataclass(frozen=True, slots=True)
 class _Reading:
     """A queued battery sample, the number of events of the period before it, and the armed
-    state, height over home (m) and kinematic state when it arrived (None = unknown)."""
+    state, height over home (m), kinematic state and the autopilot's landed state when it
+    arrived (None = unknown)."""
 
     sample: BatterySample
     events_before: int
     armed: bool | None
     alt_m: float | None
     state: KinematicState | None
+    on_ground: bool | None = None
 
 
 @dataclass(frozen=True, slots=True)
@@ -258,7 +165,7 @@ class _Resume:
     tracked_sq_w2: float
     file_sq_w2: float
     endurance_valid: bool
-    pack: PackFilter | None
+    pack: PackBank | None
 
 
 class Pipeline:
@@ -303,7 +210,7 @@ class Pipeline:
         self.energy = EnergyFilter(self.pack, self.settings.fusion)
         self.pack_prior = pack_prior
         #: The pack learned in flight (started at the first battery reading with a current).
-        self.pack_state: PackFilter | None = None
+        self.pack_state: PackBank | None = None
         self._pack_estimate: PackEstimate | None = None  # the pack filter's, last period
         self._gate = AirborneGate(vehicle.model.hover_power_w)
         self._phase = Phase.GROUND  # of the latest battery reading
@@ -318,6 +225,7 @@ class Pipeline:
         self.readings: list[PowerReading] = []
         self._state: KinematicState | None = None
         self._armed: bool | None = None
+        self._on_ground: bool | None = None  # the autopilot's landed detector (PX4)
         self._battery: BatterySample | None = None
         self._resistance_time_s: float | None = None
         # the open period: power-changing samples and battery readings (with the number of
@@ -343,11 +251,12 @@ class Pipeline:
         accel_centripetal_mps2: float = 0.0,
         voltages_v: Sequence[float] = (),
         time_s: float = 0.0,
+        effects: Sequence[Effect] | None = None,
     ) -> np.ndarray:
         """Model power (W): one row per kinematic state (at its battery voltage in
         ``voltages_v``, V), then level flight at each steady speed along the current track (it
         matters in wind) in a steady turn with a⊥ as given, at ``time_s`` and the latest
-        voltage; with the effects in use."""
+        voltage; with ``effects`` (default: the effects in use)."""
         k = len(states)
         north, east = math.cos(self._track_rad), math.sin(self._track_rad)
         latest_v = math.nan if self._battery is None else self._battery.voltage_v
@@ -371,7 +280,9 @@ class Pipeline:
         rows[k:, 1] = north * steady_speeds_mps
         rows[k:, 2] = east * steady_speeds_mps
         flight = FlightState(*rows.T)
-        power = predict_power_w(self.vehicle.model, self.vehicle.mass_kg, flight, self.effects)
+        if effects is None:
+            effects = self.effects
+        power = predict_power_w(self.vehicle.model, self.vehicle.mass_kg, flight, effects)
         return np.maximum(power, 0.0)
 
     def _refresh_speeds(self) -> None:
@@ -453,7 +364,9 @@ class Pipeline:
                 self._initialize(sample)
                 return None
             alt_m = None if self._state is None else self._state.alt_m
-            reading = _Reading(sample, len(self._events), self._armed, alt_m, self._state)
+            reading = _Reading(
+                sample, len(self._events), self._armed, alt_m, self._state, self._on_ground
+            )
             self._pending.append(reading)
             self._battery = sample
         elif isinstance(sample, ArmedSample):
@@ -461,6 +374,10 @@ class Pipeline:
             self._armed = sample.armed
             if self.energy.initialized:
                 self._queue_event(sample.time_s)
+            return None
+        elif isinstance(sample, LandedSample):
+            self.counts["on_ground" if sample.on_ground else "off_ground"] += 1
+            self._on_ground = sample.on_ground
             return None
         elif isinstance(sample, RebootSample):
             return self._reboot(sample)
@@ -527,23 +444,44 @@ class Pipeline:
         """Continue from ``snapshot`` (:meth:`snapshot` of the same autopilot boot, checked by
         the caller) at the first battery sample instead of starting from its voltage (a
         sample older than the snapshot starts afresh). ValueError for a snapshot that does
-        not parse."""
+        not parse or holds a value out of its range (:meth:`check_snapshot`)."""
+        self._resume = self._parsed(snapshot)
+
+    def check_snapshot(self, snapshot: Mapping[str, Any]) -> None:
+        """ValueError when :meth:`resume` would refuse ``snapshot``: a value that does not
+        parse or lies out of its range (the energy and pack filters' ranges; the effects in
+        use must keep the vehicle's hover power finite and within
+        :data:`~estimator.telemetry.plausibility.MAX_POWER_PER_HOVER` times the file's; the
+        power scores finite, ≥ 0)."""
+        self._parsed(snapshot)
+
+    def _parsed(self, snapshot: Mapping[str, Any]) -> _Resume:
         try:
             energy = EnergyFilter(self.pack, self.settings.fusion)
             energy.restore(snapshot["energy"])
             pack = None
             if snapshot.get("pack") is not None:
-                pack = PackFilter(self.pack, self.settings.pack, self.pack_prior)
+                pack = PackBank(self.pack, self.settings.pack, self.pack_prior)
                 pack.restore(snapshot["pack"])
-            self._resume = _Resume(
-                energy,
-                tuple(effects_from_tables(snapshot["effects"])),
-                float(snapshot["tracked_sq_w2"]),
-                float(snapshot["file_sq_w2"]),
-                bool(snapshot["endurance_valid"]),
-                pack,
-            )
-        except (KeyError, TypeError, AttributeError, ValueError, UserError) as exc:
+            effects = tuple(effects_from_tables(snapshot["effects"]))
+            hover_w = float(self._predict((), np.zeros(1), effects=effects)[0])
+            if not hover_w <= MAX_POWER_PER_HOVER * self.vehicle.model.hover_power_w:
+                raise ValueError(f"the effects make hovering take {hover_w:.0f} W")
+            scores = (float(snapshot["tracked_sq_w2"]), float(snapshot["file_sq_w2"]))
+            if not all(math.isfinite(v) and v >= 0 for v in scores):
+                raise ValueError(f"power scores {scores} are not finite and ≥ 0")
+            if not isinstance(valid := snapshot["endurance_valid"], bool):
+                raise ValueError(f"endurance_valid is {valid!r}")
+            return _Resume(energy, effects, *scores, valid, pack)
+        except (
+            KeyError,
+            TypeError,
+            AttributeError,
+            ValueError,
+            OverflowError,
+            UserError,
+            np.linalg.LinAlgError,
+        ) as exc:
             raise ValueError(f"not a pipeline snapshot ({exc})") from None
 
     def _initialize(self, sample: BatterySample) -> None:
@@ -599,7 +537,7 @@ class Pipeline:
         if self.online is not None:
             self.online.restart_clock()
         self._state = None
-        self._armed = None
+        self._armed = self._on_ground = None
         self._battery = None
         self.returning.restart()
         if self.pack_state is not None:
@@ -642,6 +580,7 @@ class Pipeline:
                 r.alt_m,
                 r.sample.power_w,
                 None if r.state is None else r.state.vd_mps,
+                r.on_ground,
             )
             for r in self._pending
         }
@@ -732,12 +671,22 @@ class Pipeline:
         self._learn_pack(latest, consumed_mah=charge[-1] if charge else None)
         self._loss_factor = self.energy.loss_factor(self.energy.bias * self._power_model_w)
 
+    def adopt_pack_prior(self, prior: PackPrior) -> bool:
+        """Learn the pack from ``prior`` (a memory named late, e.g. by the pack's serial):
+        before the first flying reading the pack filter starts again from it at the next
+        reading (the readings on the ground give the charge again); False once flying (the
+        flight goes on with what it has learnt)."""
+        if self._flying_since_s is not None:
+            return False
+        self.pack_prior, self.pack_state, self._pack_estimate = prior, None, None
+        return True
+
     def _learn_pack(self, latest: BatterySample, consumed_mah: float | None) -> None:
         """The period's latest reading, when it has a current, into the pack filter (with the
         counter's last value of the period); the fusion's energy rests on the pack's."""
         if latest.current_a is not None:
             if self.pack_state is None:
-                self.pack_state = PackFilter(self.pack, self.settings.pack, self.pack_prior)
+                self.pack_state = PackBank(self.pack, self.settings.pack, self.pack_prior)
             current_a, voltage_v = latest.current_a, latest.voltage_v
             self.pack_state.take(latest.time_s, voltage_v, current_a, consumed_mah)
             self._pack_estimate = self.pack_state.estimate()

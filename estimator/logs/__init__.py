@@ -31,6 +31,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from estimator.errors import UserError
+from estimator.file_checks import regular_file
 from estimator.logs.sanity import SanityRecorder
 from estimator.physics.effects import wind_from_deg
 from estimator.telemetry.decode import SKIP_COUNTERS
@@ -70,7 +71,9 @@ class FlightSeries:
     ``airflow_speed_mps``, ``airflow_from_deg``; tlogs: ``armed`` as 0/1/NaN, and when the
     autopilot sends its wind estimate ``autopilot_wind_speed_mps`` and
     ``autopilot_wind_from_deg``, NaN before the first; when it reports gripper actions
-    ``gripper_released``: 1 released, 0 grabbed, the other state before the first report).
+    ``gripper_released``: 1 released, 0 grabbed, the other state before the first report;
+    when the autopilot counts it ``consumed_mah``, the charge drawn since its boot, mAh, NaN
+    where unknown).
     """
 
     flight_id: str
@@ -115,7 +118,9 @@ class SampleStream(Iterator[Sample]):
     with missing values, values or stamps not believed); ``checks``: of those, the ones the
     plausibility and time checks skipped, by reason; ``bad_frames``: corrupt records;
     ``truncated``: the file ended in the middle of a record (everything before the damage was
-    read). ``velocity_source`` names the logged vertical velocity (for warnings).
+    read). ``velocity_source`` names the logged vertical velocity (for warnings). ``missing``:
+    where the reader can tell, what a log that gave no battery current or no velocity lacks,
+    naming the message types it has (a sentence part); None otherwise.
     Where the log has them (tlogs): ``start_unix_s``, the first record's receive time (s since
     the Unix epoch, UTC); ``autopilot``, the (system id, component id) decoded; ``pack_id``, the
     pack's serial number (else its device name) from SMART_BATTERY_INFO. None otherwise.
@@ -129,6 +134,7 @@ class SampleStream(Iterator[Sample]):
         self.truncated = False
         self.checks: Counter[str] = Counter()
         self.velocity_source = "vertical velocity"
+        self.missing: str | None = None
         self.start_unix_s: float | None = None
         self.autopilot: tuple[int, int] | None = None
         self.pack_id: str | None = None
@@ -146,6 +152,10 @@ class SampleStream(Iterator[Sample]):
     def warnings(self, cells: int | None = None) -> list[str]:
         """The sanity checks' warnings once iterated (pack voltage when ``cells`` is given)."""
         return self.sanity.warnings(cells, self.velocity_source)
+
+    def problems(self, cells: int | None = None) -> list[tuple[str, str]]:
+        """The sanity checks' (cause, warning) once iterated, as :meth:`warnings`."""
+        return self.sanity.problems(cells, self.velocity_source)
 
     def count_checks(self, counts: Counter[str]) -> None:
         """Take the plausibility and time checks' skips from ``counts`` (added to ``skipped``)."""
@@ -270,6 +280,8 @@ def flights_from_stream(
             segments.append([])
         else:
             segments[-1].append(sample)
+    if stream.missing is not None:
+        raise UserError(f"{stream.path}: {stream.missing}")
     all_samples = [s for seg in segments for s in seg]
     batteries = [s for s in all_samples if isinstance(s, BatterySample)]
     if not any(isinstance(s, VelocitySample) for s in all_samples):
@@ -291,6 +303,28 @@ def flights_from_stream(
             f"{stream.path} has no battery sample with a velocity within {velocity_max_age_s} s"
         )
     return flights
+
+
+def voltage_window_problem(stream: SampleStream, cells: int, limits: InputLimits) -> str | None:
+    """Why a log read through ``limits`` (a pack of ``cells``) gave no battery reading, when
+    the reason is that every voltage in it lies outside the pack's window (the vehicle file's
+    ``cells`` is likely wrong); None otherwise. Reads the log again, believing any voltage a
+    multirotor may have."""
+    if not stream.checks["voltage_implausible"]:
+        return None
+    voltages = [
+        s.voltage_v
+        for s in iter_samples(stream.path, stream.format)
+        if isinstance(s, BatterySample)
+    ]
+    inside = [v for v in voltages if limits.min_voltage_v < v <= limits.max_voltage_v]
+    if not voltages or inside:
+        return None
+    return (
+        f"every battery voltage ({min(voltages):.1f}–{max(voltages):.1f} V) is outside the "
+        f"window of a {cells}-cell pack ({limits.min_voltage_v:.1f}–"
+        f"{limits.max_voltage_v:.1f} V): is `cells` right?"
+    )
 
 
 def _align(samples: list[Sample], flight_id: str, max_age_s: float) -> FlightSeries | None:
@@ -324,6 +358,7 @@ def _align(samples: list[Sample], flight_id: str, max_age_s: float) -> FlightSer
                     s.current_a,
                     armed,
                     gripper,
+                    float("nan") if s.consumed_mah is None else s.consumed_mah,
                 )
             )
             winds.append(last_wind)
@@ -335,6 +370,8 @@ def _align(samples: list[Sample], flight_id: str, max_age_s: float) -> FlightSer
         w = np.array(winds, dtype=float)
         extras["autopilot_wind_speed_mps"] = np.hypot(w[:, 0], w[:, 1])
         extras["autopilot_wind_from_deg"] = wind_from_deg(w[:, 0], w[:, 1])
+    if np.isfinite(a[:, 9]).any():
+        extras["consumed_mah"] = a[:, 9]
     reported = a[np.isfinite(a[:, 8]), 8]
     if len(reported):
         # 1 after the autopilot reported the gripper released, 0 after grabbed; before its
@@ -355,10 +392,9 @@ def _align(samples: list[Sample], flight_id: str, max_age_s: float) -> FlightSer
 
 
 def _resolve(path: Path, fmt: str) -> str:
-    if path.is_dir():
-        raise UserError(f"{path} is a directory, not a log file")
-    if not path.exists():
-        raise UserError(f"{path} does not exist")
+    """The format of the log at ``path`` (``fmt``, or detected for "auto"); a path that is no
+    regular file (a directory, a FIFO that would block, a device) is refused first."""
+    regular_file(path, "log")
     if fmt == "auto":
         return detect_format(path)
     if fmt not in FORMATS:
@@ -367,8 +403,7 @@ def _resolve(path: Path, fmt: str) -> str:
 
 
 def _read_head(path: Path, size: int = 4096) -> bytes:
-    if path.is_dir():
-        raise UserError(f"{path} is a directory, not a log file")
+    regular_file(path, "log")
     try:
         with path.open("rb") as f:
             return f.read(size)

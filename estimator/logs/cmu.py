@@ -42,6 +42,9 @@ REQUIRED_COLUMNS = (
     "flight",
 )
 OPTIONAL_COLUMNS = ("payload", "wind_speed", "wind_angle")
+#: Largest magnitude believed in any used column (s, m/s, m, W, g, deg, flight id): beyond it a
+#: cell is damage, and products of such cells overflow.
+MAX_ABS_VALUE = 1e9
 #: Regime files of the dataset, recognised from the file name only to label rows.
 REGIMES = {"takeoff": 0.0, "cruise": 1.0, "landing": 2.0}
 
@@ -150,6 +153,10 @@ def _read_csv(path: Path) -> dict[str, FloatArray]:
                     rows.append([float(row[i]) for i in index])
                 except (ValueError, IndexError):
                     raise UserError(f"{path} line {line_no} is not a row of numbers") from None
+                if any(abs(v) > MAX_ABS_VALUE for v in rows[-1]):
+                    raise UserError(f"{path} line {line_no} has a value beyond ±{MAX_ABS_VALUE:g}")
+    except csv.Error as exc:
+        raise UserError(f"{path} is not a readable CSV file ({exc})") from None
     except UnicodeDecodeError:
         raise UserError(f"{path} is not a text CSV file") from None
     except OSError as exc:

@@ -1,16 +1,20 @@
 """ArduPilot DataFlash (.bin) logs → :mod:`estimator.telemetry.samples` samples.
 
 Records are read with pymavlink's ``DFReader_binary``, whose per-type offset index lets us
-parse only the types we use (no ``mavutil`` connection, no process-wide state). Time is each
-record's ``TimeUS`` (µs since the autopilot's boot) / 1e6. What is used:
+parse only the types we use (no ``mavutil`` connection, no process-wide state). Time is
+seconds since the autopilot's boot: each record's ``TimeUS`` (µs; Copter ≥ 3.3), else its
+``TimeMS`` (ms; Copter ≤ 3.2, whose ``GPS.TimeMS`` is the GPS time of week and ``GPS.T`` the
+boot time); a record without a time column (Copter 3.2's ``EV`` and ``MSG``) takes the time of
+the record before it. What is used:
 
-- velocity (NED, m/s): the EKF's ``XKF1`` (EKF3, its first core ``C``) or ``NKF1`` (EKF2)
-  ``VN, VE, VD`` with altitude ``−PD``; without either, ``GPS`` ``Spd, GCrs, VZ`` (3-D fix
-  only) with altitude above the first fix;
+- velocity (NED, m/s): the EKF's ``XKF1`` (EKF3, its first core ``C``), ``NKF1`` (EKF2) or
+  ``EKF1`` (the first EKF, Copter 3.2–3.3) ``VN, VE, VD`` with altitude ``−PD``; without any,
+  ``GPS`` ``Spd, GCrs, VZ`` (3-D fix only) with altitude above the first fix;
 - battery: ``BAT`` instance 0: ``Volt`` (V), ``Curr`` (A), ``CurrTot`` (mAh), ``RemPct`` (%);
   ArduPilot logs NaN for values it does not know: they become ``None`` (no usable voltage
-  drops the record). Logs older than ``BAT`` (Copter ≤ 3.3) have ``CURR``, whose integer
-  ``Volt``/``Curr`` columns are centivolts / centiamps;
+  drops the record). Logs older than ``BAT`` (Copter ≤ 3.4) have ``CURR``: its ``Volt`` /
+  ``Curr`` are integer centivolts / centiamps up to Copter 3.3 and float V / A in 3.4,
+  ``CurrTot`` mAh;
 - gripper actions: ``MSG`` texts "Gripper load released"/"grabbed" (as the tlog's STATUSTEXT,
   :func:`~estimator.telemetry.decode.gripper_released`);
 - armed state: ``ARM.ArmState``, or ``EV`` ids 10 (armed) / 11 (disarmed) in older logs.
@@ -20,7 +24,8 @@ record's ``TimeUS`` (µs since the autopilot's boot) / 1e6. What is used:
 
 Counters, final after iteration: ``skipped`` (records with unusable values, or older than
 samples already given), ``bad_frames`` (corrupt regions between records), ``truncated`` (the
-last record is cut off).
+last record is cut off); ``missing`` says what a log without a usable battery current or
+velocity lacks, naming the message types it has.
 """
 
 from __future__ import annotations
@@ -50,7 +55,9 @@ from estimator.telemetry.samples import (
 )
 
 #: Velocity sources, most preferred first.
-VELOCITY_TYPES = ("XKF1", "NKF1", "GPS")
+VELOCITY_TYPES = ("XKF1", "NKF1", "EKF1", "GPS")
+#: Battery sources, most preferred first.
+BATTERY_TYPES = ("BAT", "CURR")
 #: ArduPilot event ids in ``EV``.
 EVENT_ARMED, EVENT_DISARMED = 10, 11
 #: A GPS ``Status`` at least this is a 3-D fix.
@@ -65,7 +72,7 @@ FMT_TYPE = 0x80
 
 
 class _DataFlashIndex(DFReader_binary):
-    """``DFReader_binary`` without its whole-file clock search: we time records by TimeUS."""
+    """``DFReader_binary`` without its whole-file clock search: records carry their boot time."""
 
     def init_clock(self) -> None:
         self.clock = None
@@ -94,9 +101,13 @@ class _Decoder:
         self._ekf_core: int | None = None
         self._gps_alt0_m: float | None = None
         self._armed: bool | None = None
-        self._battery_type = "BAT" if self._count("BAT") > 0 else "CURR"
+        self._battery_type = next((t for t in BATTERY_TYPES if self._count(t) > 0), "BAT")
         self._bat_instance = _column(log, self._battery_type, _BAT_INSTANCE_COLUMNS)
         self._arming_type = "ARM" if self._count("ARM") > 0 else "EV"
+        self._clocks = {name: _clock(log, name) for name in _HANDLERS}
+        self._time_s = 0.0  # the time of the record being read, s since boot
+        self._battery_seen = False
+        self._current_seen = False
         self._armed_from_start = self._first_arming_is_disarm()
 
     # -- reading -------------------------------------------------------------------------------
@@ -104,6 +115,31 @@ class _Decoder:
     def _count(self, name: str) -> int:
         type_id = self._log.name_to_id.get(name)
         return 0 if type_id is None else int(self._log.counts[type_id])
+
+    def _clock_in(self, msg: Any) -> None:
+        """Take the record's time (s since boot); without a time column, keep the previous
+        record's."""
+        clock = self._clocks[msg.get_type()]
+        if clock is not None:
+            self._time_s = getattr(msg, clock[0]) / clock[1]
+
+    def missing(self) -> str | None:
+        """After iteration: what the log lacks for an estimate, and the types it has; None
+        when it gave a battery current and a velocity."""
+        if self._count(self._battery_type) == 0:
+            gap = f"no battery record ({' or '.join(BATTERY_TYPES)})"
+        elif _column(self._log, self._battery_type, ("Curr",)) is None:
+            gap = f"{self._battery_type} present but no current column"
+        elif not self._battery_seen:
+            gap = f"{self._battery_type} present but its voltage is never known (0 or NaN)"
+        elif not self._current_seen:
+            gap = f"{self._battery_type} present but its current is never known (NaN)"
+        elif self.velocity_type is None:
+            gap = f"no velocity record ({', '.join(VELOCITY_TYPES)})"
+        else:
+            return None
+        found = [name for name in _HANDLERS if self._count(name) > 0]
+        return f"{gap}; it has {', '.join(found) or 'none of the records read'}"
 
     def _first_arming_is_disarm(self) -> bool:
         """Whether the log's first arming record (ARM, else EV 10/11) is a disarm."""
@@ -145,6 +181,7 @@ class _Decoder:
                     batch.append(msg)
             for msg in batch:
                 try:
+                    self._clock_in(msg)
                     sample = _HANDLERS[msg.get_type()](self, msg)
                 except (AttributeError, KeyError, TypeError, ValueError):
                     self._stream.bad_frames += 1  # a corrupt FMT left the record unreadable
@@ -166,6 +203,7 @@ class _Decoder:
                     yield heapq.heappop(heap)[2]
         while heap:
             yield heapq.heappop(heap)[2]
+        self._stream.missing = self.missing()
         self._log.close()
 
     def _check_framing(self) -> None:
@@ -199,7 +237,7 @@ class _Decoder:
         if not all(math.isfinite(x) for x in v):
             self._stream.skipped += 1
             return None
-        return VelocitySample(msg.TimeUS / 1e6, v[0], v[1], v[2], -msg.PD)
+        return VelocitySample(self._time_s, v[0], v[1], v[2], -msg.PD)
 
     def _gps(self, msg: Any) -> Sample | None:
         if msg.Status < GPS_FIX_3D:
@@ -209,7 +247,7 @@ class _Decoder:
             self._gps_alt0_m = msg.Alt
         course = math.radians(msg.GCrs)
         return VelocitySample(
-            msg.TimeUS / 1e6,
+            self._time_s,
             msg.Spd * math.cos(course),
             msg.Spd * math.sin(course),
             msg.VZ,
@@ -224,25 +262,28 @@ class _Decoder:
             self._stream.skipped += 1
             return None
         remaining = msg.RemPct if "RemPct" in msg.fmt.colhash else None
+        current_a = _finite(_centi_if_integer(msg, "Curr")) if "Curr" in msg.fmt.colhash else None
+        self._battery_seen = True
+        self._current_seen = self._current_seen or current_a is not None
         return BatterySample(
-            msg.TimeUS / 1e6,
+            self._time_s,
             voltage_v,
-            _finite(_centi_if_integer(msg, "Curr")),
-            _finite(msg.CurrTot),
+            current_a,
+            _finite(msg.CurrTot) if "CurrTot" in msg.fmt.colhash else None,
             float(remaining) if remaining is not None and 0 <= remaining <= 100 else None,
         )
 
     def _arm(self, msg: Any) -> Sample | None:
-        return self._armed_change(msg.TimeUS / 1e6, bool(msg.ArmState))
+        return self._armed_change(self._time_s, bool(msg.ArmState))
 
     def _event(self, msg: Any) -> Sample | None:
         if msg.Id not in (EVENT_ARMED, EVENT_DISARMED):
             return None
-        return self._armed_change(msg.TimeUS / 1e6, msg.Id == EVENT_ARMED)
+        return self._armed_change(self._time_s, msg.Id == EVENT_ARMED)
 
     def _message(self, msg: Any) -> Sample | None:
         released = gripper_released(str(msg.Message))
-        return None if released is None else GripperSample(msg.TimeUS / 1e6, released)
+        return None if released is None else GripperSample(self._time_s, released)
 
     def _armed_change(self, time_s: float, armed: bool) -> Sample | None:
         if armed == self._armed:
@@ -254,6 +295,7 @@ class _Decoder:
 _HANDLERS = {
     "XKF1": _Decoder._ekf,
     "NKF1": _Decoder._ekf,
+    "EKF1": _Decoder._ekf,
     "GPS": _Decoder._gps,
     "BAT": _Decoder._battery,
     "CURR": _Decoder._battery,
@@ -315,6 +357,12 @@ def _column(log: _DataFlashIndex, name: str, candidates: tuple[str, ...]) -> str
         return None
     columns = log.formats[type_id].colhash
     return next((c for c in candidates if c in columns), None)
+
+
+def _clock(log: _DataFlashIndex, name: str) -> tuple[str, float] | None:
+    """Message ``name``'s boot-time column and its units per second; None without one."""
+    column = _column(log, name, ("TimeUS", "T", "TimeMS"))
+    return None if column is None else (column, 1e6 if column == "TimeUS" else 1e3)
 
 
 def _centi_if_integer(msg: Any, column: str) -> float:

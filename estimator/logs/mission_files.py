@@ -11,7 +11,9 @@ navigation command, DO_JUMP, a QGroundControl ComplexItem (survey, corridor scan
 scan) and terrain-relative altitudes are refused with one sentence naming the item. Altitude frames:
 MAV_FRAME_GLOBAL (above mean sea level, relative to home's) and MAV_FRAME_GLOBAL_RELATIVE_ALT
 (above home), and their _INT forms. Horizontal positions are projected on the plane tangent at
-home (equirectangular: within 0.1 % over 10 km).
+home (equirectangular: within 0.1 % over 10 km). Numbers are checked against their ranges
+(altitudes within ±10 km, hold times, turns, radii and speeds, :data:`ALTITUDE_RANGE_M` and
+below) and a .plan's nesting before it is parsed; a FIFO or a device is refused unopened.
 
 Following ArduCopter: a waypoint at latitude and longitude 0 stays where the vehicle is; a
 loiter at altitude 0 keeps the current height; a landing flies to its position (0, 0: where it
@@ -28,9 +30,19 @@ from pathlib import Path
 from typing import Any
 
 from estimator.errors import UserError
+from estimator.file_checks import check_nesting, in_range, regular_file
 
 #: Metres per degree of latitude (spherical Earth, radius 6378137 m).
 M_PER_DEG = 111_319.5
+#: Allowed ranges (inclusive): an altitude in any frame (m), a hold or loiter time (s), loiter
+#: turns, a loiter radius (m), a DO_CHANGE_SPEED speed (m/s).
+ALTITUDE_RANGE_M = (-10_000.0, 10_000.0)
+HOLD_RANGE_S = (-1.0, 86_400.0)
+TURNS_RANGE = (-1.0, 1000.0)
+RADIUS_RANGE_M = (-10_000.0, 10_000.0)
+SPEED_RANGE_MPS = (-1.0, 100.0)
+#: A hold time (s), a number of turns or a loiter radius (m) below this is none.
+MIN_PARAM = 1e-6
 
 # MAV_CMD numbers (common.xml)
 NAV_WAYPOINT = 16
@@ -62,6 +74,15 @@ FRAME_TERRAIN = (10, 11)
 FRAME_MISSION = 2
 
 Ned = tuple[float, float, float]
+#: Checked params of navigation commands: (index, name, allowed range, unit).
+_PARAM_RANGES = {
+    NAV_WAYPOINT: ((0, "hold time (param1)", HOLD_RANGE_S, "s"),),
+    NAV_LOITER_TIME: ((0, "loiter time (param1)", HOLD_RANGE_S, "s"),),
+    NAV_LOITER_TURNS: (
+        (0, "turns (param1)", TURNS_RANGE, ""),
+        (2, "radius (param3)", RADIUS_RANGE_M, "m"),
+    ),
+}
 
 
 @dataclass(frozen=True)
@@ -164,6 +185,11 @@ class MissionFile:
             elif cmd == NAV_LOITER_TURNS:
                 kind, turns, radius = "loiter_turns", _nonneg(p[0]), _nonneg(abs(p[2]))
             elif cmd == NAV_LAND:
+                if here[2] > 0:
+                    raise UserError(
+                        f"{item.where}: NAV_LAND starts {here[2]:.0f} m below home "
+                        "(a landing below home's height is not supported)"
+                    )
                 kind, target = "land", (target[0], target[1], 0.0)
             else:
                 kind, target = "rtl", (0.0, 0.0, 0.0)
@@ -190,8 +216,9 @@ class MissionFile:
 
 
 def _nonneg(value: float) -> float:
-    """A duration or count from a param: NaN (null in a .plan) and negatives are 0."""
-    return value if value > 0 else 0.0
+    """A duration, count or radius from a param: NaN (null in a .plan), negatives and values
+    below :data:`MIN_PARAM` (no time, turn or circle to fly) are 0."""
+    return value if value >= MIN_PARAM else 0.0
 
 
 def _speed_change(
@@ -200,6 +227,8 @@ def _speed_change(
     """DO_CHANGE_SPEED: param1 speed type (0 air, 1 ground, 2 climb, 3 descent), param2 m/s
     (−1 or 0: no change, as ArduCopter reads it)."""
     kind, value = int(item.params[0]), item.params[1]
+    if math.isfinite(value):
+        in_range(value, f"{item.where}: DO_CHANGE_SPEED speed (param2)", SPEED_RANGE_MPS, "m/s")
     if not value > 0:
         return speed, climb, descent
     if kind in (0, 1):
@@ -216,13 +245,9 @@ def _speed_change(
 
 def load_mission(path: str | Path) -> MissionFile:
     """Read a ``.plan`` or ``.waypoints`` file (by content); UserError on any problem."""
-    path = Path(path)
+    path = regular_file(path, "mission file")
     try:
         text = path.read_text()
-    except FileNotFoundError:
-        raise UserError(f"mission file {path} does not exist") from None
-    except IsADirectoryError:
-        raise UserError(f"mission file {path} is a directory") from None
     except (OSError, UnicodeDecodeError) as exc:
         raise UserError(f"cannot read mission file {path}: {exc}") from None
     head = text.lstrip()[:20]
@@ -254,6 +279,11 @@ def _parse_waypoints(text: str, path: str) -> MissionFile:
             raise UserError(f"{where}: a column is not a number") from None
         if not all(math.isfinite(v) for v in values):
             raise UserError(f"{where}: a column is not a finite number")
+        if any(v != int(v) for v in (*values[:4], values[11])):
+            raise UserError(
+                f"{where}: the index, current, frame, command and autocontinue columns "
+                "must be integers"
+            )
         seq = int(values[0])
         if seq != len(items):
             raise UserError(f"{where}: item number {seq}, expected {len(items)}")
@@ -272,15 +302,17 @@ def _parse_waypoints(text: str, path: str) -> MissionFile:
     if not items:
         raise UserError(f"{path}: no items (the first line after the header is home)")
     home = items[0]
-    _check_position(home, "home")
     return _mission(path, home.lat_deg, home.lon_deg, home.alt_m, items)
 
 
 def _parse_plan(text: str, path: str) -> MissionFile:
+    check_nesting(text, path)
     try:
         doc = json.loads(text)
     except json.JSONDecodeError as exc:
         raise UserError(f"{path}: not valid JSON: line {exc.lineno}: {exc.msg}") from None
+    except ValueError:  # an integer of thousands of digits (int()'s limit)
+        raise UserError(f"{path}: holds a number too long to read") from None
     mission = doc.get("mission") if isinstance(doc, dict) else None
     if not isinstance(mission, dict):
         raise UserError(f"{path}: a .plan file needs a 'mission' object")
@@ -291,7 +323,8 @@ def _parse_plan(text: str, path: str) -> MissionFile:
     if not isinstance(raw, list):
         raise UserError(f"{path}: mission.items must be a list")
     lat, lon, alt = (float(v) for v in home)
-    items = [MissionItem(0, NAV_WAYPOINT, FRAME_GLOBAL[0], (0, 0, 0, 0), lat, lon, alt, "home")]
+    where_home = f"{path}: mission.plannedHomePosition"
+    items = [MissionItem(0, NAV_WAYPOINT, FRAME_GLOBAL[0], (0, 0, 0, 0), lat, lon, alt, where_home)]
     for index, entry in enumerate(raw):
         where = f"{path}: mission item {index + 1}"
         if not isinstance(entry, dict):
@@ -325,6 +358,7 @@ def _parse_plan(text: str, path: str) -> MissionFile:
 def _mission(
     path: str, lat: float, lon: float, alt: float, items: Sequence[MissionItem]
 ) -> MissionFile:
+    _check_position(items[0], "home")
     ignored: list[str] = []
     for item in items[1:]:
         if item.command in COMMAND_NAMES:
@@ -357,10 +391,14 @@ def _check_item(item: MissionItem) -> None:
     if item.command == NAV_TAKEOFF:  # climbs where it is: only the altitude counts
         if not math.isfinite(item.alt_m):
             raise UserError(f"{item.where}: {name} has no altitude")
+        in_range(item.alt_m, f"{item.where}: {name} altitude", ALTITUDE_RANGE_M, "m")
     else:
         _check_position(item, name)
     if item.command == NAV_LOITER_TURNS and not math.isfinite(item.params[0]):
         raise UserError(f"{item.where}: NAV_LOITER_TURNS needs a number of turns (param1)")
+    for index, label, bounds, unit in _PARAM_RANGES.get(item.command, ()):
+        if math.isfinite(item.params[index]):  # null in a .plan: none
+            in_range(item.params[index], f"{item.where}: {name} {label}", bounds, unit)
 
 
 def _check_position(item: MissionItem, name: str) -> None:
@@ -372,6 +410,7 @@ def _check_position(item: MissionItem, name: str) -> None:
         )
     if not math.isfinite(item.alt_m):
         raise UserError(f"{item.where}: {name} has no altitude")
+    in_range(item.alt_m, f"{item.where}: {name} altitude", ALTITUDE_RANGE_M, "m")
 
 
 def _is_number(value: Any) -> bool:

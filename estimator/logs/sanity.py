@@ -13,10 +13,13 @@
 
 :class:`SanityRecorder` collects what the checks need from a stream of samples (replay);
 :func:`flight_warnings` runs them on :class:`~estimator.logs.FlightSeries` (fit, residuals).
+A run over many logs says each cause once, with the number of logs it holds for
+(:func:`flight_warnings`; :class:`RunWarnings` for replay, which warns as it reads).
 """
 
 from __future__ import annotations
 
+from collections import Counter
 from collections.abc import Sequence
 from typing import TYPE_CHECKING
 
@@ -39,6 +42,8 @@ MIN_PAIRS = 5
 MAX_DISAGREEMENT = 0.5
 #: Percentile of the pack voltage compared with the cell count (the pack near rest).
 VOLTAGE_PERCENTILE = 95.0
+#: The causes a warning is about (what :class:`RunWarnings` counts).
+VERTICAL_VELOCITY, PACK_VOLTAGE = "vertical velocity", "pack voltage"
 
 
 def vertical_velocity_problem(
@@ -98,17 +103,48 @@ def voltage_problem(voltage_v: ArrayLike, cells: int) -> str | None:
 
 
 def flight_warnings(flights: Sequence[FlightSeries], cells: int | None = None) -> list[str]:
-    """Warnings of :func:`vertical_velocity_problem` per flight and of :func:`voltage_problem`
-    over all flights (when ``cells`` is known), each prefixed with what it is about."""
+    """Warnings of :func:`vertical_velocity_problem` (one line for all flights, naming the
+    first and counting the others) and of :func:`voltage_problem` over all flights (when
+    ``cells`` is known)."""
+    wrong_way = [
+        (f.flight_id, problem)
+        for f in flights
+        if (problem := vertical_velocity_problem(f.time_s, f.vd_mps, f.alt_m)) is not None
+    ]
     out = []
-    for f in flights:
-        if (problem := vertical_velocity_problem(f.time_s, f.vd_mps, f.alt_m)) is not None:
-            out.append(f"{f.flight_id}: {problem}")
+    if wrong_way:
+        flight_id, problem = wrong_way[0]
+        more = len(wrong_way) - 1
+        out.append(
+            f"{flight_id}: {problem}"
+            + (f" (and in {more} more of the {len(flights)} flights)" if more else "")
+        )
     if cells is not None and flights:
         voltages = np.concatenate([f.voltage_v for f in flights])
         if (problem := voltage_problem(voltages, cells)) is not None:
             out.append(problem)
     return out
+
+
+class RunWarnings:
+    """Which causes a run has warned about, over its logs (or flights): the first warning of
+    a cause is said, the later ones counted."""
+
+    def __init__(self) -> None:
+        self.counts: Counter[str] = Counter()
+
+    def first(self, cause: str) -> bool:
+        """Count a warning of ``cause``; True when it is the run's first (to be said)."""
+        self.counts[cause] += 1
+        return self.counts[cause] == 1
+
+    def repeats(self) -> list[str]:
+        """One line per cause warned about more than once: how many more times it held."""
+        return [
+            f"the {cause} warning above holds for {n - 1} more logs too"
+            for cause, n in self.counts.items()
+            if n > 1
+        ]
 
 
 class SanityRecorder:
@@ -127,15 +163,21 @@ class SanityRecorder:
         elif isinstance(sample, RebootSample):
             self._velocity.append([])
 
-    def warnings(self, cells: int | None = None, source: str = "vertical velocity") -> list[str]:
-        """The checks' warnings over what was observed (voltage only when ``cells`` is known);
-        no pair of velocity samples spans a reboot."""
+    def problems(
+        self, cells: int | None = None, source: str = "vertical velocity"
+    ) -> list[tuple[str, str]]:
+        """The checks' (cause, warning) over what was observed (voltage only when ``cells``
+        is known); no pair of velocity samples spans a reboot."""
         out = []
         pairs = [_judged_pairs(*np.array(boot).T) for boot in self._velocity if len(boot) > 1]
         if pairs:
             rate, climb = (np.concatenate(column) for column in zip(*pairs, strict=True))
             if (problem := _vertical_verdict(rate, climb, source)) is not None:
-                out.append(problem)
+                out.append((VERTICAL_VELOCITY, problem))
         if cells is not None and (problem := voltage_problem(self._voltage_v, cells)):
-            out.append(problem)
+            out.append((PACK_VOLTAGE, problem))
         return out
+
+    def warnings(self, cells: int | None = None, source: str = "vertical velocity") -> list[str]:
+        """The warnings of :meth:`problems`."""
+        return [warning for _, warning in self.problems(cells, source)]

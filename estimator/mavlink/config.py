@@ -13,6 +13,7 @@ from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 from estimator.errors import UserError
+from estimator.file_checks import number_in_range
 from estimator.mavlink.link import parse_url
 from estimator.physics.route_energy import DEFAULT_MAX_GROUND_SPEED_MPS, DEFAULT_RTL_ALT_M
 from estimator.toml_files import read_toml
@@ -42,9 +43,10 @@ class ServiceConfig:
     "" = no signing); require_signing: reject unsigned frames.
     state_file: where the estimator's state is kept across restarts ("" = nowhere);
     state_max_age_s: an older state file is ignored; state_period_s: seconds between writes.
-    pack_id, pack_dir: the pack flown and the packs' memory (both or neither): the flight
-    starts from what the pack was learnt to hold and stores what it learns
-    (:mod:`estimator.estimation.pack_memory`).
+    pack_id, pack_dir: the pack flown and the packs' memory (an id needs a dir; a dir without
+    an id: the pack's serial number from the autopilot names it): the flight starts from what
+    the pack was learnt to hold and stores what it learns
+    (:mod:`estimator.estimation.pack_identity`).
     json: "" (off), "-" (stdout) or "udp:HOST:PORT"; json_rate_hz 0: every estimate.
     stale_after_s: no telemetry for this long marks estimates stale.
     vehicle: vehicle TOML file ("" = the built-in default vehicle). Paths in a config file
@@ -169,6 +171,29 @@ _KEYS = {
     ("return", "statustext_to_autopilot"): "statustext_to_autopilot",
     ("return", "download_mission"): "download_mission",
 }
+#: Allowed range of each ``[fusion]`` noise figure (FusionSettings units: fractions, V, Ω,
+#: A, W, 1/√s): from 0 to a value no real sensor or pack comes near.
+FUSION_RANGES = {
+    "bias_prior_sigma": (0.0, 1.0),
+    "bias_walk_per_sqrt_s": (0.0, 1.0),
+    "model_power_noise_fraction": (0.0, 1.0),
+    "power_noise_fraction": (0.0, 1.0),
+    "power_noise_floor_w": (0.0, 1000.0),
+    "rest_voltage_sigma_v_per_cell": (0.0, 1.0),
+    "capacity_sigma_fraction": (0.0, 1.0),
+    "charge_sigma_fraction": (0.0, 1.0),
+    "internal_resistance_ohm": (0.0, 2.0),
+    "voltage_noise_v": (0.0, 10.0),
+    "resistance_prior_ohm_per_cell": (0.0, 1.0),
+    "resistance_walk_ohm_per_sqrt_s": (0.0, 1.0),
+    "resistance_min_current_a": (0.0, 1000.0),
+    "ocv_curve_sigma_v_per_cell": (0.0, 1.0),
+    "current_gain_sigma_fraction": (0.0, 1.0),
+    "state_change_step": (0.0, 1.0),
+    "state_change_bias_sigma": (0.0, 10.0),
+}
+#: Longest text value (a path, a connection string; Linux's PATH_MAX).
+MAX_TEXT_CHARS = 4096
 #: Fields holding file paths: relative ones in a config file are relative to its directory.
 _PATH_FIELDS = frozenset({"vehicle", "signing_key_file", "state_file", "pack_dir"})
 
@@ -212,6 +237,8 @@ def _coerce(name: str, value: Any, type_name: str) -> Any:
         items = [value] if isinstance(value, str) else value
         if not isinstance(items, list | tuple) or not all(isinstance(x, str) for x in items):
             raise UserError(f"config '{name}' must be a list of connection strings")
+        for item in items:
+            _check_length(name, item)
         return tuple(items)
     if type_name == "bool":
         if not isinstance(value, bool):
@@ -231,11 +258,20 @@ def _coerce(name: str, value: Any, type_name: str) -> Any:
         return float(value)
     if not isinstance(value, str):
         raise UserError(f"config '{name}' must be a string, got {value!r}")
+    _check_length(name, value)
     return value
 
 
+def _check_length(name: str, text: str) -> None:
+    if len(text) > MAX_TEXT_CHARS:
+        raise UserError(
+            f"config '{name}' must be at most {MAX_TEXT_CHARS} characters, got {len(text)}"
+        )
+
+
 def _fusion_pairs(table: Any) -> tuple[tuple[str, float], ...]:
-    """Validate a ``[fusion]`` table: known FusionSettings names, finite numbers ≥ 0."""
+    """Validate a ``[fusion]`` table: known FusionSettings names, numbers within
+    :data:`FUSION_RANGES`."""
     from estimator.estimation.fusion import FusionSettings
 
     if isinstance(table, tuple):
@@ -244,15 +280,12 @@ def _fusion_pairs(table: Any) -> tuple[tuple[str, float], ...]:
         raise UserError("config [fusion] must be a table of noise figures")
     known = {f.name for f in fields(FusionSettings)}
     pairs = []
-    for key, value in table.items():
+    for key in table:
         if key not in known:
             raise UserError(
                 f"config [fusion] has no setting '{key}' (known: {', '.join(sorted(known))})"
             )
-        number = isinstance(value, int | float) and not isinstance(value, bool)
-        if not number or not math.isfinite(value) or value < 0:
-            raise UserError(f"config [fusion] {key} must be a finite number ≥ 0, got {value!r}")
-        pairs.append((key, float(value)))
+        pairs.append((key, number_in_range(table, key, "config [fusion]", FUSION_RANGES[key])))
     return tuple(sorted(pairs))
 
 
@@ -260,13 +293,13 @@ def validate(config: ServiceConfig) -> None:
     """Check ranges and connection strings; one UserError per first problem found."""
     from estimator.estimation.pack_memory import check_pack_id
 
-    if bool(config.pack_id) != bool(config.pack_dir):
-        raise UserError("config [pack] id (--pack) and [pack] dir go together")
+    if config.pack_id and not config.pack_dir:
+        raise UserError("config [pack] id (--pack) needs [pack] dir")
     if config.pack_id:
         check_pack_id(config.pack_id)
     parse_url(config.connect)
     for url in config.publish:
-        parse_url(url)
+        parse_url(url, listen=False)
     for name, lo, hi in (
         ("target_system", 0, 255),
         ("target_component", 0, 255),

@@ -4,17 +4,21 @@ No ``mavutil`` (it changes process-wide state), no threads, no blocking calls on
 Connection strings follow ArduPilot/mavutil usage:
 
 - ``udpin:HOST:PORT``  bind and listen; replies go to every peer heard from (up to 16), or,
-  after :meth:`MavlinkLink.set_peer`, only to the address one (system, component) speaks from;
+  after :meth:`MavlinkLink.answer_only`, only to one address (or to none);
 - ``udpout:HOST:PORT`` send to HOST:PORT; replies arrive on our ephemeral port;
 - ``tcp:HOST:PORT``    TCP client that reconnects (1 s back-off) when the peer goes away;
 - ``tcpin:HOST:PORT``  TCP server; sends go to every connected client (used by simulators);
+- ``udp:HOST:PORT``    as ``mavutil.mavlink_connection`` reads it: ``udpin`` on a link we
+  receive from (its default ``input=True``: MAVProxy's ``--master``), ``udpout`` on one we
+  publish to (MAVProxy's ``--out``);
 - ``DEV[:BAUD]``       a serial device (``/dev/ttyACM0:115200``), raw mode, non-blocking fd,
-  reopened every second after a failure (a USB autopilot rebooting); ``serial:DEV[:BAUD]``
-  is accepted too.
+  reopened every second after a failure (a USB autopilot rebooting); MAVProxy's
+  ``DEV,BAUD`` and ``serial:DEV[:BAUD]`` are accepted too.
 
 A link parses what it receives into pymavlink messages (bad frames are counted, never
 raised) and queues them for :meth:`MavlinkLink.recv`; a flood beyond ``max_pending``
-messages drops the oldest ones (counted). A link opened with ``message_ids`` drops frames of
+messages drops the oldest ones (counted); :attr:`MavlinkLink.peer` is the address the chunk
+being delivered came from. A link opened with ``message_ids`` drops frames of
 other ids by their header, before parsing (``counts['skipped_frames']``). Outgoing messages
 are packed with the link's own system/component id and sequence (:attr:`MavlinkLink.mav` is
 that encoder), and signed when the link has a :class:`~estimator.mavlink.signing.LinkSigning`
@@ -33,33 +37,32 @@ import asyncio
 import contextlib
 import errno
 import logging
-import math
 import os
 import socket
-import termios
-import time
-import tty
 from collections import Counter, deque
 from collections.abc import Callable
 from dataclasses import dataclass
-from typing import Any
+from typing import Any, Protocol
 
 from pymavlink.dialects.v20 import common as mavlink
 
 from estimator.errors import Unavailable, UserError
+from estimator.mavlink.serial_device import BAUD_RATES, REOPEN_S, SerialTransport
 from estimator.mavlink.signing import LinkSigning, SigningCodec
-from estimator.telemetry.decode import FrameParser, message_source
+from estimator.telemetry.decode import FrameParser
 
 log = logging.getLogger(__name__)
 
 #: Most UDP peers a ``udpin`` link answers; the oldest is forgotten beyond this.
 MAX_UDP_PEERS = 16
-#: Seconds between attempts to reconnect a TCP client or reopen a serial device.
-TCP_RECONNECT_S = 1.0
+#: Seconds between attempts to reconnect a TCP client.
+TCP_RECONNECT_S = REOPEN_S
 UDP_RECEIVE_BUFFER_BYTES = 1 << 20
-#: A udpin link's pinned peer silent this long (s) may be replaced by the address its
-#: (system, component) now speaks from (an autopilot restarted on another port).
-REPIN_AFTER_S = 3.0
+#: Serial devices that appear when a USB autopilot is plugged in (by name, or udev's links):
+#: missing at start, they may come yet. Any other missing device (an on-board UART, a
+#: misspelt name) is a mistake.
+HOT_PLUGGED_NAMES = ("ttyACM", "ttyUSB")
+HOT_PLUGGED_LINKS = "/dev/serial/"
 #: errno values of a serial device that may come back: missing, unplugged, busy, failing.
 _DEVICE_MAY_COME_BACK = frozenset(
     {errno.ENOENT, errno.ENODEV, errno.ENXIO, errno.EBUSY, errno.EIO, errno.EAGAIN}
@@ -68,11 +71,6 @@ _DEVICE_MAY_COME_BACK = frozenset(
 UDP_DATAGRAMS_PER_WAKE = 64
 UDP_DATAGRAM_MAX_BYTES = 65_535
 DEFAULT_BAUD = 115200
-_BAUD_RATES = {
-    int(name[1:]): getattr(termios, name)
-    for name in dir(termios)
-    if name.startswith("B") and name[1:].isdigit()
-}
 
 
 @dataclass(frozen=True, slots=True)
@@ -91,11 +89,18 @@ class LinkAddress:
         return f"{self.kind}:{self.host}:{self.port}"
 
 
-def parse_url(url: str) -> LinkAddress:
-    """Parse a connection string; a malformed one is a UserError naming the accepted forms."""
-    forms = "udpin:HOST:PORT, udpout:HOST:PORT, tcp:HOST:PORT, tcpin:HOST:PORT or DEV[:BAUD]"
+def parse_url(url: str, listen: bool = True) -> LinkAddress:
+    """Parse a connection string; a malformed one is a UserError naming the accepted forms.
+    ``listen``: ``udp:`` binds (``udpin``) when true, sends (``udpout``) when false, as
+    pymavlink's ``mavlink_connection(..., input=listen)``."""
+    forms = (
+        "udpin:HOST:PORT, udpout:HOST:PORT, udp:HOST:PORT, tcp:HOST:PORT, tcpin:HOST:PORT, "
+        "DEV[:BAUD] or DEV,BAUD"
+    )
     text = url.strip()
     kind, _, rest = text.partition(":")
+    if kind == "udp":
+        kind = "udpin" if listen else "udpout"
     if kind in ("udpin", "udpout", "tcp", "tcpin"):
         host, sep, port_text = rest.rpartition(":")
         if not sep or not host or not port_text.isdigit() or not 0 <= int(port_text) < 65536:
@@ -103,12 +108,12 @@ def parse_url(url: str) -> LinkAddress:
         return LinkAddress(kind, host=host, port=int(port_text))
     if kind == "serial":
         text = rest
-    device, sep, baud_text = text.rpartition(":")
+    device, sep, baud_text = text.rpartition("," if "," in text else ":")
     if not sep:
         device, baud_text = text, str(DEFAULT_BAUD)
     if not device.startswith("/") or not baud_text.isdigit():
         raise UserError(f"connection string {url!r} is not valid: use {forms}")
-    if int(baud_text) not in _BAUD_RATES:
+    if int(baud_text) not in BAUD_RATES:
         raise UserError(f"serial baud rate {baud_text} in {url!r} is not a standard rate")
     return LinkAddress("serial", device=device, baud=int(baud_text))
 
@@ -117,9 +122,7 @@ class MavlinkLink:
     """One MAVLink connection: received messages queue up for :meth:`recv`; :meth:`send`
     packs with our ids. Counters: ``counts['bad_frames']``, ``['dropped']`` (queue overflow),
     ``['rx_messages']``, ``['tx_messages']``, ``['tx_dropped']`` (no peer / not connected),
-    ``['reconnects']``, ``['skipped_frames']`` (ids outside ``message_ids``),
-    ``['foreign_peer']`` (udpin datagrams carrying the peer's ids from another address,
-    dropped)."""
+    ``['reconnects']``, ``['skipped_frames']`` (ids outside ``message_ids``)."""
 
     def __init__(
         self,
@@ -143,6 +146,9 @@ class MavlinkLink:
         self._closed = False
         self._transport: _Transport | None = None
         self._listener: Callable[[list[mavlink.MAVLink_message]], None] | None = None
+        #: Where the chunk being delivered came from: a udpin datagram's (host, port), a
+        #: tcpin client's address; None on point-to-point links (one peer).
+        self.peer: Any = None
 
     @property
     def url(self) -> str:
@@ -161,6 +167,12 @@ class MavlinkLink:
     def closed(self) -> bool:
         return self._closed
 
+    @property
+    def shared(self) -> bool:
+        """Whether several senders may speak on this link (udpin, tcpin): one is not
+        answered before it is chosen. Other links reach the one peer their address names."""
+        return self.address.kind in ("udpin", "tcpin")
+
     # -- receiving --------------------------------------------------------------------------
 
     def parser(self, stream: bool) -> FrameParser:
@@ -169,18 +181,21 @@ class MavlinkLink:
         codec = None if self.signing is None else SigningCodec(self.signing)
         return FrameParser(self.message_ids, stream, codec)
 
-    def set_peer(self, source: tuple[int, int] | None) -> None:
-        """``udpin`` only: answer only the address ``source`` (system, component) speaks
-        from, and drop datagrams carrying its ids from any other address (counted in
-        ``foreign_peer``) unless that address was silent for :data:`REPIN_AFTER_S`.
-        None: answer every peer again. Other links are point to point: no effect."""
+    def answer_only(self, peer: Any) -> None:
+        """``udpin`` only: send only to ``peer`` (an address :attr:`peer` gave), or to nobody
+        with None. Other links: no effect."""
         if self._transport is not None:
-            self._transport.set_peer(source)
+            self._transport.answer_only(peer)
 
     def _deliver(
-        self, messages: list[mavlink.MAVLink_message], bad_frames: int, skipped_frames: int = 0
+        self,
+        messages: list[mavlink.MAVLink_message],
+        bad_frames: int,
+        skipped_frames: int = 0,
+        peer: Any = None,
     ) -> None:
-        """Called by the transport with each parsed chunk."""
+        """Called by the transport with each parsed chunk and the address it came from."""
+        self.peer = peer
         if bad_frames:
             self.counts["bad_frames"] += bad_frames
         if skipped_frames:
@@ -253,29 +268,39 @@ async def open_link(
     max_pending: int = 10_000,
     message_ids: frozenset[int] | None = None,
     signing: LinkSigning | None = None,
+    listen: bool = True,
 ) -> MavlinkLink:
-    """Open a link from a connection string (see the module docstring). With
+    """Open a link from a connection string (see the module docstring and :func:`parse_url`
+    for ``listen``). With
     ``message_ids``, frames of other ids are dropped unparsed (:class:`FrameParser`);
     ``signing``: sign what we send and check what we receive with it.
 
-    A serial device that is missing or busy (it may come back: USB unplugged, another
-    program holding it) is :class:`~estimator.errors.Unavailable`; failing to bind, or a
-    device that is not a serial port, is a UserError; a ``tcp`` client that cannot connect yet
-    keeps trying in the background (sends are dropped and counted meanwhile).
+    A serial device that is busy or failing, or a missing hot-plugged one (USB: it may come
+    back), is :class:`~estimator.errors.Unavailable`; failing to bind, a missing on-board
+    port (a mistaken name), or a device that is not a serial port, is a UserError; a ``tcp``
+    client that cannot connect yet keeps trying in the background (sends are dropped and
+    counted meanwhile).
     """
-    address = parse_url(url)
+    address = parse_url(url, listen)
     link = MavlinkLink(address, source_system, source_component, max_pending, message_ids, signing)
     opener = {
         "udpin": _UdpTransport.open,
         "udpout": _UdpTransport.open,
         "tcp": _TcpClientTransport.open,
         "tcpin": _TcpServerTransport.open,
-        "serial": _SerialTransport.open,
+        "serial": SerialTransport.open,
     }[address.kind]
     try:
         link._transport = await opener(link)
     except OSError as exc:
         reason = exc.strerror or str(exc)
+        if address.kind == "serial" and exc.errno == errno.ENOENT:
+            device = address.device
+            if not (
+                os.path.basename(device).startswith(HOT_PLUGGED_NAMES)
+                or device.startswith(HOT_PLUGGED_LINKS)
+            ):
+                raise UserError(f"serial device {device} does not exist") from None
         if address.kind == "serial" and exc.errno in _DEVICE_MAY_COME_BACK:
             raise Unavailable(f"cannot open {url}: {reason}") from None
         raise UserError(f"cannot open {url}: {reason}") from None
@@ -285,7 +310,10 @@ async def open_link(
 # -- transports ---------------------------------------------------------------------------------
 
 
-class _Transport:
+class _Transport(Protocol):
+    """What a link needs of its transport (the serial one:
+    :class:`~estimator.mavlink.serial_device.SerialTransport`)."""
+
     async def close(self) -> None:
         raise NotImplementedError
 
@@ -296,8 +324,8 @@ class _Transport:
         """Queue ``data`` for sending; False when there is nowhere to send it."""
         raise NotImplementedError
 
-    def set_peer(self, source: tuple[int, int] | None) -> None:
-        """See :meth:`MavlinkLink.set_peer` (point-to-point transports ignore it)."""
+    def answer_only(self, peer: Any) -> None:
+        """See :meth:`MavlinkLink.answer_only` (other transports ignore it)."""
 
 
 class _StreamProtocol(asyncio.Protocol):
@@ -309,16 +337,20 @@ class _StreamProtocol(asyncio.Protocol):
         self.transport: asyncio.Transport | None = None
         self.lost = asyncio.get_running_loop().create_future()
         self._on_lost = on_lost
+        self.peer: Any = None  # a tcpin client's address
 
     def connection_made(self, transport: asyncio.BaseTransport) -> None:
         assert isinstance(transport, asyncio.Transport)
         self.transport = transport
+        if self.link.shared:
+            self.peer = transport.get_extra_info("peername")
 
     def data_received(self, data: bytes) -> None:
         parser = self.parser
         bad, skipped = parser.bad_frames, parser.skipped_frames
         messages = parser.feed(data)
-        self.link._deliver(messages, parser.bad_frames - bad, parser.skipped_frames - skipped)
+        bad, skipped = parser.bad_frames - bad, parser.skipped_frames - skipped
+        self.link._deliver(messages, bad, skipped, self.peer)
 
     def connection_lost(self, exc: Exception | None) -> None:
         self.transport = None
@@ -330,51 +362,23 @@ class _StreamProtocol(asyncio.Protocol):
 
 class _Peers:
     """A udpin link's peers: every address heard from (up to :data:`MAX_UDP_PEERS`), or the
-    one address a chosen (system, component) speaks from."""
+    one address it answers only (:meth:`MavlinkLink.answer_only`)."""
 
-    def __init__(self, link: MavlinkLink) -> None:
-        self.link = link
+    def __init__(self) -> None:
         self.every: dict[Any, None] = {}
-        self.source: tuple[int, int] | None = None
-        self.pinned: Any = None
-        self.pinned_heard_s = -math.inf
-        self._last: tuple[Any, set[tuple[int, int]]] | None = None  # latest datagram's
+        self.chosen = False
+        self.only: Any = None
 
-    def choose(self, source: tuple[int, int] | None) -> None:
-        """Answer only ``source``: pinned at once when the datagram being delivered is its."""
-        self.source, self.pinned, self.pinned_heard_s = source, None, -math.inf
-        if source is not None and self._last is not None and source in self._last[1]:
-            self.pinned, self.pinned_heard_s = self._last[0], time.monotonic()
-
-    def heard(self, addr: Any, messages: list[mavlink.MAVLink_message]) -> bool:
-        """Note a datagram's sender; False to drop it (the chosen ids from a foreign address)."""
-        sources = {message_source(m) for m in messages}
-        self._last = addr, sources
-        if self.source in sources:
-            now_s = time.monotonic()
-            if addr != self.pinned:
-                if now_s - self.pinned_heard_s < REPIN_AFTER_S:
-                    return False
-                if self.pinned is not None:
-                    log.warning(
-                        "udpin %s: system %d component %d now speaks from %s (was %s)",
-                        self.link.url,
-                        *self.source,
-                        addr,
-                        self.pinned,
-                    )
-                self.pinned = addr
-            self.pinned_heard_s = now_s
+    def heard(self, addr: Any) -> None:
         if addr not in self.every:
             self.every[addr] = None
             if len(self.every) > MAX_UDP_PEERS:
                 del self.every[next(iter(self.every))]
-        return True
 
     def targets(self) -> list[Any]:
-        if self.source is None:
+        if not self.chosen:
             return list(self.every)
-        return [] if self.pinned is None else [self.pinned]
+        return [] if self.only is None else [self.only]
 
 
 class _UdpTransport(_Transport):
@@ -414,7 +418,7 @@ class _UdpTransport(_Transport):
         except OSError:
             sock.close()
             raise
-        return cls(link, sock, _Peers(link) if addr.kind == "udpin" else None)
+        return cls(link, sock, _Peers() if addr.kind == "udpin" else None)
 
     def _readable(self) -> None:
         for _ in range(UDP_DATAGRAMS_PER_WAKE):  # then let the loop's other work run
@@ -433,14 +437,16 @@ class _UdpTransport(_Transport):
         messages = parser.feed(data)
         if parser.holds_partial_frame:  # a truncated datagram: its bytes go with the parser
             self._parser = self.link.parser(stream=False)
-        if self.peers is not None and messages and not self.peers.heard(peer, messages):
-            self.link.counts["foreign_peer"] += 1
-            messages = []
-        self.link._deliver(messages, parser.bad_frames - bad, parser.skipped_frames - skipped)
+        if self.peers is None:
+            peer = None
+        elif messages:
+            self.peers.heard(peer)
+        bad, skipped = parser.bad_frames - bad, parser.skipped_frames - skipped
+        self.link._deliver(messages, bad, skipped, peer)
 
-    def set_peer(self, source: tuple[int, int] | None) -> None:
-        if self.peers is not None and source != self.peers.source:
-            self.peers.choose(source)
+    def answer_only(self, peer: Any) -> None:
+        if self.peers is not None:
+            self.peers.chosen, self.peers.only = True, peer
 
     def write(self, data: bytes) -> bool:
         targets = [None] if self.peers is None else self.peers.targets()
@@ -568,130 +574,3 @@ class _TcpServerTransport(_Transport):
         if self.server is not None:
             self.server.close()
             await self.server.wait_closed()
-
-
-def _open_tty(device: str, baud: int) -> int:
-    """Open ``device`` raw, non-blocking, at ``baud``; OSError when it is not a tty."""
-    fd = os.open(device, os.O_RDWR | os.O_NOCTTY | os.O_NONBLOCK)
-    try:
-        tty.setraw(fd)
-        attrs = termios.tcgetattr(fd)
-        attrs[4] = attrs[5] = _BAUD_RATES[baud]  # ispeed, ospeed
-        attrs[2] |= termios.CLOCAL | termios.CREAD
-        termios.tcsetattr(fd, termios.TCSANOW, attrs)
-    except termios.error as exc:
-        os.close(fd)
-        raise OSError(f"{device} is not a serial port ({exc})") from None
-    return fd
-
-
-class _SerialTransport(_Transport):
-    """A tty in raw mode on a non-blocking fd, read with ``loop.add_reader``.
-
-    When the device fails or hangs up (a USB autopilot rebooting), it is closed and reopened
-    every second until it is back (``counts['reconnects']``)."""
-
-    def __init__(self, link: MavlinkLink, fd: int) -> None:
-        self.link = link
-        self.fd: int | None = None
-        self.parser = link.parser(stream=True)
-        self.out = bytearray()
-        self.loop = asyncio.get_running_loop()
-        self.reopen_task: asyncio.Task[None] | None = None
-        self._attach(fd)
-
-    @classmethod
-    async def open(cls, link: MavlinkLink) -> _SerialTransport:
-        return cls(link, _open_tty(link.address.device, link.address.baud))
-
-    def _attach(self, fd: int) -> None:
-        self.fd = fd
-        self.parser = self.link.parser(stream=True)
-        self.loop.add_reader(fd, self._readable)
-
-    def _detach(self, reason: str) -> None:
-        """Drop the fd after a failure and start reopening the device."""
-        if self.fd is None:
-            return
-        log.warning("serial %s: %s, reopening", self.link.address.device, reason)
-        self.link.counts["socket_errors"] += 1
-        self._close_fd()
-        if not self.link.closed:
-            self.reopen_task = self.loop.create_task(self._reopen())
-
-    async def _reopen(self) -> None:
-        addr = self.link.address
-        while not self.link.closed:
-            await asyncio.sleep(TCP_RECONNECT_S)
-            try:
-                fd = _open_tty(addr.device, addr.baud)
-            except OSError:
-                continue
-            self.link.counts["reconnects"] += 1
-            log.info("serial %s: reopened", addr.device)
-            self._attach(fd)
-            return
-
-    def _readable(self) -> None:
-        assert self.fd is not None
-        try:
-            data = os.read(self.fd, 4096)
-        except BlockingIOError:
-            return
-        except OSError as exc:
-            self._detach(f"read failed ({exc.strerror or exc})")
-            return
-        if not data:
-            self._detach("hung up")
-            return
-        parser = self.parser
-        bad, skipped = parser.bad_frames, parser.skipped_frames
-        messages = parser.feed(data)
-        self.link._deliver(messages, parser.bad_frames - bad, parser.skipped_frames - skipped)
-
-    def write(self, data: bytes) -> bool:
-        if self.fd is None:
-            return False
-        if self.out:
-            self.out.extend(data)
-            return True
-        try:
-            n = os.write(self.fd, data)
-        except BlockingIOError:
-            n = 0
-        except OSError:
-            return False
-        if n < len(data):
-            self.out.extend(data[n:])
-            self.loop.add_writer(self.fd, self._writable)
-        return True
-
-    def _writable(self) -> None:
-        assert self.fd is not None
-        try:
-            n = os.write(self.fd, self.out)
-        except BlockingIOError:
-            return
-        except OSError:
-            self.out.clear()
-            n = 0
-        del self.out[:n]
-        if not self.out:
-            self.loop.remove_writer(self.fd)
-
-    def _close_fd(self) -> None:
-        if self.fd is None:
-            return
-        self.loop.remove_reader(self.fd)
-        if self.out:
-            self.loop.remove_writer(self.fd)
-            self.out.clear()
-        os.close(self.fd)
-        self.fd = None
-
-    async def close(self) -> None:
-        if self.reopen_task is not None:
-            self.reopen_task.cancel()
-            with contextlib.suppress(asyncio.CancelledError):
-                await self.reopen_task
-        self._close_fd()

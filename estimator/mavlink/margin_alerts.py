@@ -16,7 +16,7 @@ from dataclasses import dataclass
 
 from pymavlink.dialects.v20 import common as mavlink
 
-from estimator.estimation.pipeline import Estimate
+from estimator.estimation.estimate import Estimate
 
 OK, WARNING, CRITICAL = 0, 1, 2
 SEVERITY = {WARNING: mavlink.MAV_SEVERITY_WARNING, CRITICAL: mavlink.MAV_SEVERITY_CRITICAL}

@@ -13,7 +13,7 @@ import math
 
 from pymavlink.dialects.v20 import common as mavlink
 
-from estimator.estimation.pipeline import Estimate
+from estimator.estimation.estimate import Estimate
 from estimator.mavlink.margin_alerts import TEXT_CHARS, Alert
 
 

@@ -27,7 +27,7 @@ from collections.abc import Callable
 
 from pymavlink.dialects.v20 import common as mavlink
 
-from estimator.estimation.pipeline import Estimate
+from estimator.estimation.estimate import Estimate
 from estimator.mavlink.link import MavlinkLink
 
 UINT16_MAX = 65535

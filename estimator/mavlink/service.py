@@ -8,11 +8,12 @@ detection, stream requests until telemetry flows, counters of bad input), and a 
 output link. Wall clock is used only for these timers; the estimates run on the autopilot's
 clock.
 The autopilot is chosen by :class:`~estimator.mavlink.autopilot_lock.AutopilotLock`
-(configured, or the first autopilot HEARTBEAT confirmed by its telemetry); a ``udpin`` link
-then answers only the address it speaks from. Links sign and check frames when a signing key
-is configured (:mod:`estimator.mavlink.signing`). With a state file
-(:mod:`estimator.mavlink.state_file`) the flight state is written every ``state_period_s``
-and on exit, and a restarted daemon continues from it when it fits the autopilot's boot.
+(the sender, at its address, whose own telemetry proves it; with the configured ids when
+set); a ``udpin`` link answers nobody before and then only the address it speaks from.
+Links sign and check frames when a signing key is configured
+(:mod:`estimator.mavlink.signing`). With a state file (:mod:`estimator.mavlink.state_file`)
+the flight state is written every ``state_period_s`` and on exit, and a restarted daemon
+continues from it when it fits the autopilot's boot.
 
 Return home and mission (:mod:`estimator.estimation.return_home` computes them in the pipeline):
 HOME_POSITION is requested (MAV_CMD_REQUEST_MESSAGE) when none has arrived
@@ -20,11 +21,19 @@ HOME_POSITION is requested (MAV_CMD_REQUEST_MESSAGE) when none has arrived
 :data:`HOME_REQUEST_RETRY_S`; the mission is read (:mod:`estimator.mavlink.mission_download`)
 and handed to the pipeline as a :class:`MissionSample`; margin crossings become STATUSTEXT
 (:mod:`estimator.mavlink.margin_alerts`) on the ``--publish`` links.
+The pack flown (:mod:`estimator.estimation.pack_identity`): with ``[pack] dir``, the configured
+``[pack] id``, else the serial number of the autopilot's SMART_BATTERY_INFO for the decoded
+battery (asked for once with each stream request, MAV_CMD_REQUEST_MESSAGE), names the pack
+whose memory starts the pack filter and receives what it learns (every
+:data:`PACK_MEMORY_PERIOD_S` and at the end).
 One log line per event: autopilot found, streams requested, energy initialized (with a
 warning when the pack voltage does not fit the vehicle file's cell count), model-only mode,
 reboot or clock jump, link silent (stale) / resumed, bad frames, floods and input skipped as
-implausible (at most one line per 10 s each). Reboots are throttled: stream requests go out at
-most once per :data:`REQUEST_RETRY_S`, however often the clock is re-referenced.
+implausible (at most one line per 10 s each), a pack voltage no reading of which is believed
+(the cell counts it fits against the vehicle file's; also as STATUSTEXT). Reboots are
+throttled: stream requests go out at most once per :data:`REQUEST_RETRY_S`, however often the
+clock is re-referenced. A PX4 autopilot (its HEARTBEAT says so) is asked for its message
+rates with MAV_CMD_SET_MESSAGE_INTERVAL only (:mod:`estimator.mavlink.px4_streams`).
 """
 
 from __future__ import annotations
@@ -41,9 +50,9 @@ from pathlib import Path
 
 from pymavlink.dialects.v20 import common as mavlink
 
-from estimator.errors import UserError
-from estimator.estimation.pack_memory import load_prior, remember
-from estimator.estimation.pipeline import Estimate, Pipeline, PipelineSettings
+from estimator.estimation.estimate import Estimate
+from estimator.estimation.pack_identity import FlightPack
+from estimator.estimation.pipeline import Pipeline, PipelineSettings
 from estimator.estimation.return_home import MissionEnergyFn, MissionSample
 from estimator.logs.mission_files import MissionItem
 from estimator.mavlink import publish
@@ -55,6 +64,7 @@ from estimator.mavlink.mission_download import MESSAGE_IDS as MISSION_MESSAGE_ID
 from estimator.mavlink.mission_download import MESSAGE_TYPES as MISSION_MESSAGES
 from estimator.mavlink.mission_download import MissionDownload
 from estimator.mavlink.pack_alerts import PackLabelAlert
+from estimator.mavlink.px4_streams import interval_requests as px4_interval_requests
 from estimator.mavlink.signing import LinkSigning, load_key
 from estimator.mavlink.state_file import StateKeeper
 from estimator.physics.vehicle import Vehicle
@@ -65,7 +75,7 @@ from estimator.telemetry.decode import (
     TelemetryDecoder,
     message_source,
 )
-from estimator.telemetry.plausibility import pack_voltage_problem
+from estimator.telemetry.plausibility import fitting_cells, pack_voltage_problem
 from estimator.telemetry.samples import BatterySample
 
 log = logging.getLogger("uav_energy.service")
@@ -75,6 +85,9 @@ OWN_COMPONENT = mavlink.MAV_COMP_ID_ONBOARD_COMPUTER
 REQUEST_RETRY_S = 5.0
 #: Seconds between "bad input" log lines.
 COUNTER_LOG_S = 10.0
+#: Seconds between repeats of the line naming a pack voltage that fits no reading of the
+#: vehicle file's cells (the first comes at once).
+PACK_MISMATCH_LOG_S = 60.0
 #: JSON lines waiting for a slow stdout reader beyond this are dropped (counted).
 JSON_BUFFER_LIMIT_BYTES = 1 << 20
 #: Wall seconds after the first position without HOME_POSITION before it is requested, and
@@ -83,6 +96,8 @@ HOME_REQUEST_AFTER_S = 3.0
 #: Seconds (event loop) between writes of the pack's memory (and one at the end).
 PACK_MEMORY_PERIOD_S = 30.0
 HOME_REQUEST_RETRY_S = 10.0
+#: SMART_BATTERY_INFO: its serial number names the pack when none is configured.
+PACK_INFO_ID = mavlink.MAVLINK_MSG_ID_SMART_BATTERY_INFO
 _STREAMS = (
     (mavlink.MAVLINK_MSG_ID_GLOBAL_POSITION_INT, "velocity"),
     (mavlink.MAVLINK_MSG_ID_LOCAL_POSITION_NED, "velocity"),
@@ -106,15 +121,12 @@ class Service:
         self.config = config
         if settings is None:
             settings = config.pipeline_settings()
-        self._pack_dir = Path(config.pack_dir) if config.pack_dir else None
-        self._pack_id = config.pack_id or None
-        label_ah = vehicle.battery.capacity_ah
-        prior = load_prior(self._pack_dir, self._pack_id, label_ah)
-        if prior is not None:
-            log.info("pack %s: its memory says %.2f Ah", self._pack_id, prior.capacity_ah)
-        self.pipeline = Pipeline(vehicle, settings, mission_energy, pack_prior=prior)
-        self._flight_unix_s = time.time()  # this run's row of the pack's history
-        self.pack_memory_errors = 0
+        self.pipeline = Pipeline(vehicle, settings, mission_energy)
+        pack_dir = Path(config.pack_dir) if config.pack_dir else None
+        # this run is one flight: its row of the pack's history starts now
+        self.flight_pack = FlightPack(self.pipeline, pack_dir, config.pack_id or None, time.time())
+        if (prior := self.pipeline.pack_prior) is not None:
+            log.info("pack %s: its memory says %.2f Ah", config.pack_id, prior.capacity_ah)
         target = None
         if config.target_system:
             target = (config.target_system, config.target_component or 1)
@@ -136,6 +148,7 @@ class Service:
         self._last_json_s = -1e9
         self._last_request_s = -1e9
         self._streams_ok = False
+        self._model_only_said: bool | None = None  # the estimating mode last logged
         self._logged: dict[str, tuple[int, float]] = {}  # counter → (value, wall s) logged
         self._event_logged_s: dict[str, float] = {}
         self.state: StateKeeper | None = None
@@ -154,6 +167,7 @@ class Service:
         self.pack_alert = PackLabelAlert(self.pipeline.pack.spec.capacity_ah)
         self.mission: MissionDownload | None = None
         self._home_first = True  # ArduPilot's mission item 0 is home; PX4's is not
+        self._px4 = False  # the locked autopilot's HEARTBEAT says PX4: intervals, no streams
         self._first_position_s: float | None = None
         self._home_requested_s = -1e9
         self.home_requests = 0
@@ -178,17 +192,18 @@ class Service:
         self.link = await open_link(
             cfg.connect,
             source_system=cfg.system_id,
-            message_ids=USED_MESSAGE_IDS | MISSION_MESSAGE_IDS,
+            message_ids=USED_MESSAGE_IDS | MISSION_MESSAGE_IDS | {PACK_INFO_ID},
             signing=signing(0),
         )
-        if self.lock.locked is not None:
-            self.link.set_peer(self.lock.locked)
+        self.link.answer_only(None)  # a shared link answers nobody until an autopilot is locked
         if self.state is not None:
             self.state.load()
         try:
             for i, url in enumerate(cfg.publish, start=1):
                 self.outputs.append(
-                    await open_link(url, source_system=cfg.system_id, signing=signing(i))
+                    await open_link(
+                        url, source_system=cfg.system_id, signing=signing(i), listen=False
+                    )
                 )
             if cfg.json.startswith("udp:"):
                 addr = parse_url("udpout:" + cfg.json[4:])
@@ -213,7 +228,7 @@ class Service:
             ]
             if self.state is not None:
                 tasks.append(loop.create_task(self.state.run(lambda: self.decoder.target)))
-            if self._pack_dir is not None:
+            if self.flight_pack.directory is not None:
                 tasks.append(loop.create_task(self._pack_memory_loop()))
             await stop.wait()
             for task in tasks:
@@ -226,6 +241,8 @@ class Service:
             if self.state is not None:
                 self.state.save(self.decoder.target)
             self._remember_pack()
+            if (note := self.flight_pack.unnamed()) is not None:
+                log.info("pack memory: %s", note)
         finally:
             for link in [self.link, *self.outputs]:
                 await link.close()
@@ -255,8 +272,8 @@ class Service:
             out.update(state_writes=self.state.writes, state_write_errors=self.state.write_errors)
         out.update(home_requests=self.home_requests, alerts_sent=self.alerts.sent)
         out.update(pack_alerts_sent=self.pack_alert.sent)
-        if self._pack_dir is not None:
-            out.update(pack_memory_errors=self.pack_memory_errors)
+        if self.flight_pack.directory is not None:
+            out.update(pack_memory_errors=self.flight_pack.errors)
         return out
 
     # -- the pack's memory -------------------------------------------------------------------
@@ -268,51 +285,63 @@ class Service:
             self._remember_pack()
 
     def _remember_pack(self) -> None:
-        pack = self.pipeline.pack_state
-        if self._pack_dir is None or self._pack_id is None or pack is None:
+        if (note := self.flight_pack.remember()) is not None:
+            log.warning("%s", note)
+
+    def _pack_info(self, msg: mavlink.MAVLink_message) -> None:
+        """SMART_BATTERY_INFO of the autopilot's battery (the one decoded): its serial number
+        may name the pack (:class:`FlightPack`)."""
+        if message_source(msg) != self.decoder.target or msg.id != self.decoder.battery_id:
             return
-        try:
-            label_ah = self.pipeline.pack.spec.capacity_ah
-            remember(self._pack_dir, self._pack_id, label_ah, pack.estimate(), self._flight_unix_s)
-        except (OSError, UserError) as exc:
-            self.pack_memory_errors += 1
-            log.warning("pack memory not written: %s", exc)
+        if (note := self.flight_pack.reported(str(msg.serial_number))) is not None:
+            log.info("%s", note)
 
     # -- receive ----------------------------------------------------------------------------
 
     def _on_messages(self, messages: list[mavlink.MAVLink_message]) -> None:
         """Link listener: handle each message as its datagram arrives."""
         now_s = asyncio.get_running_loop().time()
+        assert self.link is not None
+        peer = self.link.peer
+        lock = self.lock
         for received in messages:
-            lock = self.lock
-            before = (lock.candidate, lock.locked)
-            admitted = lock.admit(received, now_s)
-            if (lock.candidate, lock.locked) != before:
+            before = (lock.locked, lock.peer)
+            admitted = lock.admit(received, now_s, peer)
+            if (lock.locked, lock.peer) != before:
+                self._note_autopilot(admitted)
                 self._autopilot_changed(now_s)
-            for msg in admitted:
-                try:
-                    self._handle(msg, now_s)
-                except Exception as exc:  # never die on one message: log it, count, go on
-                    self.internal_errors += 1
-                    if self.internal_errors <= 10 or self.internal_errors % 1000 == 0:
-                        log.error(
-                            "internal error #%d on %s skipped: %r",
-                            self.internal_errors,
-                            msg.get_type(),
-                            exc,
-                        )
+            self._handle_each(admitted, now_s)
+
+    def _handle_each(self, messages: list[mavlink.MAVLink_message], now_s: float) -> None:
+        for msg in messages:
+            try:
+                self._handle(msg, now_s)
+            except Exception as exc:  # never die on one message: log it, count, go on
+                self.internal_errors += 1
+                if self.internal_errors <= 10 or self.internal_errors % 1000 == 0:
+                    log.error(
+                        "internal error #%d on %s skipped: %r",
+                        self.internal_errors,
+                        msg.get_type(),
+                        exc,
+                    )
+
+    def _note_autopilot(self, messages: list[mavlink.MAVLink_message]) -> None:
+        """Which autopilot stack the locked sender is, from its HEARTBEAT among ``messages``
+        (kept when there is none)."""
+        for msg in messages:
+            if msg.get_type() == "HEARTBEAT" and message_source(msg) == self.lock.locked:
+                self._px4 = msg.autopilot == mavlink.MAV_AUTOPILOT_PX4
 
     def _autopilot_changed(self, now_s: float) -> None:
-        """A new candidate or lock: answer only it, ask it for telemetry."""
-        chosen = self.lock.locked or self.lock.candidate
-        self.decoder.target = self.lock.locked
-        if self.link is not None:
-            self.link.set_peer(chosen)
-        if chosen is not None:
-            self._request_streams(now_s)
-        if self.lock.locked is not None:
-            log.info("autopilot found: system %d component %d", *self.lock.locked)
-            self._start_mission(self.lock.locked)
+        """The autopilot locked (or found at another address): answer only it, ask it for
+        telemetry."""
+        locked = self.lock.locked
+        assert locked is not None and self.link is not None
+        self.decoder.target = locked
+        self.link.answer_only(self.lock.peer)
+        self._request_streams(now_s)
+        self._start_mission(locked)
 
     def _handle(self, msg: mavlink.MAVLink_message, now_s: float) -> None:
         counts = self.decoder.counts
@@ -320,10 +349,12 @@ class Service:
         samples = self.decoder.decode(msg)
         if msg.get_type() == "HEARTBEAT" and message_source(msg) == self.decoder.target:
             self._home_first = msg.autopilot == mavlink.MAV_AUTOPILOT_ARDUPILOTMEGA
+            self._px4 = msg.autopilot == mavlink.MAV_AUTOPILOT_PX4
         if self.mission is not None and msg.get_type() in MISSION_MESSAGES:
             self.mission.on_message(msg, now_s)
+        if msg.get_msgId() == PACK_INFO_ID:
+            self._pack_info(msg)
         if counts["reboots"] != reboots:
-            self.lock.recheck(now_s)
             self._log_throttled(
                 "reboots",
                 now_s,
@@ -369,8 +400,12 @@ class Service:
             and self.pipeline.counts["battery"]
         ):
             self._streams_ok = True
-            mode = "model only (no current sensor)" if self.latest.model_only else "fused"
-            log.info("telemetry flowing: estimating, %s", mode)
+            self._model_only_said = self.latest.model_only
+            log.info("telemetry flowing: estimating, %s", _mode(self.latest.model_only))
+        latest = self.latest
+        if latest is not None and self._model_only_said not in (None, latest.model_only):
+            self._model_only_said = latest.model_only  # said once per change
+            log.info("estimating, %s", _mode(latest.model_only))
 
     def _start_mission(self, target: tuple[int, int]) -> None:
         """The mission download for this autopilot (read-only; off by configuration)."""
@@ -416,9 +451,13 @@ class Service:
 
     def _request_streams(self, now_s: float) -> None:
         """REQUEST_DATA_STREAM (ArduPilot) and SET_MESSAGE_INTERVAL (both stacks) to the
-        autopilot (or the candidate), at most once per REQUEST_RETRY_S whatever asks (new
-        candidates, reboots, forged ones included)."""
-        target = self.lock.locked or self.lock.candidate
+        locked autopilot — before the lock, on a point-to-point link only, to the configured
+        ids or the latest autopilot HEARTBEAT's — at most once per REQUEST_RETRY_S whatever
+        asks (locks, reboots). To PX4 (its HEARTBEAT says so), SET_MESSAGE_INTERVAL only, for
+        the messages :mod:`estimator.mavlink.px4_streams` lists."""
+        target = self.lock.locked
+        if target is None and self.link is not None and not self.link.shared:
+            target = self.lock.configured or self.lock.heard_autopilot
         if (
             not self.config.request_streams
             or self.link is None
@@ -429,6 +468,18 @@ class Service:
         self._last_request_s = now_s
         sysid, compid = target
         mav, cfg = self.link.mav, self.config
+        if self._px4:
+            for request in px4_interval_requests(
+                mav, target, cfg.velocity_rate_hz, cfg.battery_rate_hz
+            ):
+                self.link.send(request)
+            self._request_pack_info(target)
+            log.info(
+                "message intervals requested (PX4): velocity %.0f Hz, battery %.1f Hz",
+                cfg.velocity_rate_hz,
+                cfg.battery_rate_hz,
+            )
+            return
         for stream, rate in (
             (mavlink.MAV_DATA_STREAM_POSITION, cfg.velocity_rate_hz),
             (mavlink.MAV_DATA_STREAM_EXTENDED_STATUS, cfg.battery_rate_hz),
@@ -451,11 +502,22 @@ class Service:
                     0,
                 )
             )
+        self._request_pack_info(target)
         log.info(
             "streams requested: velocity %.0f Hz, battery %.1f Hz",
             cfg.velocity_rate_hz,
             cfg.battery_rate_hz,
         )
+
+    def _request_pack_info(self, target: tuple[int, int]) -> None:
+        """Once with the streams: the pack's serial number (MAV_CMD_REQUEST_MESSAGE)."""
+        if self.flight_pack.wants_serial and self.link is not None:
+            request = mavlink.MAV_CMD_REQUEST_MESSAGE
+            self.link.send(
+                self.link.mav.command_long_encode(
+                    *target, request, 0, PACK_INFO_ID, 0, 0, 0, 0, 0, 0
+                )
+            )
 
     # -- publish ----------------------------------------------------------------------------
 
@@ -544,8 +606,7 @@ class Service:
             log.warning("link silent for %.1f s: estimates marked stale", silent_s)
             if self.config.publish_rate_hz == 0 and (estimate := self._current()) is not None:
                 self._publish(estimate)
-        if self.lock.tick(now_s):
-            self._autopilot_changed(now_s)
+        self._handle_each(self.lock.tick(now_s), now_s)
         if not self._streams_ok:
             self._request_streams(now_s)
         self._request_home(now_s)
@@ -558,14 +619,20 @@ class Service:
             now_s,
             f"implausible inputs skipped so far ({_format_counts(skipped)})",
         )
+        self._log_pack_mismatch(now_s)
         if self.link is None:
             return
         for key, what in (
             ("bad_frames", "bad frames"),
             ("dropped", "messages dropped (flood)"),
-            ("foreign_peer", "datagrams with the autopilot's ids from another address"),
         ):
             self._log_count(key, self.link.counts[key], now_s, f"{what} so far (input skipped)")
+        for key, what in (
+            ("foreign_peer", "frames with the autopilot's ids from another address"),
+            ("off_clock_frames", "frames off the autopilot's clock, never proven (forged?)"),
+            ("unsigned_frames", "unsigned frames from a sender that signs"),
+        ):
+            self._log_count(key, self.lock.counts[key], now_s, f"{what} so far (dropped)")
         if self.link.signing is not None:
             rejected = self.link.signing.rejected
             self._log_count(
@@ -574,6 +641,34 @@ class Service:
                 now_s,
                 f"frames rejected by signing so far ({_format_counts(dict(rejected))})",
             )
+
+    def _log_pack_mismatch(self, now_s: float) -> None:
+        """Say which cell count the skipped pack voltage fits, when no battery reading has been
+        believed: at once, then at most once per :data:`PACK_MISMATCH_LOG_S` (in the log, and
+        a STATUSTEXT on the ``--publish`` links)."""
+        rejected = self.decoder.implausible_voltage
+        if rejected is None or self.pipeline.energy.initialized:
+            return
+        if now_s - self._event_logged_s.get("pack_mismatch", -1e9) < PACK_MISMATCH_LOG_S:
+            return
+        self._event_logged_s["pack_mismatch"] = now_s
+        kind, voltage_v = rejected
+        cells = self.pipeline.vehicle.battery.cells
+        limits = self.decoder.limits
+        log.warning(
+            "%s %.2f V fits %s, the vehicle file says %d (believed %.2f-%.2f V): every battery "
+            "reading is skipped (%d so far) and no estimate is made; is [battery] cells right?",
+            kind,
+            voltage_v,
+            fitting_cells(voltage_v),
+            cells,
+            limits.min_voltage_v,
+            limits.max_voltage_v,
+            self.decoder.counts["voltage_implausible"],
+        )
+        text = f"pack {voltage_v:.1f}V is not {cells}S: no estimate"
+        for link in self._ground_links(False):  # never towards the autopilot
+            link.send(publish.statustext(link, mavlink.MAV_SEVERITY_WARNING, text))
 
     def _log_count(self, key: str, value: int, now_s: float, what: str) -> None:
         """Warn "<value> <what>" when the counter moved, at most once per COUNTER_LOG_S."""
@@ -607,3 +702,8 @@ async def _drain(link: MavlinkLink) -> None:
 
 def _format_counts(counts: dict[str, int]) -> str:
     return ", ".join(f"{k}={v}" for k, v in sorted(counts.items()) if v) or "nothing received"
+
+
+def _mode(model_only: bool) -> str:
+    """How the estimate is made, for the log."""
+    return "model only (no current measured)" if model_only else "fused with the measured current"

@@ -47,7 +47,7 @@ CELL_OCV_POINTS_V = np.array(
 
 #: Li-ion (NMC 18650/21700) cells: a steadier slope than LiPo's and a deeper usable range
 #: (typical resting curve of NMC cells at 25 °C, e.g. Plett, *Battery Management Systems*
-#: vol. 1, ch. 2, fig. 2.5; fit your pack's own with ``uav-energy fit --pack``).
+#: vol. 1, ch. 2, fig. 2.5; fit your pack's own with ``uav-energy fit``, docs/fit.md).
 LIION_CELL_OCV_V = np.array(
     [3.00, 3.30, 3.42, 3.50, 3.55, 3.59, 3.62, 3.65, 3.68, 3.71, 3.75,
      3.79, 3.83, 3.87, 3.92, 3.96, 4.01, 4.05, 4.09, 4.14, 4.19]

@@ -6,7 +6,8 @@ Layout (all sections but ``[effects]`` required)::
     [model]          c1, c2, c3, c4, c5        (electrical power at the battery, W)
     [model.stderr]   c1, c2, c3, c4, c5        (1σ, same units; optional)
     [battery]        capacity_ah, cells, reserve_fraction, chemistry (optional: lipo, lihv,
-                     liion), cell_ocv_v (optional: the pack's own curve)
+                     liion), cell_ocv_v (optional: the pack's own curve), cell_ocv_sigma_v
+                     (optional: its 1σ error), internal_resistance_ohm (optional: measured)
     [effects.NAME]   parameters of effects added by ``uav-energy residuals`` (optional)
 """
 
@@ -20,11 +21,13 @@ from itertools import pairwise
 from pathlib import Path
 from typing import Any
 
+import numpy as np
 import tomli_w
 
 from estimator.errors import UserError
+from estimator.file_checks import number_in_range
 from estimator.physics.model import COEFFICIENT_NAMES, PowerModel
-from estimator.telemetry.plausibility import InputLimits
+from estimator.telemetry.plausibility import MAX_POWER_PER_HOVER, InputLimits
 from estimator.toml_files import read_toml
 
 #: Resting cell voltages of a pack curve: evenly spaced from state of charge 0 to 1, at least
@@ -32,8 +35,36 @@ from estimator.toml_files import read_toml
 OCV_TABLE_POINTS = (11, 201)
 #: A cell voltage outside this range (V) is no lithium cell at rest.
 OCV_RANGE_V = (2.0, 4.5)
+#: 1σ error of a pack's own resting curve (V per cell): from a simulator's exact table to a
+#: curve no better than a chemistry's typical one.
+OCV_SIGMA_RANGE_V = (0.0001, 0.05)
+#: A pack's internal resistance (Ω) as measured: above 0, at most this (no flying pack).
+MAX_RESISTANCE_OHM = 2.0
+#: Ranges of a vehicle file's numbers (inclusive): mass (kg), fastest airspeed (m/s), the
+#: power model's coefficients (:class:`PowerModel` units: W, s²/m², W, m²/s², W·s³/m³; c4 is
+#: twice the squared hover induced velocity, 0.3 to 70 m/s) and their 1σ (the same units),
+#: label capacity (Ah) and series cells.
+MASS_RANGE_KG = (0.01, 1000.0)
+AIRSPEED_RANGE_MPS = (0.5, 100.0)
+COEFFICIENT_RANGES = {
+    "c1": (0.0, 1e5),
+    "c2": (0.0, 1.0),
+    "c3": (0.0, 1e5),
+    "c4": (0.1, 1e4),
+    "c5": (0.0, 100.0),
+}
+STDERR_RANGE = (1e-9, 1e5)
+CAPACITY_RANGE_AH = (0.05, 1000.0)
+CELLS_RANGE = (1, 24)
 #: Chemistries with a built-in resting curve (estimator.physics.battery.CHEMISTRY_OCV_V).
 CHEMISTRIES = ("lipo", "lihv", "liion")
+#: A cell's voltage believed in telemetry (V): down to its resting curve's empty voltage less
+#: this sag under load (the committed SITL packs sag 0.6 V below it), up to its full voltage
+#: plus this (a charger's or a sensor's overshoot).
+CELL_SAG_ALLOWANCE_V = 1.0
+CELL_CHARGE_ALLOWANCE_V = 0.15
+#: Airspeeds (m/s) on which the model's power-limited speed is searched.
+_AIRSPEED_GRID_MPS = np.linspace(0.0, 200.0, 801)
 
 
 @dataclass(frozen=True)
@@ -41,13 +72,17 @@ class BatterySpec:
     """Pack as configured: rated (label) capacity (Ah), series cells, the reserve not to be
     used, the chemistry, and the pack's resting cell voltage (V) at evenly spaced states of
     charge from 0 to 1 (``cell_ocv_v``; None: the chemistry's built-in curve in
-    :mod:`estimator.physics.battery`)."""
+    :mod:`estimator.physics.battery`) with its 1σ error per cell (V, ``cell_ocv_sigma_v``;
+    None: the pack filter's default for a measured curve), and the pack's internal
+    resistance (Ω, ``internal_resistance_ohm``; None: not measured)."""
 
     capacity_ah: float
     cells: int
     reserve_fraction: float = 0.2
     cell_ocv_v: tuple[float, ...] | None = None
     chemistry: str = "lipo"
+    cell_ocv_sigma_v: float | None = None
+    internal_resistance_ohm: float | None = None
 
 
 @dataclass(frozen=True)
@@ -62,8 +97,25 @@ class Vehicle:
     max_airspeed_mps: float | None = None
 
     def input_limits(self) -> InputLimits:
-        """Plausibility limits of telemetry for this vehicle's pack (cells) and hover power."""
-        return InputLimits.for_pack(self.battery.cells, self.model.hover_power_w)
+        """Plausibility limits of telemetry for this vehicle (:meth:`InputLimits.for_pack`):
+        its pack's cells, each from its resting curve's empty voltage less
+        :data:`CELL_SAG_ALLOWANCE_V` to its full voltage plus :data:`CELL_CHARGE_ALLOWANCE_V`;
+        its hover power; its airspeed (``max_airspeed_mps``, else the speed at which the
+        model asks :data:`MAX_POWER_PER_HOVER` × hover power)."""
+        from estimator.physics.battery import PackModel  # battery imports this module
+
+        curve_v = PackModel(self.battery).cell_ocv_v
+        window_v = (
+            float(min(curve_v)) - CELL_SAG_ALLOWANCE_V,
+            float(max(curve_v)) + CELL_CHARGE_ALLOWANCE_V,
+        )
+        hover_w = self.model.hover_power_w
+        airspeed_mps = self.max_airspeed_mps
+        if airspeed_mps is None:
+            power_w = self.model.power_w(_AIRSPEED_GRID_MPS)
+            reached = np.flatnonzero(power_w >= MAX_POWER_PER_HOVER * hover_w)
+            airspeed_mps = float(_AIRSPEED_GRID_MPS[reached[0]]) if reached.size else None
+        return InputLimits.for_pack(self.battery.cells, hover_w, window_v, airspeed_mps)
 
     def to_toml(self) -> dict[str, Any]:
         model: dict[str, Any] = self.model.as_dict()
@@ -94,6 +146,16 @@ class Vehicle:
                     if self.battery.cell_ocv_v is not None
                     else {}
                 ),
+                **(
+                    {"cell_ocv_sigma_v": self.battery.cell_ocv_sigma_v}
+                    if self.battery.cell_ocv_sigma_v is not None
+                    else {}
+                ),
+                **(
+                    {"internal_resistance_ohm": self.battery.internal_resistance_ohm}
+                    if self.battery.internal_resistance_ohm is not None
+                    else {}
+                ),
             },
         }
         if self.effects:
@@ -120,25 +182,38 @@ def vehicle_from_toml(doc: dict[str, Any], where: str = "vehicle file") -> Vehic
     vehicle = _section(doc, "vehicle", where)
     model = _section(doc, "model", where)
     battery = _section(doc, "battery", where)
-    coeffs = {n: _number(model, n, f"{where} [model]") for n in COEFFICIENT_NAMES}
+    coeffs = {
+        n: number_in_range(model, n, f"{where} [model]", COEFFICIENT_RANGES[n])
+        for n in COEFFICIENT_NAMES
+    }
     try:
         power_model = PowerModel(**coeffs)
     except ValueError as exc:
         raise UserError(f"{where} [model]: {exc}") from None
     stderr_doc = model.get("stderr", {})
-    stderr = {n: _number(stderr_doc, n, f"{where} [model.stderr]") for n in stderr_doc}
-    mass_kg = _number(vehicle, "mass_kg", f"{where} [vehicle]", positive=True)
+    if not isinstance(stderr_doc, dict) or not set(stderr_doc) <= set(COEFFICIENT_NAMES):
+        raise UserError(f"{where} [model.stderr] may hold only {', '.join(COEFFICIENT_NAMES)}")
+    stderr = {
+        n: number_in_range(stderr_doc, n, f"{where} [model.stderr]", STDERR_RANGE)
+        for n in stderr_doc
+    }
+    mass_kg = number_in_range(vehicle, "mass_kg", f"{where} [vehicle]", MASS_RANGE_KG, "kg")
     max_airspeed = (
-        _number(vehicle, "max_airspeed_mps", f"{where} [vehicle]", positive=True)
+        number_in_range(
+            vehicle, "max_airspeed_mps", f"{where} [vehicle]", AIRSPEED_RANGE_MPS, "m/s"
+        )
         if "max_airspeed_mps" in vehicle
         else None
     )
+    where_battery = f"{where} [battery]"
     spec = BatterySpec(
-        capacity_ah=_number(battery, "capacity_ah", f"{where} [battery]", positive=True),
-        cells=int(_number(battery, "cells", f"{where} [battery]", positive=True)),
+        capacity_ah=number_in_range(battery, "capacity_ah", where_battery, CAPACITY_RANGE_AH, "Ah"),
+        cells=int(number_in_range(battery, "cells", where_battery, CELLS_RANGE, integer=True)),
         reserve_fraction=_number(battery, "reserve_fraction", f"{where} [battery]"),
         cell_ocv_v=_ocv_table(battery.get("cell_ocv_v"), f"{where} [battery] cell_ocv_v"),
         chemistry=_chemistry(battery.get("chemistry", "lipo"), f"{where} [battery] chemistry"),
+        cell_ocv_sigma_v=_curve_sigma(battery, f"{where} [battery]"),
+        internal_resistance_ohm=_resistance(battery, f"{where} [battery]"),
     )
     if not 0.0 <= spec.reserve_fraction < 1.0:
         raise UserError(f"{where} [battery] reserve_fraction must be in [0, 1)")
@@ -195,6 +270,33 @@ def _ocv_table(value: Any, where: str) -> tuple[float, ...] | None:
     if any(b <= a for a, b in pairwise(table)):
         raise UserError(f"{where} must rise with the state of charge (SoC 0 first)")
     return table
+
+
+def _curve_sigma(battery: dict[str, Any], where: str) -> float | None:
+    """``cell_ocv_sigma_v``: None, or the 1σ error (V per cell, within
+    :data:`OCV_SIGMA_RANGE_V`) of the pack's own curve, which it must come with."""
+    if "cell_ocv_sigma_v" not in battery:
+        return None
+    sigma_v = _number(battery, "cell_ocv_sigma_v", where)
+    lo, hi = OCV_SIGMA_RANGE_V
+    if not lo <= sigma_v <= hi:
+        raise UserError(f"{where} 'cell_ocv_sigma_v' must be between {lo:g} and {hi:g} V")
+    if "cell_ocv_v" not in battery:
+        raise UserError(f"{where} 'cell_ocv_sigma_v' is the error of 'cell_ocv_v': give both")
+    return sigma_v
+
+
+def _resistance(battery: dict[str, Any], where: str) -> float | None:
+    """``internal_resistance_ohm``: None, or the pack's resistance (Ω, above 0 and at most
+    :data:`MAX_RESISTANCE_OHM`)."""
+    if "internal_resistance_ohm" not in battery:
+        return None
+    resistance_ohm = _number(battery, "internal_resistance_ohm", where, positive=True)
+    if resistance_ohm > MAX_RESISTANCE_OHM:
+        raise UserError(
+            f"{where} 'internal_resistance_ohm' must be at most {MAX_RESISTANCE_OHM:g} Ω"
+        )
+    return resistance_ohm
 
 
 def _chemistry(value: Any, where: str) -> str:

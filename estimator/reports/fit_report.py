@@ -2,7 +2,8 @@
 (:class:`~estimator.analysis.fit.FitReport`).
 
 Files: ``scatter.png`` (power vs speed before and after preprocessing), ``points_per_speed.png``,
-``curves.png`` (theory, polynomial and network over the kept data), ``residuals.png``, and
+``curves.png`` (theory, polynomial and network over the kept data), ``residuals.png``,
+``pack.png`` (the pack's fitted resting curve over its resting points, when fitted) and
 ``summary.md`` (the numbers of ``fit --json`` as tables, linking the plots).
 """
 
@@ -19,6 +20,7 @@ from matplotlib.figure import Figure
 
 from estimator.analysis.fit import FitReport, FlightCheck
 from estimator.analysis.fit_points import Points
+from estimator.analysis.pack_fit import PackFit
 from estimator.physics.model import COEFFICIENT_NAMES, PowerModel
 
 MODEL_LABELS = {
@@ -29,7 +31,12 @@ MODEL_LABELS = {
 MODEL_COLORS = {"theory": "C3", "polynomial": "C2", "dnn": "C0"}
 
 
-def write_report(report: FitReport, out_dir: Path, title: str = "Power model fit") -> list[Path]:
+def write_report(
+    report: FitReport,
+    out_dir: Path,
+    title: str = "Power model fit",
+    pack: PackFit | None = None,
+) -> list[Path]:
     """Write the plots and ``summary.md`` into ``out_dir``; returns the files written."""
     out_dir.mkdir(parents=True, exist_ok=True)
     files = [
@@ -38,6 +45,8 @@ def write_report(report: FitReport, out_dir: Path, title: str = "Power model fit
         _save(curves_figure(report, title), out_dir / "curves.png"),
         _save(residuals_figure(report), out_dir / "residuals.png"),
     ]
+    if pack is not None and pack.cell_ocv_v is not None:
+        files.append(_save(pack_figure(pack), out_dir / "pack.png"))
     summary = out_dir / "summary.md"
     summary.write_text(summary_markdown(report, title, [f.name for f in files]))
     return [*files, summary]
@@ -144,6 +153,27 @@ def residuals_figure(report: FitReport) -> Figure:
     axes[1].set_xlabel(f"residual (W), σ = {report.theory.sigma_w:.1f} W")
     for ax in axes:
         ax.grid(alpha=0.3)
+    fig.tight_layout()
+    return fig
+
+
+def pack_figure(pack: PackFit) -> Figure:
+    """The pack's resting points ((V + I·R)/cells against the state of charge) and the fitted
+    curve written to the vehicle file, the fitted stretch shaded."""
+    fig, ax = plt.subplots(figsize=(7, 4.5))
+    ax.scatter(
+        pack.points_soc, pack.points_cell_v, s=2, alpha=0.3, color="0.4", label="V + I·R per cell"
+    )
+    if pack.cell_ocv_v is not None and pack.fitted_soc is not None:
+        soc = np.linspace(0.0, 1.0, len(pack.cell_ocv_v))
+        ax.plot(soc, pack.cell_ocv_v, color="C3", lw=2, label="resting curve (vehicle file)")
+        ax.axvspan(*pack.fitted_soc, color="C3", alpha=0.08, label="fitted stretch")
+    sigma = "" if pack.sigma_v is None else f", σ {1000 * pack.sigma_v:.1f} mV/cell"
+    ax.set_title(f"Pack: R {1000 * pack.resistance_ohm:.1f} mΩ{sigma}")
+    ax.set_xlabel("state of charge")
+    ax.set_ylabel("cell voltage at rest (V)")
+    ax.legend(fontsize=8, loc="upper left")
+    ax.grid(alpha=0.3)
     fig.tight_layout()
     return fig
 

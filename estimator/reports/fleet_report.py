@@ -1,8 +1,9 @@
 """The fleet trends report (matplotlib, Agg): ``trends.png``, ``summary.md`` and
 ``summary.json``.
 
-One panel per metric (hover power, internal resistance, usable capacity) against the flight
-date: every flight as a dot, the per-day medians joined, one colour per vehicle or pack
+One panel per metric (hover power, internal resistance, usable capacity from the resting
+voltage, learnt capacity) against the flight date: every flight as a dot (with its 1σ error
+bar where it has one), the per-day figures joined, one colour per vehicle or pack
 (:mod:`estimator.analysis.fleet_trends`).
 """
 
@@ -55,7 +56,7 @@ def write_report(trends: FleetTrends, out_dir: Path, title: str) -> Path:
 
 
 def _plot(trends: FleetTrends, title: str) -> plt.Figure:
-    fig, axes = plt.subplots(len(METRICS), 1, figsize=(9, 8), sharex=True)
+    fig, axes = plt.subplots(len(METRICS), 1, figsize=(9, 10), sharex=True)
     colours = plt.rcParams["axes.prop_cycle"].by_key()["color"]
     groups = sorted({(s.kind, s.group) for s in trends.series})
     for ax, (metric, unit, label) in zip(axes, METRICS, strict=True):
@@ -63,7 +64,10 @@ def _plot(trends: FleetTrends, title: str) -> plt.Figure:
             if s.metric != metric:
                 continue
             colour = colours[groups.index((s.kind, s.group)) % len(colours)]
-            ax.plot(_dates(s.days), s.values, ".", color=colour, alpha=0.4)
+            if s.sigmas is None:
+                ax.plot(_dates(s.days), s.values, ".", color=colour, alpha=0.4)
+            else:
+                ax.errorbar(_dates(s.days), s.values, s.sigmas, fmt=".", color=colour, alpha=0.4)
             daily = s.per_day()
             ax.plot(
                 [datetime(d.year, d.month, d.day, tzinfo=UTC) for d, _, _ in daily],

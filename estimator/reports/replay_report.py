@@ -3,6 +3,8 @@
 Per flight, over log time (s): measured vs model power; speed, centripetal and tangential
 acceleration; remaining energy and endurance, each with its 1σ band. One ``summary.md`` lists
 the figures and the power error table (airborne points only, see :mod:`estimator.analysis.replay`).
+Flights flown to their reserve with a truth beside the log add the endurance against the truth
+(:mod:`estimator.reports.endurance_reliability`).
 """
 
 from __future__ import annotations
@@ -18,12 +20,21 @@ import matplotlib.pyplot as plt
 import numpy as np
 from matplotlib.axes import Axes
 
+from estimator.analysis.endurance_truth import ScoredFlight
 from estimator.analysis.replay import FlightReplay, Summary, summarize
+from estimator.reports.endurance_reliability import plot_endurance_truth, reliability_section
 from estimator.reports.output_dir import make_report_dir
 
 
-def write_report(flights: Sequence[FlightReplay], out_dir: Path, vehicle_name: str) -> Path:
-    """Write the plots and ``summary.md`` into ``out_dir``; return the summary's path."""
+def write_report(
+    flights: Sequence[FlightReplay],
+    out_dir: Path,
+    vehicle_name: str,
+    scored: Sequence[ScoredFlight] = (),
+    capacity_ah: float | None = None,
+) -> Path:
+    """Write the plots and ``summary.md`` into ``out_dir``; return the summary's path.
+    ``scored``: the flights with a reserve truth, replayed under ``capacity_ah`` (Ah)."""
     make_report_dir(out_dir)
     lines = [
         "# Replay report",
@@ -38,6 +49,8 @@ def write_report(flights: Sequence[FlightReplay], out_dir: Path, vehicle_name: s
     if len(flights) > 1:
         lines.append(_table_row("**all**", summarize(flights)))
     lines.append("")
+    lines += reliability_section(scored, out_dir, capacity_ah)
+    truths = {f.name: f for f in scored}
     for flight in flights:
         if not flight.estimates:
             lines += [f"## {flight.name}", "", "No estimates (no battery telemetry?).", ""]
@@ -48,6 +61,8 @@ def write_report(flights: Sequence[FlightReplay], out_dir: Path, vehicle_name: s
             "kinematics": _plot_kinematics(flight),
             "energy": _plot_energy(flight),
         }
+        if flight.name in truths:
+            figures["endurance-truth"] = plot_endurance_truth(flight, truths[flight.name])
         lines += [f"## {flight.name}", ""]
         for kind, fig in figures.items():
             name = f"{stem}-{kind}.png"

@@ -1,4 +1,4 @@
-"""ArduPilot SITL: start ArduCopter's software-in-the-loop binary, fly it, record the flight.
+"""SITL: start ArduCopter's (and PX4's) software-in-the-loop binary, fly it, record the flight.
 
 - :mod:`estimator.sitl.launch`: find the binary and its parameter file, pick a free
   instance, run it in a scratch directory;
@@ -8,7 +8,10 @@
 - :mod:`estimator.sitl.pack`: SITL's simulated pack (its voltage table) and a mislabelled,
   aged or partly charged pack to fly;
 - :mod:`estimator.sitl.recorder`: one scenario → ``flight.tlog``, DataFlash ``flight.BIN``
-  and ``truth.json`` (``uav-energy sitl-record``).
+  and ``truth.json`` (``uav-energy sitl-record``);
+- :mod:`estimator.sitl.px4`: PX4 SITL with its built-in SIH quadrotor, on a free instance;
+- :mod:`estimator.sitl.px4_pilot`: a ground station that flies it by PX4's clock, and a pack
+  whose current follows PX4's motor outputs, fed into PX4.
 
 See docs/sitl.md.
 """

@@ -304,7 +304,7 @@ def record(
     binary = binary or sitl_binary()
     if binary is None:
         raise UserError(
-            "no ArduCopter SITL binary: set ARDUPILOT_SITL_BINARY "
+            "no ArduCopter SITL binary: give --binary FILE, set ARDUPILOT_SITL_BINARY "
             "or provide ../shared/tools/ardupilot-sitl/arducopter"
         )
     out_dir.mkdir(parents=True, exist_ok=True)

@@ -8,20 +8,29 @@ MAVLink 1 frames parse too). Messages become :mod:`estimator.telemetry.samples` 
   until several frames confirm a reboot or a gap); messages without a stamp (SYS_STATUS,
   BATTERY_STATUS, HEARTBEAT) take the latest believed autopilot time, so a replay and a live
   run of the same byte stream give the same samples;
-- unknown-value sentinels (current −1, voltage UINT16_MAX, cell voltage UINT16_MAX or 0,
-  consumed −1, remaining −1) become ``None`` or drop the sample; values beyond
+- unknown-value sentinels (current −1 cA, and PX4's −1 A = −100 cA of a battery without a
+  current sensor; voltage UINT16_MAX, cell voltage UINT16_MAX or 0, consumed −1, remaining −1)
+  become ``None`` or drop the sample; without a measured current the consumed charge is
+  ``None`` too (PX4 reports 0 mAh counted from no current); values beyond
   :class:`~estimator.telemetry.plausibility.InputLimits` (NaN, ±inf, 1e30, a current no pack gives)
-  drop the frame, counted under the reason;
+  drop the frame, counted under the reason (the last voltage skipped as implausible is kept in
+  :attr:`TelemetryDecoder.implausible_voltage`, so a vehicle file for another pack is named);
 - the battery comes from BATTERY_STATUS (our ``battery_id``) once :data:`BATTERY_STATUS_CONFIRM`
   of them arrived, each within :data:`BATTERY_STATUS_TIMEOUT_S` of the last, else from
   SYS_STATUS — also again when BATTERY_STATUS stops for that long;
+- a velocity that no multirotor reaches from the one before (a single 190 m/s frame) is an
+  outlier, counted and skipped, until several agree
+  (:class:`~estimator.telemetry.plausibility.VelocityJumps`, on the believed clock);
 - the autopilot's wind estimate (ArduPilot WIND, id 168, outside the common dialect: its
   payload is read by hand; PX4 WIND_COV) becomes a :class:`WindSample`, implausible values
-  (non-finite, faster than ``MAX_WIND_MPS``) are counted and skipped;
+  (a direction or speed not finite, a direction beyond ±360°, faster than
+  :data:`~estimator.telemetry.plausibility.MAX_WIND_MPS`) are counted and skipped;
 - the position (GLOBAL_POSITION_INT latitude/longitude, whatever the velocity source) becomes a
   :class:`PositionSample`, the autopilot's home (HOME_POSITION) a :class:`HomeSample`, the
   mission item flown (MISSION_CURRENT) a :class:`MissionCurrentSample`; latitude/longitude
   0/0 (no fix, home not set) and values off the globe are counted and skipped;
+- EXTENDED_SYS_STATE's landed state (PX4's landed detector) becomes a :class:`LandedSample`
+  at each change (UNDEFINED is no sample);
 - ArduPilot's gripper texts (STATUSTEXT "Gripper load released"/"grabbed", "Gripper
   Released"/"Grabbed" from a mission; :data:`GRIPPER_TEXT`) become a :class:`GripperSample`;
 - only the selected autopilot is decoded (default: the first autopilot HEARTBEAT);
@@ -41,18 +50,22 @@ from collections.abc import Iterable
 from pymavlink.dialects.v20 import common as mavlink
 
 from estimator.telemetry.plausibility import (
+    MAX_WIND_MPS,
     ClockFilter,
     ClockSettings,
     ClockVerdict,
     InputLimits,
+    VelocityJumps,
     battery_problem,
     velocity_problem,
+    wind_problem,
 )
 from estimator.telemetry.samples import (
     ArmedSample,
     BatterySample,
     GripperSample,
     HomeSample,
+    LandedSample,
     MissionCurrentSample,
     PositionSample,
     Sample,
@@ -61,6 +74,9 @@ from estimator.telemetry.samples import (
 )
 
 UINT16_MAX = 65535
+#: Battery currents that mean "not measured" (cA): MAVLink's −1, and −1 A, which PX4 reports
+#: for a battery without a current sensor (its simulated one included).
+CURRENT_UNKNOWN_CA = frozenset({-1, -100})
 #: BATTERY_STATUS frames in a row (each within the timeout) before they replace SYS_STATUS.
 BATTERY_STATUS_CONFIRM = 3
 #: Seconds of autopilot clock without BATTERY_STATUS after which SYS_STATUS is used again.
@@ -69,6 +85,7 @@ BATTERY_STATUS_TIMEOUT_S = 3.0
 SKIP_COUNTERS = (
     "velocity_not_finite",
     "velocity_beyond_limits",
+    "velocity_jump",
     "altitude_implausible",
     "voltage_implausible",
     "current_implausible",
@@ -94,6 +111,7 @@ USED_MESSAGE_IDS = frozenset(
         mavlink.MAVLINK_MSG_ID_HOME_POSITION,
         mavlink.MAVLINK_MSG_ID_MISSION_CURRENT,
         mavlink.MAVLINK_MSG_ID_STATUSTEXT,
+        mavlink.MAVLINK_MSG_ID_EXTENDED_SYS_STATE,
         168,  # ArduPilot WIND (ardupilotmega dialect)
     }
 )
@@ -104,8 +122,6 @@ _ARDUPILOT_WIND = struct.Struct("<fff")
 #: ArduPilot's texts for a finished gripper action (libraries/AP_Gripper, and the mission's
 #: DO_GRIPPER in libraries/AP_Mission): group 1 is "released" or "grabbed".
 GRIPPER_TEXT = re.compile(r"^gripper (?:load )?(released|grabbed)\b", re.IGNORECASE)
-#: A wind estimate above this (m/s) is not plausible and is skipped.
-MAX_WIND_MPS = 60.0
 #: The velocity message types by id (the decoder uses the one of the first believed frame).
 _VELOCITY_TYPES = {
     mavlink.MAVLINK_MSG_ID_GLOBAL_POSITION_INT: "GLOBAL_POSITION_INT",
@@ -235,12 +251,17 @@ class TelemetryDecoder:
         self.limits = limits or InputLimits()
         self.counts: Counter[str] = Counter()
         self._time = ClockFilter(self.counts, clock)
+        self._jumps = VelocityJumps(self.counts)
         self._velocity_type: str | None = None
         self._last_velocity_s: float | None = None
         # BATTERY_STATUS in a row and the clock of the last one (SYS_STATUS fallback)
         self._battery_status_frames = 0
         self._battery_status_s = -math.inf
         self._armed: bool | None = None
+        self._on_ground: bool | None = None
+        #: The message type and pack voltage (V) of the latest battery reading skipped as
+        #: ``voltage_implausible``; None before the first.
+        self.implausible_voltage: tuple[str, float] | None = None
 
     @property
     def clock_s(self) -> float | None:
@@ -256,7 +277,7 @@ class TelemetryDecoder:
         """End of input (a log): samples still held for a stamp never confirmed."""
         out = self._time.flush()
         self._note_velocity(out)
-        return out
+        return self._jumps.filter(out)
 
     def discards(self, msgid: int, system: int, component: int) -> bool:
         """Whether :meth:`decode` would drop a message with this id from this source without
@@ -298,7 +319,7 @@ class TelemetryDecoder:
             return []
         self.counts[kind] += 1
         samples = handler(self, msg)
-        return [*self._time.take_pending(), *samples]
+        return self._jumps.filter([*self._time.take_pending(), *samples])
 
     # -- clock -------------------------------------------------------------------------------
 
@@ -314,7 +335,7 @@ class TelemetryDecoder:
             self._last_velocity_s = None
             self._battery_status_frames, self._battery_status_s = 0, -math.inf
             if verdict is ClockVerdict.REBOOT:
-                self._armed = None
+                self._armed = self._on_ground = None
         self._note_velocity(out or [])
         return out
 
@@ -344,6 +365,17 @@ class TelemetryDecoder:
             return []
         self._armed = armed
         return self._time.clocked(ArmedSample(clock_s, armed))
+
+    def _extended_sys_state(self, msg: mavlink.MAVLink_message) -> list[Sample]:
+        state = msg.landed_state
+        clock_s = self._clock_s()
+        if clock_s is None or state == mavlink.MAV_LANDED_STATE_UNDEFINED:
+            return []
+        on_ground = state == mavlink.MAV_LANDED_STATE_ON_GROUND
+        if on_ground == self._on_ground:
+            return []
+        self._on_ground = on_ground
+        return self._time.clocked(LandedSample(clock_s, on_ground))
 
     def _attitude(self, msg: mavlink.MAVLink_message) -> list[Sample]:
         return self._stamp(msg.time_boot_ms / 1000.0) or []
@@ -450,6 +482,7 @@ class TelemetryDecoder:
             self.counts["battery_voltage_unknown"] += 1
             return []
         sample = self._battery(
+            "SYS_STATUS",
             voltage_mv / 1000.0,
             _current_a(msg.current_battery),
             None,
@@ -466,10 +499,14 @@ class TelemetryDecoder:
         if not known:
             self.counts["battery_voltage_unknown"] += 1
             return []
-        consumed = None if msg.current_consumed == -1 else float(msg.current_consumed)
+        current_a = _current_a(msg.current_battery)
+        consumed = None
+        if current_a is not None and msg.current_consumed != -1:
+            consumed = float(msg.current_consumed)
         sample = self._battery(
+            "BATTERY_STATUS",
             sum(known) / 1000.0,
-            _current_a(msg.current_battery),
+            current_a,
             consumed,
             _remaining_pct(msg.battery_remaining),
         )
@@ -492,6 +529,8 @@ class TelemetryDecoder:
             direction_deg, speed_mps, _ = _ARDUPILOT_WIND.unpack(
                 payload[: _ARDUPILOT_WIND.size].ljust(_ARDUPILOT_WIND.size, b"\0")
             )
+        if not (abs(direction_deg) <= 360.0 and 0.0 <= speed_mps <= MAX_WIND_MPS):
+            return self._skip("wind_implausible")  # NaN fails every comparison
         rad = math.radians(direction_deg)
         return self._wind(-speed_mps * math.cos(rad), -speed_mps * math.sin(rad))
 
@@ -504,21 +543,21 @@ class TelemetryDecoder:
         if clock_s is None:
             self.counts["wind_before_clock"] += 1
             return []
-        finite = math.isfinite(wind_n_mps) and math.isfinite(wind_e_mps)
-        if not finite or math.hypot(wind_n_mps, wind_e_mps) > MAX_WIND_MPS:
-            self.counts["wind_implausible"] += 1
-            return []
-        return self._time.clocked(WindSample(clock_s, wind_n_mps, wind_e_mps))
+        sample = WindSample(clock_s, wind_n_mps, wind_e_mps)
+        if (problem := wind_problem(sample)) is not None:
+            return self._skip(problem)
+        return self._time.clocked(sample)
 
     def _battery(
         self,
+        kind: str,
         voltage_v: float,
         current_a: float | None,
         consumed_mah: float | None,
         remaining_pct: float | None,
     ) -> BatterySample | None:
-        """A pack reading on the clock, or None when there is no clock yet or it is not
-        plausible (counted)."""
+        """A pack reading of a ``kind`` message on the clock, or None when there is no clock
+        yet or it is not plausible (counted)."""
         clock_s = self._clock_s()
         if clock_s is None:
             self.counts["battery_before_clock"] += 1
@@ -527,6 +566,8 @@ class TelemetryDecoder:
         problem = battery_problem(sample, self.limits)
         if problem is not None:
             self.counts[problem] += 1
+            if problem == "voltage_implausible":
+                self.implausible_voltage = (kind, voltage_v)
             return None
         return sample
 
@@ -564,7 +605,8 @@ def _payload(frame: bytes) -> bytes:
 
 
 def _current_a(centiamps: int) -> float | None:
-    return None if centiamps == -1 else centiamps / 100.0
+    """A battery current in A from MAVLink's cA, None when not measured."""
+    return None if centiamps in CURRENT_UNKNOWN_CA else centiamps / 100.0
 
 
 def _remaining_pct(pct: int) -> float | None:
@@ -573,6 +615,7 @@ def _remaining_pct(pct: int) -> float | None:
 
 _HANDLERS = {
     "HEARTBEAT": TelemetryDecoder._heartbeat,
+    "EXTENDED_SYS_STATE": TelemetryDecoder._extended_sys_state,
     "ATTITUDE": TelemetryDecoder._attitude,
     "GLOBAL_POSITION_INT": TelemetryDecoder._global_position,
     "LOCAL_POSITION_NED": TelemetryDecoder._local_position,

@@ -33,16 +33,45 @@ import math
 from collections import Counter
 from dataclasses import dataclass, replace
 
-from estimator.telemetry.samples import BatterySample, RebootSample, Sample, VelocitySample
+from estimator.telemetry.samples import (
+    BatterySample,
+    RebootSample,
+    Sample,
+    VelocitySample,
+    WindSample,
+)
 
 #: Highest resting voltage of a charged lithium cell (LiHV 4.35 V) with margin, V per cell.
 MAX_CELL_VOLTAGE_V = 4.5
+#: Lowest voltage of a loaded lithium cell (a Li-ion cell's 2.5 V cut-off, sagging), V per cell.
+MIN_CELL_VOLTAGE_V = 2.0
 #: Range of a LiPo/Li-ion cell's voltage at rest or under moderate load (pack sanity), V.
 CELL_VOLTAGE_RANGE_V = (3.0, 4.35)
 #: Nominal cell voltage used to suggest a cell count, V.
 NOMINAL_CELL_VOLTAGE_V = 3.8
 #: Highest plausible electrical power as a multiple of the vehicle's hover power.
 MAX_POWER_PER_HOVER = 10.0
+#: The pack voltage believed goes down to the lowest voltage of this share of the vehicle
+#: file's cells: a file with twice the pack's cells (6S for a 3S pack) stays a warning
+#: (:func:`pack_voltage_problem`), not a daemon that believes no reading.
+MIN_CELLS_FRACTION = 0.5
+#: Charge current believed (A, negative): a current sensor's offset at rest, a brief
+#: regenerative braking; at least this, or this share of the hover current.
+MIN_CHARGE_ALLOWANCE_A = 1.0
+CHARGE_ALLOWANCE_PER_HOVER = 0.1
+#: Strongest wind (m/s) a multirotor flies in: blowing from behind, it adds to the airspeed
+#: over ground (a gale, Beaufort 9, ends at 24.4 m/s).
+MAX_TAILWIND_MPS = 30.0
+#: Highest acceleration of a multirotor (m/s², about 3 g: racing quadrotors; the committed
+#: flights reach 4.6 m/s²), and the velocity change (m/s) believed between two samples
+#: whatever their spacing (GPS velocity noise, the autopilot's estimator resets).
+MAX_ACCELERATION_MPS2 = 30.0
+VELOCITY_STEP_FLOOR_MPS = 5.0
+#: Velocity samples in a row that agree with each other but not with the believed velocity
+#: after which the change is real (the last of them is believed).
+JUMP_CONFIRM_SAMPLES = 3
+#: A wind estimate above this (m/s) is not plausible and is skipped.
+MAX_WIND_MPS = 60.0
 
 
 @dataclass(frozen=True, slots=True)
@@ -53,7 +82,7 @@ class InputLimits:
     quadrotors fly about 160 m/s), |vertical speed| ≤ 100 m/s, |height over home| ≤ 20 km,
     pack voltage in (0, 150] V, current in [−20, 1000] A (a small negative current is a sensor
     offset), electrical power V·I ≤ 200 kW, consumed charge in [0, 10⁶] mAh. :meth:`for_pack`
-    narrows voltage and power to one vehicle's pack and power.
+    narrows voltage, current, power and speed to one vehicle.
     """
 
     max_speed_mps: float = 200.0
@@ -67,16 +96,46 @@ class InputLimits:
     max_consumed_mah: float = 1e6
 
     @classmethod
-    def for_pack(cls, cells: int, hover_power_w: float) -> InputLimits:
-        """Limits for a pack of ``cells`` lithium cells in series feeding a vehicle that hovers
-        at ``hover_power_w`` (W): voltage at most 4.5 V per cell, power V·I at most
-        :data:`MAX_POWER_PER_HOVER` × hover power. A low voltage stays believed: a vehicle file
-        with too many cells is a warning (:func:`pack_voltage_problem`), not a silent daemon."""
+    def for_pack(
+        cls,
+        cells: int,
+        hover_power_w: float,
+        cell_window_v: tuple[float, float] = (MIN_CELL_VOLTAGE_V, MAX_CELL_VOLTAGE_V),
+        max_airspeed_mps: float | None = None,
+    ) -> InputLimits:
+        """Limits for a pack of ``cells`` lithium cells in series, each within
+        ``cell_window_v`` (V, loaded to charged), feeding a vehicle that hovers at
+        ``hover_power_w`` (W) and flies at most ``max_airspeed_mps`` (m/s; None: any
+        multirotor's speed):
+
+        - voltage from the lowest of :data:`MIN_CELLS_FRACTION` of the cells up to the
+          highest of all of them;
+        - power V·I at most :data:`MAX_POWER_PER_HOVER` × hover power, current at most that
+          power at the lowest voltage, and down to minus the charge allowance
+          (:data:`MIN_CHARGE_ALLOWANCE_A`, :data:`CHARGE_ALLOWANCE_PER_HOVER`);
+        - ground speed at most the airspeed plus :data:`MAX_TAILWIND_MPS`.
+        """
         limits = cls()
         if cells > 0:
-            limits = replace(limits, max_voltage_v=cells * MAX_CELL_VOLTAGE_V)
+            low_v, high_v = cell_window_v
+            limits = replace(
+                limits,
+                min_voltage_v=MIN_CELLS_FRACTION * cells * low_v,
+                max_voltage_v=cells * high_v,
+            )
         if math.isfinite(hover_power_w) and hover_power_w > 0:
-            limits = replace(limits, max_power_w=MAX_POWER_PER_HOVER * hover_power_w)
+            max_power_w = MAX_POWER_PER_HOVER * hover_power_w
+            limits = replace(limits, max_power_w=max_power_w)
+            if cells > 0:
+                hover_a = hover_power_w / (cells * NOMINAL_CELL_VOLTAGE_V)
+                charge_a = max(MIN_CHARGE_ALLOWANCE_A, CHARGE_ALLOWANCE_PER_HOVER * hover_a)
+                limits = replace(
+                    limits,
+                    min_current_a=-charge_a,
+                    max_current_a=max_power_w / limits.min_voltage_v,
+                )
+        if max_airspeed_mps is not None and math.isfinite(max_airspeed_mps):
+            limits = replace(limits, max_speed_mps=max_airspeed_mps + MAX_TAILWIND_MPS)
         return limits
 
 
@@ -111,6 +170,78 @@ def battery_problem(sample: BatterySample, limits: InputLimits) -> str | None:
     return None
 
 
+def wind_problem(sample: WindSample) -> str | None:
+    """Why ``sample`` is not believed (a counter name), or None when it is plausible."""
+    n, e = sample.wind_n_mps, sample.wind_e_mps
+    if not (math.isfinite(n) and math.isfinite(e) and math.hypot(n, e) <= MAX_WIND_MPS):
+        return "wind_implausible"
+    return None
+
+
+class VelocityJumps:
+    """Jump limits between consecutive velocity samples of one clock: a sample further from
+    the believed velocity than :data:`MAX_ACCELERATION_MPS2` over the time between them
+    (plus :data:`VELOCITY_STEP_FLOOR_MPS`) is an outlier, counted as ``velocity_jump`` and
+    skipped; :data:`JUMP_CONFIRM_SAMPLES` outliers in a row that agree with each other by the
+    same limits are a real change, the last of them believed. A RebootSample (a new clock)
+    starts over."""
+
+    def __init__(self, counts: Counter[str]) -> None:
+        self.counts = counts
+        self._believed: VelocitySample | None = None
+        self._outliers: list[VelocitySample] = []
+
+    def filter(self, samples: list[Sample]) -> list[Sample]:
+        """``samples`` without the velocity outliers, in order."""
+        out: list[Sample] = []
+        for sample in samples:
+            if isinstance(sample, RebootSample):
+                self._believed, self._outliers = None, []
+            elif isinstance(sample, VelocitySample) and not self._believe(sample):
+                continue
+            out.append(sample)
+        return out
+
+    def _believe(self, sample: VelocitySample) -> bool:
+        believed = self._believed
+        if believed is None or _reachable(believed, sample):
+            self._believed, self._outliers = sample, []
+            return True
+        outliers = self._outliers
+        if outliers and not _reachable(outliers[-1], sample):
+            outliers.clear()
+        outliers.append(sample)
+        if len(outliers) >= JUMP_CONFIRM_SAMPLES:
+            self._believed, self._outliers = sample, []
+            return True
+        self.counts["velocity_jump"] += 1
+        return False
+
+
+def _reachable(before: VelocitySample, after: VelocitySample) -> bool:
+    """Whether a multirotor flying at ``before`` can fly at ``after`` (see
+    :class:`VelocityJumps`)."""
+    step_mps = math.dist(
+        (before.vn_mps, before.ve_mps, before.vd_mps), (after.vn_mps, after.ve_mps, after.vd_mps)
+    )
+    dt_s = max(after.time_s - before.time_s, 0.0)
+    return step_mps <= VELOCITY_STEP_FLOOR_MPS + MAX_ACCELERATION_MPS2 * dt_s
+
+
+def fitting_cells(voltage_v: float) -> str:
+    """The lithium cell counts a pack voltage (V) fits, each cell within
+    :data:`CELL_VOLTAGE_RANGE_V`, in words: "4 cells", "4 or 5 cells", "no cell count"."""
+    low, high = CELL_VOLTAGE_RANGE_V
+    if not (math.isfinite(voltage_v) and voltage_v > 0):
+        return "no cell count"
+    counts = range(max(1, math.ceil(voltage_v / high)), math.floor(voltage_v / low) + 1)
+    if not counts:
+        return "no cell count"
+    if len(counts) == 1:
+        return f"{counts[0]} cell{'s' if counts[0] > 1 else ''}"
+    return f"{', '.join(str(n) for n in counts[:-1])} or {counts[-1]} cells"
+
+
 def pack_voltage_problem(voltage_v: float, cells: int) -> str | None:
     """A sentence when a pack voltage (V, at rest or light load) does not fit ``cells`` lithium
     cells in series — the vehicle file is for another pack — else None."""
@@ -143,25 +274,31 @@ class ClockVerdict(enum.Enum):
 class ClockSettings:
     """Seconds of autopilot clock and frame counts; see the module docstring.
     ``max_candidates``: candidate new clocks followed at once (a stray stamp among the frames
-    of a real reboot does not make it start over)."""
+    of a real reboot does not make it start over). ``confirm_wall_s``: wall seconds a
+    candidate must also run alone (no frame of the clock since its first), where the caller
+    gives wall times (a live link: a burst of forged frames cannot prove a new clock, the
+    autopilot's own clock falling silent does); 0 for a log, where frames have no wall time."""
 
     max_step_s: float = 2.5
     backstep_s: float = 2.0
     confirm_frames: int = 5
     max_gap_s: float = 120.0
     max_candidates: int = 4
+    confirm_wall_s: float = 0.0
 
 
 @dataclass(slots=True)
 class _Candidate:
-    """A candidate new clock: its first and newest stamps (s), frames so far, an id, and the
-    tag of the samples it holds (one source of a kind per clock, e.g. a velocity message)."""
+    """A candidate new clock: its first and newest stamps (s), frames so far, an id, the
+    tag of the samples it holds (one source of a kind per clock, e.g. a velocity message),
+    and the wall time (s) of its first frame."""
 
     first_s: float
     last_s: float
     frames: int
     ident: int
     tag: str | None = None
+    first_wall_s: float = 0.0
 
 
 class AutopilotClock:
@@ -184,9 +321,10 @@ class AutopilotClock:
         """Drop every pending candidate (their frames stay skipped)."""
         self.candidates = []
 
-    def check(self, time_s: float) -> ClockVerdict:
-        """Judge one frame's stamp (s); the clock moves on ACCEPT (forward only) and on every
-        confirmed change (:attr:`joined` is then the confirmed candidate)."""
+    def check(self, time_s: float, wall_s: float = 0.0) -> ClockVerdict:
+        """Judge one frame's stamp (s), received at wall time ``wall_s`` (s); the clock moves
+        on ACCEPT (forward only) and on every confirmed change (:attr:`joined` is then the
+        confirmed candidate)."""
         now = self.time_s
         self.joined = None
         if now is not None and self._near(time_s, now):
@@ -200,14 +338,39 @@ class AutopilotClock:
         if joined is None:
             if len(self.candidates) >= self.settings.max_candidates:
                 self.candidates.remove(min(self.candidates, key=lambda c: c.frames))
-            joined = _Candidate(time_s, time_s, 0, self._next_ident)
+            joined = _Candidate(time_s, time_s, 0, self._next_ident, first_wall_s=wall_s)
             self._next_ident += 1
             self.candidates.append(joined)
         joined.frames += 1
         joined.last_s = max(joined.last_s, time_s)
         self.joined = joined
-        if joined.frames < self.settings.confirm_frames:
+        if not self._proven(joined, wall_s):
             return ClockVerdict.SKIP
+        return self._believe(joined)
+
+    def due(self, wall_s: float) -> ClockVerdict | None:
+        """At wall time ``wall_s`` (s), with no new frame: believe the candidate of most frames
+        when it is proven by now (see :attr:`ClockSettings.confirm_wall_s`; :attr:`joined` is
+        then it), else None."""
+        self.joined = None
+        if not self.candidates:
+            return None
+        best = max(self.candidates, key=lambda c: c.frames)
+        if not self._proven(best, wall_s):
+            return None
+        self.joined = best
+        return self._believe(best)
+
+    def _proven(self, candidate: _Candidate, wall_s: float) -> bool:
+        s = self.settings
+        return (
+            candidate.frames >= s.confirm_frames
+            and wall_s - candidate.first_wall_s >= s.confirm_wall_s
+        )
+
+    def _believe(self, joined: _Candidate) -> ClockVerdict:
+        """``joined`` becomes the clock: what it means relative to the one it replaces."""
+        now = self.time_s
         self.candidates = []
         new_s = self.time_s = joined.last_s
         if now is None:
@@ -343,30 +506,34 @@ class ClockFilter:
 class SampleGuard:
     """Value and time checks on a log reader's samples, each stamped with its own time: a
     sample beyond ``limits`` is dropped and counted under the reason; times go through a
-    :class:`ClockFilter`. A RebootSample from the reader (a new flight) restarts the clock."""
+    :class:`ClockFilter`, then velocities through :class:`VelocityJumps`. A RebootSample
+    from the reader (a new flight) restarts the clock."""
 
     def __init__(self, limits: InputLimits | None = None) -> None:
         self.limits = limits or InputLimits()
         self.counts: Counter[str] = Counter()
         self._time = ClockFilter(self.counts)
+        self._jumps = VelocityJumps(self.counts)
 
     def check(self, sample: Sample) -> list[Sample]:
         """The samples to deliver for ``sample`` (none, it, or held ones before it)."""
         if isinstance(sample, RebootSample):
             pending = self._time.take_pending()
             self._time = ClockFilter(self.counts)
-            return [*pending, sample]
+            return self._jumps.filter([*pending, sample])
         problem = None
         if isinstance(sample, VelocitySample):
             problem = velocity_problem(sample, self.limits)
         elif isinstance(sample, BatterySample):
             problem = battery_problem(sample, self.limits)
+        elif isinstance(sample, WindSample):
+            problem = wind_problem(sample)
         if problem is not None:
             self.counts[problem] += 1
-            return self._time.take_pending()
+            return self._jumps.filter(self._time.take_pending())
         out = self._time.stamped(sample.time_s, sample)
-        return [] if out is None else [*out, sample]
+        return [] if out is None else self._jumps.filter([*out, sample])
 
     def flush(self) -> list[Sample]:
         """End of the log: what is still held (see :meth:`ClockFilter.flush`)."""
-        return self._time.flush()
+        return self._jumps.filter(self._time.flush())

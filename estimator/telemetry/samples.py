@@ -45,6 +45,16 @@ class ArmedSample:
 
 
 @dataclass(frozen=True, slots=True)
+class LandedSample:
+    """The autopilot's own landed detector (EXTENDED_SYS_STATE ``landed_state``, PX4):
+    ``on_ground`` for MAV_LANDED_STATE_ON_GROUND, False when taking off, in the air or
+    landing."""
+
+    time_s: float
+    on_ground: bool
+
+
+@dataclass(frozen=True, slots=True)
 class RebootSample:
     """The autopilot's clock was re-referenced: it went backwards (a reboot), or jumped far
     ahead (confirmed by several frames). Carries the new clock time; what came before is
@@ -108,6 +118,7 @@ Sample = (
     VelocitySample
     | BatterySample
     | ArmedSample
+    | LandedSample
     | RebootSample
     | WindSample
     | PositionSample

@@ -1,0 +1,294 @@
+"""PX4 live: the daemon on a real PX4 (v1.16 SITL, SIH quadrotor) that a pymavlink ground station
+flies — take-off, hover, a reposition, a 10 m/s OFFBOARD leg, hold, land (whenever the SITL
+folder is there: by default ``../shared/tools/px4-sitl``, or ``PX4_SITL_DIR``; see
+docs/sitl.md).
+
+``uav-energy run`` listens on PX4's onboard link (udpin 14540+N) with the PX4 SIH vehicle
+file and publishes to a UDP port the test reads; the pilot flies on PX4's ground-station link.
+Two packs:
+
+- a pack the test provides (``SIM_BAT_ENABLE=0``): its current follows PX4's own motor
+  outputs through a motor/ESC model (:class:`~estimator.sitl.px4_pilot.MotorPack`), not the
+  project's power model; PX4 republishes it as its battery;
+- PX4's own simulated pack: current −1 (not measured), voltage falling with armed time;
+
+and a vehicle file of 3 cells against PX4's 4S pack (PX4 on the ground).
+
+PX4 runs in lockstep at :data:`SPEED`×; every wait is on PX4's clock, the wall clock only
+bounds a stalled run.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import itertools
+import json
+import math
+import re
+import subprocess
+import time
+from collections.abc import Iterator
+from dataclasses import dataclass
+from datetime import datetime
+from pathlib import Path
+
+import pytest
+from pymavlink.dialects.v20 import common as mavlink
+from test_sitl import EXE, GroundStation
+
+from estimator.analysis.replay import replay_log
+from estimator.physics.vehicle import load_vehicle
+from estimator.sitl.launch import stop_process
+from estimator.sitl.px4 import (
+    Px4Options,
+    free_instance,
+    gcs_port,
+    onboard_port,
+    px4_dir,
+    running_px4,
+    system_id,
+)
+from estimator.sitl.px4_pilot import MotorPack, Px4Pilot, Px4State
+
+ROOT = px4_dir()
+pytestmark = pytest.mark.skipif(
+    ROOT is None, reason="PX4 SITL not found (../shared/tools/px4-sitl or $PX4_SITL_DIR)"
+)
+REPO = Path(__file__).resolve().parent.parent
+VEHICLE = REPO / "config/vehicles/px4_sih_quad.toml"
+DOC = (REPO / "docs/daemon.md").read_text()
+#: Lockstep speed factor: PX4 SIH kept it on a 2-core machine with the daemon beside it.
+SPEED = 10.0
+#: PX4 parameters of both flights: take-off to the flight's height; and of the test's pack:
+#: PX4's own battery off, and its low-flight-time failsafe only warning (PX4 v1.16 reads an
+#: external BATTERY_STATUS's time left as 0 s: it would return home at take-off); its ULog on
+#: (PX4's default mode, about 20 MB).
+FLIGHT_ALT_M = 10.0
+PARAMS = {"MIS_TAKEOFF_ALT": FLIGHT_ALT_M}
+TEST_PACK_PARAMS = {**PARAMS, "SIM_BAT_ENABLE": 0.0, "COM_FLTT_LOW_ACT": 0.0, "SDLOG_MODE": 0.0}
+#: PX4's default BATTERY_STATUS rate on its onboard link (Hz), and the daemon's request.
+PX4_DEFAULT_BATTERY_HZ = 0.5
+REQUESTED_BATTERY_HZ = 2.0
+#: PX4 seconds after take-off by which the endurance is valid (the take-off transient and the
+#: pipeline's settling: 5-7 s measured).
+ENDURANCE_VALID_S = 20.0
+#: The daemon's energy drop in the air against what the test's pack gave: its bias and pack
+#: are learnt during this short flight (−2.5 to +12.2 % measured: docs/daemon.md).
+DRAWN_TOLERANCE = 0.2
+#: Wall seconds from the lock to the line naming a pack of other cells.
+MISMATCH_WALL_S = 5.0
+#: Wall seconds the daemon may take to publish the estimate of PX4's last second.
+CATCH_UP_WALL_S = 20.0
+
+
+@dataclass
+class Flown:
+    """A flight: the daemon's JSON estimates, log and counters at exit; what component 191
+    published; PX4's state at the end (its clock, landed-state changes); the energy the
+    test's pack had given at each landed-state change (Wh; NaN without it); PX4's ULog of the
+    flight (None when it logged none)."""
+
+    estimates: list[dict]
+    log: str
+    counters: dict[str, int]
+    published: list[mavlink.MAVLink_message]
+    px4: Px4State
+    drawn_wh: list[float]
+    ulog: Path | None
+
+    def landed_change(self, state: int) -> int:
+        """The index of the first change of PX4's landed state to ``state``."""
+        return next(i for i, (_, s) in enumerate(self.px4.landed_changes) if s == state)
+
+    def airborne(self) -> list[dict]:
+        """The estimates between PX4's take-off (landed state IN_AIR) and its landing."""
+        up = self.landed_change(mavlink.MAV_LANDED_STATE_IN_AIR)
+        up_s, down_s = self.px4.landed_changes[up][0], self.px4.landed_changes[up + 1][0]
+        return [e for e in self.estimates if up_s <= e["time_s"] <= down_s]
+
+    def drawn_in_air_wh(self) -> float:
+        """The energy the test's pack gave from PX4's IN_AIR to its next landed state (Wh)."""
+        up = self.landed_change(mavlink.MAV_LANDED_STATE_IN_AIR)
+        return self.drawn_wh[up + 1] - self.drawn_wh[up]
+
+
+@contextlib.contextmanager
+def daemon(
+    port: int, publish_port: int, workdir: Path, vehicle: Path = VEHICLE
+) -> Iterator[subprocess.Popen[bytes]]:
+    """``uav-energy run`` on udpin ``port`` publishing to ``publish_port``; JSON lines in
+    ``daemon.jsonl``, its log in ``daemon.log``; stopped (SIGTERM) on exit."""
+    args = [
+        "run", "--connect", f"udpin:127.0.0.1:{port}",
+        "--publish", f"udpout:127.0.0.1:{publish_port}",
+        "--vehicle", str(vehicle), "--json", "-", "--log-level", "info",
+    ]  # fmt: skip
+    with (workdir / "daemon.jsonl").open("wb") as out, (workdir / "daemon.log").open("wb") as err:
+        proc = subprocess.Popen([str(EXE), *args], stdout=out, stderr=err)
+    try:
+        yield proc
+    finally:
+        stop_process(proc, timeout_s=15.0)
+
+
+def _estimates(path: Path) -> list[dict]:
+    lines = path.read_bytes().split(b"\n")[:-1]  # the last one may be half written
+    return [json.loads(line) for line in lines]
+
+
+def fly(tmp_path: Path, params: dict[str, float], pack: MotorPack | None) -> Flown:
+    """The daemon, then PX4 (with ``params``) on a free instance in ``tmp_path``, the flight
+    (``pack`` fed into PX4 when given), PX4 running on until the daemon has published the
+    estimate of its last second; everything stopped."""
+    assert ROOT is not None
+    instance = free_instance()
+    drawn_wh: list[float] = []
+    gcs = GroundStation()
+    gcs.start()
+    try:
+        with daemon(onboard_port(instance), gcs.port, tmp_path) as proc:
+            opts = Px4Options(ROOT, tmp_path / "px4", instance, SPEED, params)
+            with running_px4(opts):
+                pilot = Px4Pilot(gcs_port(instance), system_id(instance), pack)
+                pilot.listeners.append(lambda _: drawn_at_changes(pilot, drawn_wh))
+                try:
+                    pilot.fly(alt_m=FLIGHT_ALT_M)
+                    end_s = pilot.state.boot_s - 1.0
+                    deadline = time.monotonic() + CATCH_UP_WALL_S
+                    while time.monotonic() < deadline:  # PX4 runs on: the daemon catches up
+                        pilot.pump()
+                        got = _estimates(tmp_path / "daemon.jsonl")
+                        if got and got[-1]["time_s"] >= end_s:
+                            break
+                finally:
+                    pilot.close()
+            stop_process(proc, timeout_s=15.0)
+            assert proc.returncode == 0
+    finally:
+        gcs.close()
+    log = (tmp_path / "daemon.log").read_text()
+    stopped = log[log.rindex("stopped: ") + len("stopped: ") :].splitlines()[0]
+    counters = {k: int(v) for k, v in re.findall(r"(\w+)=(\d+)", stopped)}
+    estimates = _estimates(tmp_path / "daemon.jsonl")
+    ulog = next((tmp_path / "px4").rglob("*.ulg"), None)
+    return Flown(estimates, log, counters, gcs.messages, pilot.state, drawn_wh, ulog)
+
+
+def drawn_at_changes(pilot: Px4Pilot, drawn_wh: list[float]) -> None:
+    """The energy the test's pack had given (Wh) at each change of PX4's landed state."""
+    if len(pilot.state.landed_changes) > len(drawn_wh):
+        drawn_wh.append(math.nan if pilot.pack is None else pilot.pack.used_wh)
+
+
+def doc_figure(name: str, value: float) -> None:
+    """``value`` lies in the range docs/daemon.md gives for ``name`` (its PX4 table row
+    ``| name | low–high unit |``): a figure that drifts fails here."""
+    print(f"{name}: {value:.2f}")
+    row = re.search(rf"^\| {re.escape(name)} \| ([-+\d.]+)–([-+\d.]+)\b", DOC, re.MULTILINE)
+    assert row is not None, f"docs/daemon.md has no row for {name!r}"
+    assert float(row[1]) <= value <= float(row[2]), (name, value, row[0])
+
+
+def battery_hz(flown: Flown) -> float:
+    """BATTERY_STATUS frames the daemon decoded per second of PX4's clock."""
+    return flown.counters["decode_BATTERY_STATUS"] / flown.px4.boot_s
+
+
+def test_px4_with_a_measured_pack(tmp_path: Path) -> None:
+    """The test's pack, current from PX4's motor outputs: PX4 locked, message intervals
+    requested the PX4 way (BATTERY_STATUS from 0.5 Hz to 2 Hz), fused estimates with the
+    endurance valid in the air, energy falling as the pack drains, NAMED_VALUE_FLOATs out."""
+    flown = fly(tmp_path, TEST_PACK_PARAMS, MotorPack(capacity_ah=1.5))
+    assert "autopilot found" in flown.log or "locked" in flown.log, flown.log
+    assert "message intervals requested (PX4)" in flown.log, flown.log
+    assert "streams requested" not in flown.log  # no REQUEST_DATA_STREAM to PX4
+    assert battery_hz(flown) > 0.75 * REQUESTED_BATTERY_HZ > PX4_DEFAULT_BATTERY_HZ
+    doc_figure("BATTERY_STATUS decoded by the daemon", battery_hz(flown))
+    # PX4's landed detector reached the pipeline: off the ground, and back on it
+    assert flown.counters["pipeline_off_ground"] >= 1 <= flown.counters["pipeline_on_ground"]
+    airborne = flown.airborne()
+    assert len(airborne) >= 30
+    valid = [e for e in airborne if e["endurance_valid"]]
+    valid_after_s = valid[0]["time_s"] - airborne[0]["time_s"]
+    assert valid_after_s <= ENDURANCE_VALID_S
+    doc_figure("estimates in the air", len(airborne))
+    doc_figure("endurance valid after PX4's IN_AIR", valid_after_s)
+    assert all(e["endurance_s"] > 0 and not e["model_only"] for e in valid)
+    assert all(e["power_measured_w"] > 0 for e in valid)
+    drop_wh = airborne[0]["energy_remaining_wh"] - airborne[-1]["energy_remaining_wh"]
+    drawn_wh = flown.drawn_in_air_wh()
+    assert drop_wh == pytest.approx(drawn_wh, rel=DRAWN_TOLERANCE)
+    doc_figure("the pack's energy given in the air", drawn_wh)
+    error_pct = 100 * abs(drop_wh / drawn_wh - 1)
+    doc_figure("the daemon's energy drop in the air against the pack's, error", error_pct)
+    names = {m.name for m in flown.published if m.get_type() == "NAMED_VALUE_FLOAT"}
+    assert {"ENERGY_WH", "ENDUR_S", "FLAGS"} <= names
+    # the same flight from PX4's own log: `uav-energy replay` of the ULog, estimate by
+    # estimate (one a second of PX4's clock: the same period in both)
+    assert flown.ulog is not None
+    ulog_estimates = replay_log(flown.ulog, load_vehicle(VEHICLE)).estimates
+    replayed = {math.floor(e.time_s): e for e in ulog_estimates}
+    pairs = [(replayed.get(math.floor(e["time_s"])), e) for e in flown.estimates]
+    matched = [(r, e) for r, e in pairs if r is not None]
+    assert len(matched) >= 0.9 * len(flown.estimates)
+    energy_pct = max(
+        100 * abs(r.energy_remaining_wh / e["energy_remaining_wh"] - 1) for r, e in matched
+    )
+    doc_figure("ULog replay against the live energy, largest difference", energy_pct)
+
+
+def test_px4_own_pack_without_current_runs_on_the_model(tmp_path: Path) -> None:
+    """PX4's simulated pack (current −1: not measured): estimates flow, model only, with no
+    measured power; the energy left never rises."""
+    flown = fly(tmp_path, PARAMS, None)
+    assert "message intervals requested (PX4)" in flown.log, flown.log
+    airborne = flown.airborne()
+    assert len(airborne) >= 30
+    assert all(e["model_only"] and e["power_measured_w"] is None for e in airborne)
+    energy = [e["energy_remaining_wh"] for e in airborne]
+    assert all(b <= a + 1e-6 for a, b in itertools.pairwise(energy))
+    assert energy[-1] < energy[0]
+    doc_figure("PX4's own pack, model only: energy drop in the air", energy[0] - energy[-1])
+
+
+def test_px4_pack_against_a_3s_vehicle_file_is_named(tmp_path: Path) -> None:
+    """The vehicle file says 3 cells, PX4's pack has 4: one log line says so within
+    :data:`MISMATCH_WALL_S` of the lock, and a STATUSTEXT reaches the ground station."""
+    assert ROOT is not None
+    vehicle = tmp_path / "px4_sih_quad_3s.toml"
+    vehicle.write_text(VEHICLE.read_text().replace("cells = 4", "cells = 3"))
+    log_path = tmp_path / "daemon.log"
+    instance = free_instance()
+    gcs = GroundStation()
+    gcs.start()
+
+    def texts() -> list[str]:
+        return [m.text for m in gcs.messages if m.get_type() == "STATUSTEXT"]
+
+    try:
+        with daemon(onboard_port(instance), gcs.port, tmp_path, vehicle):
+            opts = Px4Options(ROOT, tmp_path / "px4", instance, SPEED, PARAMS)
+            with running_px4(opts):
+                pilot = Px4Pilot(gcs_port(instance), system_id(instance))
+                try:
+                    pilot.connect()
+                    pilot.wait_for(lambda: " fits " in log_path.read_text(), 60.0, "log line")
+                    pilot.wait_for(lambda: bool(texts()), 60.0, "STATUSTEXT")
+                finally:
+                    pilot.close()
+    finally:
+        gcs.close()
+    log = log_path.read_text().splitlines()
+    lines = [line for line in log if " fits " in line]
+    print(lines[0])
+    assert len(lines) == 1
+    assert re.search(r"(BATTERY_STATUS|SYS_STATUS) 16\.\d\d V fits 4 or 5 cells, the vehicle "
+                     r"file says 3 ", lines[0])  # fmt: skip
+    locked = next(line for line in log if "locked" in line)
+    assert _log_time_s(lines[0]) - _log_time_s(locked) <= MISMATCH_WALL_S
+    assert "is not 3S" in texts()[0]
+
+
+def _log_time_s(line: str) -> float:
+    """A daemon log line's timestamp (``2026-01-01 12:00:00,123``) in Unix seconds."""
+    return datetime.strptime(line[:23], "%Y-%m-%d %H:%M:%S,%f").timestamp()
