@@ -73,9 +73,7 @@ EXE = Path(sys.executable).with_name("uav-energy")
 #: SITL's stock quad: a 3S pack; BATT_CAPACITY defaults to 3300 mAh.
 SITL_BATTERY = BatterySpec(capacity_ah=3.3, cells=3, reserve_fraction=0.2)
 
-needs_tlog = pytest.mark.skipif(
-    not SITL_TLOG.exists(), reason=f"{SITL_TLOG} is not there (shared data missing)"
-)
+needs_tlog = pytest.mark.needs(SITL_TLOG.exists(), f"{SITL_TLOG} is not there (shared data)")
 
 
 def sitl_vehicle() -> Vehicle:
@@ -214,9 +212,9 @@ SITL_BINARY = sitl_binary()
 SITL_SPEEDUP = float(os.environ.get("ARDUPILOT_SITL_SPEEDUP", "10"))
 FITTED_VEHICLE = REPO / "config/vehicles/ardupilot_sitl_quad.toml"
 
-needs_sitl = pytest.mark.skipif(
-    SITL_BINARY is None,
-    reason=f"no ArduCopter SITL binary at {DEFAULT_BINARY} and ARDUPILOT_SITL_BINARY unset",
+needs_sitl = pytest.mark.needs(
+    SITL_BINARY is not None,
+    f"no ArduCopter SITL binary at {DEFAULT_BINARY} and ARDUPILOT_SITL_BINARY unset",
 )
 
 

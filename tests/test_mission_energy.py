@@ -343,7 +343,7 @@ def test_recorded_missions_stay_small() -> None:
         assert sum(f.stat().st_size for f in directory.iterdir()) <= 1.6 * 2**20
 
 
-@pytest.mark.skipif(sitl_binary() is None, reason="no ArduCopter SITL binary")
+@pytest.mark.needs(sitl_binary() is not None, "no ArduCopter SITL binary")
 def test_a_live_sitl_mission_from_a_plan_file_uses_the_predicted_energy(tmp_path: Path) -> None:
     """A .plan uploaded with MISSION_ITEM_INT and flown in AUTO (take-off, a 45° corner, LAND)
     in a 4 m/s wind: the battery energy from mission start to disarm is the plan's within 8 %."""

@@ -51,8 +51,8 @@ from estimator.sitl.px4 import (
 from estimator.sitl.px4_pilot import MotorPack, Px4Pilot, Px4State
 
 ROOT = px4_dir()
-pytestmark = pytest.mark.skipif(
-    ROOT is None, reason="PX4 SITL not found (../shared/tools/px4-sitl or $PX4_SITL_DIR)"
+pytestmark = pytest.mark.needs(
+    ROOT is not None, "PX4 SITL not found (../shared/tools/px4-sitl or $PX4_SITL_DIR)"
 )
 REPO = Path(__file__).resolve().parent.parent
 VEHICLE = REPO / "config/vehicles/px4_sih_quad.toml"

@@ -211,7 +211,7 @@ def test_dataflash_and_ulog_of_one_flight_replay_alike_and_match_its_power(
     assert s_bin.power_rmse_w == pytest.approx(s_ulg.power_rmse_w, rel=0.1)
 
 
-@pytest.mark.skipif(not CMU_CRUISE.is_file(), reason="../shared/data is absent")
+@pytest.mark.needs(CMU_CRUISE.is_file(), "../shared/data is absent")
 def test_cmu_csv_replays_through_the_pipeline(tmp_path: Path) -> None:
     head = tmp_path / "cmu.csv"  # the first 3000 rows: a few flights
     with CMU_CRUISE.open() as src:
