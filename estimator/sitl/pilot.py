@@ -10,7 +10,6 @@ the EKF origin (the take-off point), velocities m/s NED, altitudes m above home.
 from __future__ import annotations
 
 import math
-import time
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from pathlib import Path
@@ -21,6 +20,7 @@ from pymavlink.dialects.v20 import ardupilotmega as mavlink
 
 from estimator.errors import UserError
 from estimator.logs.mission_files import MissionItem
+from estimator.sitl.receiver import Receiver
 
 #: Wall seconds without any message from the autopilot that mean SITL has stopped.
 STALL_WALL_S = 60.0
@@ -64,11 +64,17 @@ class State:
     mission_reached: int = -1
 
 
-class Pilot:
+class Pilot(Receiver):
     """One MAVLink connection to SITL (``tcp:127.0.0.1:PORT``); ``tlog`` records every
     message received, as pymavlink writes it (8-byte big-endian µs stamp + frame)."""
 
+    source = AUTOPILOT
+    quiet_s = 1.0
+    stall_wall_s = STALL_WALL_S
+    stall_text = f"SITL sent nothing for {STALL_WALL_S:.0f} s (see sitl.log)"
+
     def __init__(self, url: str, tlog: Path | None = None, source_system: int = 255) -> None:
+        super().__init__()
         self.conn: Any = mavutil.mavlink_connection(
             url, source_system=source_system, source_component=190, retries=30
         )
@@ -80,8 +86,6 @@ class Pilot:
         self.acks: dict[int, int] = {}
         self.mission_requests: list[int] = []
         self.mission_ack: int | None = None
-        self.listeners: list[Callable[[Any], None]] = []
-        self._last_wall = time.monotonic()
 
     def close(self) -> None:
         self.conn.close()
@@ -89,23 +93,6 @@ class Pilot:
             self.conn.logfile.close()
 
     # -- receiving ---------------------------------------------------------------------------
-
-    def pump(self) -> Any:
-        """Receive one message (None after a quiet second) and update the state."""
-        msg = self.conn.recv_match(blocking=True, timeout=1.0)
-        now = time.monotonic()
-        if msg is None:
-            if now - self._last_wall > STALL_WALL_S:
-                raise UserError(f"SITL sent nothing for {STALL_WALL_S:.0f} s (see sitl.log)")
-            return None
-        src = (msg.get_srcSystem(), msg.get_srcComponent())
-        if src != AUTOPILOT:
-            return msg
-        self._last_wall = now
-        self._update(msg)
-        for listener in self.listeners:
-            listener(msg)
-        return msg
 
     def _update(self, msg: Any) -> None:
         s, kind = self.state, msg.get_type()

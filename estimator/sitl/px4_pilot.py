@@ -19,7 +19,6 @@ component, PX4 takes it as its battery and republishes it on every link.
 from __future__ import annotations
 
 import math
-import time
 from collections.abc import Callable
 from dataclasses import dataclass, field
 from typing import Any
@@ -28,6 +27,7 @@ from pymavlink import mavutil
 from pymavlink.dialects.v20 import common as mavlink
 
 from estimator.errors import UserError
+from estimator.sitl.receiver import Receiver
 
 #: Wall seconds without any message from PX4 that mean it has stopped.
 STALL_WALL_S = 30.0
@@ -140,7 +140,7 @@ class Px4State:
     landed_changes: list[tuple[float, int]] = field(default_factory=list)
 
 
-class Px4Pilot:
+class Px4Pilot(Receiver):
     """One MAVLink connection to a PX4 (MAV_SYS_ID ``system_id``) on its ground-station link
     (UDP ``gcs_port`` on 127.0.0.1); ``pack`` (when given) is fed to PX4 every
     ``pack_period_s`` of its clock."""
@@ -152,10 +152,15 @@ class Px4Pilot:
         pack: MotorPack | None = None,
         pack_period_s: float = 0.2,
     ) -> None:
+        super().__init__()
         self.conn: Any = mavutil.mavlink_connection(
             f"udpout:127.0.0.1:{gcs_port}", source_system=245, source_component=190
         )
         self.system_id = system_id
+        self.source = (system_id, mavlink.MAV_COMP_ID_AUTOPILOT1)
+        self.quiet_s = 0.2
+        self.stall_wall_s = STALL_WALL_S
+        self.stall_text = f"PX4 sent nothing for {STALL_WALL_S:.0f} s (see px4.log)"
         self.state = Px4State()
         self.pack = pack
         self.pack_period_s = pack_period_s
@@ -164,8 +169,6 @@ class Px4Pilot:
         )
         self._pack_sent_s = -math.inf
         self._heartbeat_s = -math.inf
-        self._last_wall = time.monotonic()
-        self.listeners: list[Callable[[Any], None]] = []
         self._heartbeat()  # PX4 answers once it has heard us
 
     def close(self) -> None:
@@ -173,25 +176,9 @@ class Px4Pilot:
 
     # -- receiving ---------------------------------------------------------------------------
 
-    def pump(self) -> Any:
-        """Receive one message (None after a quiet 0.2 s) and update the state."""
-        msg = self.conn.recv_match(blocking=True, timeout=0.2)
-        now = time.monotonic()
-        if msg is None:
-            if now - self._last_wall > STALL_WALL_S:
-                raise UserError(f"PX4 sent nothing for {STALL_WALL_S:.0f} s (see px4.log)")
-            if not self.state.heartbeat:
-                self._heartbeat()
-            return None
-        if msg.get_type() == "BAD_DATA" or msg.get_srcSystem() != self.system_id:
-            return msg
-        if msg.get_srcComponent() != mavlink.MAV_COMP_ID_AUTOPILOT1:
-            return msg
-        self._last_wall = now
-        self._update(msg)
-        for listener in self.listeners:
-            listener(msg)
-        return msg
+    def _quiet(self) -> None:
+        if not self.state.heartbeat:
+            self._heartbeat()  # PX4 answers once it has heard us
 
     def _update(self, msg: Any) -> None:
         s, kind = self.state, msg.get_type()
