@@ -30,7 +30,8 @@ over every sample of the period. A :class:`RebootSample` closes the open period,
 kinematics and moves the clocks, keeping the energy state.
 
 Endurance figures are at a *steady* power: level flight at the current horizontal speed (and
-centripetal acceleration: a steady turn continues), without the transient kinetic and climb
+centripetal acceleration held over the last few seconds: an orbit continues, a waypoint
+corner does not; :mod:`estimator.estimation.held_turn`), without the transient kinetic and climb
 terms, scaled by the fused bias.
 """
 
@@ -48,6 +49,7 @@ from estimator.errors import UserError
 from estimator.estimation.airborne import AirborneGate, Phase
 from estimator.estimation.estimate import Estimate, PowerReading
 from estimator.estimation.fusion import EnergyEstimate, EnergyFilter, FusionSettings
+from estimator.estimation.held_turn import HeldTurn
 from estimator.estimation.online_effects import OnlineEffects, TrackerReading
 from estimator.estimation.pack_bank import PackBank
 from estimator.estimation.pack_state import PackEstimate, PackPrior, PackSettings
@@ -207,6 +209,8 @@ class Pipeline:
         self._track_rad = 0.0  # course over ground, rad from north (last one while moving)
         self.pack = PackModel(vehicle.battery)
         self.kinematics = KinematicsFilter(self.settings.kinematics)
+        self._held_turn = HeldTurn()
+        self._held_accel_mps2 = 0.0  # a⊥ the steady figures assume, m/s²
         self.energy = EnergyFilter(self.pack, self.settings.fusion)
         self.pack_prior = pack_prior
         #: The pack learned in flight (started at the first battery reading with a current).
@@ -308,7 +312,7 @@ class Pipeline:
             predicted = self._predict(
                 [e.state for e in rows if e.state is not None],
                 np.array([state.speed_mps] if steady and state is not None else []),
-                0.0 if state is None else state.accel_centripetal_mps2,
+                self._held_accel_mps2,
                 voltages_v=[e.voltage_v for e in rows],
                 time_s=time_s,
             ).tolist()
@@ -326,9 +330,10 @@ class Pipeline:
         """Model power (W) in steady flight at the current speed and turn, effects in use."""
         state = self._state
         speed_mps = 0.0 if state is None else state.speed_mps
-        accel_mps2 = 0.0 if state is None else state.accel_centripetal_mps2
         return float(
-            self._predict((), np.array([speed_mps]), accel_mps2, time_s=self._time_s or 0.0)[0]
+            self._predict(
+                (), np.array([speed_mps]), self._held_accel_mps2, time_s=self._time_s or 0.0
+            )[0]
         )
 
     def _kinetic_sigma_w(self) -> float:
@@ -349,6 +354,9 @@ class Pipeline:
             if self._out_of_order(sample.time_s, "velocity_out_of_order"):
                 return None
             self._state = self.kinematics.update(sample)
+            self._held_accel_mps2 = self._held_turn.update(
+                sample.time_s, self._state.accel_centripetal_mps2
+            )
             if not self.energy.initialized:
                 self.counts["velocity_before_battery"] += 1
                 return None
@@ -531,6 +539,8 @@ class Pipeline:
         self.counts["reboot"] += 1
         estimate = self.flush()
         self.kinematics.reset()
+        self._held_turn.reset()
+        self._held_accel_mps2 = 0.0
         self._track_queue, self._track_bin, self._speeds_time_s = [], None, -math.inf
         self._gate.reset()
         self._phase, self._flying_since_s = Phase.GROUND, None
