@@ -24,6 +24,9 @@ REPO = Path(__file__).resolve().parent.parent
 FLIGHTS = REPO / "replay" / "sitl_packs"
 VEHICLE = REPO / "config" / "vehicles" / "ardupilot_sitl_quad.toml"
 
+#: The split's halves: tuned on, held out, and held out after the rules were frozen.
+HALVES = ("tuning", "held_out", "held_out_2")
+
 
 def _pct(errors: np.ndarray) -> str:
     a = 100 * np.abs(errors[np.isfinite(errors)])
@@ -56,7 +59,7 @@ def main() -> None:
     )
     print("|---|---|---|---|---|---:|---|---|")
     pooled: dict[str, list[PackFlight]] = {}
-    for half in ("tuning", "held_out"):
+    for half in HALVES:
         for name in split[half]:
             flight = replay_pack_flight(FLIGHTS / name, vehicle)
             pooled.setdefault(half, []).append(flight)

@@ -137,8 +137,10 @@ def _flight(
     return truth, track_pack(samples, PackModel(label)), samples
 
 
-ALL_FLIGHTS = [pytest.param(n, id=f"{n}-tuning") for n in SPLIT["tuning"]] + [
-    pytest.param(n, id=f"{n}-held-out") for n in SPLIT["held_out"]
+ALL_FLIGHTS = [
+    pytest.param(n, id=f"{n}-{half.replace('_', '-')}")
+    for half in ("tuning", "held_out", "held_out_2")
+    for n in SPLIT[half]
 ]
 
 

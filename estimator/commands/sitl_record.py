@@ -31,7 +31,8 @@ def register(subparsers: argparse._SubParsersAction[argparse.ArgumentParser]) ->
         nargs="*",
         metavar="SCENARIO",
         help="scenario names (the effects of replay/sitl, pack_* packs of replay/sitl_packs), "
-        "or all (every effect scenario), or packs (every pack_* scenario)",
+        "or all (every effect scenario), or packs / packs2 (the first / second set of pack_* "
+        "scenarios)",
     )
     p.add_argument("--mission", metavar="FILE", help="fly this mission file in AUTO instead")
     p.add_argument(
@@ -48,7 +49,13 @@ def run(args: argparse.Namespace) -> int:
     from estimator.commands.sim import _pair
     from estimator.logs.mission_files import load_mission
     from estimator.sitl.recorder import record
-    from estimator.sitl.scenarios import PACK_SCENARIOS, SCENARIOS, Scenario, mission_scenario
+    from estimator.sitl.scenarios import (
+        PACK_SCENARIOS,
+        PACK_SCENARIOS_2,
+        SCENARIOS,
+        Scenario,
+        mission_scenario,
+    )
 
     scenarios: list[Scenario]
     if args.mission is not None:
@@ -64,13 +71,17 @@ def run(args: argparse.Namespace) -> int:
             raise UserError("--wind and --gripper go with --mission")
         if not args.scenarios:
             raise UserError("name a scenario (or all), or give --mission FILE")
-        groups = {"all": list(SCENARIOS), "packs": list(PACK_SCENARIOS)}
-        known = SCENARIOS | PACK_SCENARIOS
+        groups = {
+            "all": list(SCENARIOS),
+            "packs": list(PACK_SCENARIOS),
+            "packs2": list(PACK_SCENARIOS_2),
+        }
+        known = SCENARIOS | PACK_SCENARIOS | PACK_SCENARIOS_2
         names = [n for name in args.scenarios for n in groups.get(name, [name])]
         unknown = [n for n in names if n not in known]
         if unknown:
             listed = ", ".join(known)
-            raise UserError(f"unknown scenario {unknown[0]!r}; known: all, packs, {listed}")
+            raise UserError(f"unknown scenario {unknown[0]!r}; known: all, packs, packs2, {listed}")
         scenarios = [known[n] for n in names]
     try:
         speedup = float(args.speedup)
