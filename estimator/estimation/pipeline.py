@@ -48,8 +48,8 @@ import numpy as np
 from estimator.errors import UserError
 from estimator.estimation.airborne import AirborneGate, Phase
 from estimator.estimation.estimate import Estimate, PowerReading
+from estimator.estimation.flight_power import FlightPower
 from estimator.estimation.fusion import EnergyEstimate, EnergyFilter, FusionSettings
-from estimator.estimation.held_turn import HeldTurn
 from estimator.estimation.online_effects import OnlineEffects, TrackerReading
 from estimator.estimation.pack_bank import PackBank
 from estimator.estimation.pack_state import PackEstimate, PackPrior, PackSettings
@@ -64,10 +64,8 @@ from estimator.physics.battery import PackModel
 from estimator.physics.effects import (
     Climb,
     Effect,
-    FlightState,
     effects_from_tables,
     effects_to_tables,
-    predict_power_w,
 )
 from estimator.physics.kinematics import KinematicsFilter, KinematicsSettings, KinematicState
 from estimator.physics.vehicle import Vehicle
@@ -86,19 +84,6 @@ from estimator.telemetry.samples import (
     WindSample,
 )
 
-#: Speeds (m/s) on which V_me and V_mr are searched, with the vehicle's effects applied.
-_SPEED_GRID_MPS = np.linspace(0.0, 30.0, 601)
-#: Tracked wind and mass replace the file's while they predict the measured power better (one
-#: step ahead) than the file's, each part once it is known: the wind (or its component along
-#: the track flown) to this 1σ (m/s), the mass to this fraction of the vehicle's (1σ).
-#: Before that (hover, one-direction flight) wind and mass trade off against each other and
-#: the point estimate is biased by the curvature of P(V).
-_TRACKED_WIND_SIGMA_MPS = 1.0
-_TRACKED_MASS_SIGMA_FRACTION = 0.05
-#: Gain of the moving averages that score tracked against vehicle-file effects (per update).
-_SCORE_GAIN = 1.0 / 30.0
-#: Above this horizontal speed (m/s) the course over ground is the direction of flight.
-_TRACK_MIN_SPEED_MPS = 1.0
 #: How often (s, sample clock) V_me, V_mr and hover power follow the tracked wind and mass.
 _SPEEDS_REFRESH_S = 5.0
 
@@ -192,25 +177,18 @@ class Pipeline:
         effects: list[Effect] = effects_from_tables(vehicle.effects)
         if self.settings.add_climb_effect and not any(isinstance(e, Climb) for e in effects):
             effects.append(Climb())
-        self.effects: tuple[Effect, ...] = tuple(effects)
-        self.file_effects = self.effects
-        # one-step-ahead squared power errors (W², moving averages) of the tracked effects and
-        # of the vehicle file's: the tracked ones are used only while they predict better
-        self._tracked_sq_w2 = 0.0
-        self._file_sq_w2 = 0.0
+        #: The effects in use and the model power with them.
+        self.power = FlightPower(vehicle, tuple(effects))
         self.online = (
-            OnlineEffects(vehicle.model, vehicle.mass_kg, self.effects)
+            OnlineEffects(vehicle.model, vehicle.mass_kg, self.power.effects)
             if self.settings.track_effects
             else None
         )
         self._speeds_time_s = -math.inf
         self._track_bin: int | None = None  # track_period_s bin of the last tracker step
         self._track_queue: list[TrackerReading] = []  # readings for the next tracker step
-        self._track_rad = 0.0  # course over ground, rad from north (last one while moving)
         self.pack = PackModel(vehicle.battery)
         self.kinematics = KinematicsFilter(self.settings.kinematics)
-        self._held_turn = HeldTurn()
-        self._held_accel_mps2 = 0.0  # a⊥ the steady figures assume, m/s²
         self.energy = EnergyFilter(self.pack, self.settings.fusion)
         self.pack_prior = pack_prior
         #: The pack learned in flight (started at the first battery reading with a current).
@@ -246,57 +224,19 @@ class Pipeline:
         self.returning = ReturnHome(vehicle, self.settings.return_home, mission_energy)
         self._refresh_speeds()
 
-    # -- power: every prediction goes through predict_power_w ----------------------------------
+    # -- power ------------------------------------------------------------------------------
 
-    def _predict(
-        self,
-        states: Sequence[KinematicState],
-        steady_speeds_mps: np.ndarray,
-        accel_centripetal_mps2: float = 0.0,
-        voltages_v: Sequence[float] = (),
-        time_s: float = 0.0,
-        effects: Sequence[Effect] | None = None,
-    ) -> np.ndarray:
-        """Model power (W): one row per kinematic state (at its battery voltage in
-        ``voltages_v``, V), then level flight at each steady speed along the current track (it
-        matters in wind) in a steady turn with a⊥ as given, at ``time_s`` and the latest
-        voltage; with ``effects`` (default: the effects in use)."""
-        k = len(states)
-        north, east = math.cos(self._track_rad), math.sin(self._track_rad)
-        latest_v = math.nan if self._battery is None else self._battery.voltage_v
-        rows = np.empty((k + len(steady_speeds_mps), 8))
-        if k:
-            rows[:k] = [
-                (s.time_s, s.vn_mps, s.ve_mps, s.vd_mps, s.an_mps2, s.ae_mps2, 0.0, v)
-                for s, v in zip(states, voltages_v or [latest_v] * k, strict=True)
-            ]
-        # steady rows: level, along the track, a⊥ across it
-        rows[k:] = (
-            time_s,
-            0.0,
-            0.0,
-            0.0,
-            -east * accel_centripetal_mps2,
-            north * accel_centripetal_mps2,
-            0.0,
-            latest_v,
-        )
-        rows[k:, 1] = north * steady_speeds_mps
-        rows[k:, 2] = east * steady_speeds_mps
-        flight = FlightState(*rows.T)
-        if effects is None:
-            effects = self.effects
-        power = predict_power_w(self.vehicle.model, self.vehicle.mass_kg, flight, effects)
-        return np.maximum(power, 0.0)
+    @property
+    def effects(self) -> tuple[Effect, ...]:
+        """The effects in use: the vehicle file's, or the tracked wind and mass."""
+        return self.power.effects
+
+    def _latest_v(self) -> float:
+        """The newest battery voltage (V; NaN before any)."""
+        return math.nan if self._battery is None else self._battery.voltage_v
 
     def _refresh_speeds(self) -> None:
-        """V_me, V_mr and their powers, and hover power, with the current effects."""
-        power = self._predict((), _SPEED_GRID_MPS, time_s=self._time_s or 0.0)
-        i_me = int(np.argmin(power))
-        i_mr = int(np.argmin(power[1:] / _SPEED_GRID_MPS[1:])) + 1
-        self.v_me_mps, self.v_mr_mps = float(_SPEED_GRID_MPS[i_me]), float(_SPEED_GRID_MPS[i_mr])
-        self._p_me_w, self._p_mr_w = float(power[i_me]), float(power[i_mr])
-        self._p_hover_w = float(power[0])
+        self.power.refresh_speeds(self._time_s or 0.0, self._latest_v())
 
     def _event_powers_w(self, events: Sequence[_Event], time_s: float) -> list[float]:
         """Model power after each of ``events`` (W), in one prediction; also sets the steady
@@ -307,34 +247,25 @@ class Pipeline:
         steady = state is not None and self._armed is not False
         predicted: list[float] = []
         if rows or steady:
-            if state is not None and state.speed_mps > _TRACK_MIN_SPEED_MPS:
-                self._track_rad = math.atan2(state.ve_mps, state.vn_mps)
-            predicted = self._predict(
+            self.power.follow_track(state)
+            predicted = self.power.predict(
                 [e.state for e in rows if e.state is not None],
                 np.array([state.speed_mps] if steady and state is not None else []),
-                self._held_accel_mps2,
+                self._latest_v(),
+                self.power.held_accel_mps2,
                 voltages_v=[e.voltage_v for e in rows],
                 time_s=time_s,
             ).tolist()
         if steady:
             self._steady_power_w = predicted.pop()
         else:
-            self._steady_power_w = 0.0 if self._armed is False else self._p_hover_w
+            self._steady_power_w = 0.0 if self._armed is False else self.power.p_hover_w
         rows_w = iter(predicted)
+        hover_w = self.power.p_hover_w
         return [
-            0.0 if e.armed is False else self._p_hover_w if e.state is None else next(rows_w)
+            0.0 if e.armed is False else hover_w if e.state is None else next(rows_w)
             for e in events
         ]
-
-    def _steady_model_w(self) -> float:
-        """Model power (W) in steady flight at the current speed and turn, effects in use."""
-        state = self._state
-        speed_mps = 0.0 if state is None else state.speed_mps
-        return float(
-            self._predict(
-                (), np.array([speed_mps]), self._held_accel_mps2, time_s=self._time_s or 0.0
-            )[0]
-        )
 
     def _kinetic_sigma_w(self) -> float:
         """1σ of the kinetic term m vᵀa from the filtered acceleration's uncertainty, W."""
@@ -354,9 +285,7 @@ class Pipeline:
             if self._out_of_order(sample.time_s, "velocity_out_of_order"):
                 return None
             self._state = self.kinematics.update(sample)
-            self._held_accel_mps2 = self._held_turn.update(
-                sample.time_s, self._state.accel_centripetal_mps2
-            )
+            self.power.observe(self._state)
             if not self.energy.initialized:
                 self.counts["velocity_before_battery"] += 1
                 return None
@@ -441,9 +370,9 @@ class Pipeline:
             return None
         return {
             "energy": self.energy.snapshot(),
-            "effects": effects_to_tables(self.effects),
-            "tracked_sq_w2": self._tracked_sq_w2,
-            "file_sq_w2": self._file_sq_w2,
+            "effects": effects_to_tables(self.power.effects),
+            "tracked_sq_w2": self.power.tracked_sq_w2,
+            "file_sq_w2": self.power.file_sq_w2,
             "endurance_valid": self.endurance_valid,
             "pack": None if self.pack_state is None else self.pack_state.snapshot(),
         }
@@ -472,7 +401,7 @@ class Pipeline:
                 pack = PackBank(self.pack, self.settings.pack, self.pack_prior)
                 pack.restore(snapshot["pack"])
             effects = tuple(effects_from_tables(snapshot["effects"]))
-            hover_w = float(self._predict((), np.zeros(1), effects=effects)[0])
+            hover_w = self.power.predict((), np.zeros(1), self._latest_v(), effects=effects)[0]
             if not hover_w <= MAX_POWER_PER_HOVER * self.vehicle.model.hover_power_w:
                 raise ValueError(f"the effects make hovering take {hover_w:.0f} W")
             scores = (float(snapshot["tracked_sq_w2"]), float(snapshot["file_sq_w2"]))
@@ -500,18 +429,21 @@ class Pipeline:
         resumed = resume is not None and resume.energy.time_s <= sample.time_s
         if resumed:
             assert resume is not None
-            self.energy, self.effects, self.endurance_valid = (
+            self.energy, self.power.effects, self.endurance_valid = (
                 resume.energy,
                 resume.effects,
                 resume.endurance_valid,
             )
-            self._tracked_sq_w2, self._file_sq_w2 = resume.tracked_sq_w2, resume.file_sq_w2
+            self.power.tracked_sq_w2 = resume.tracked_sq_w2
+            self.power.file_sq_w2 = resume.file_sq_w2
             self.pack_state = resume.pack
             if resume.pack is not None:
                 resume.pack.last_time_s = sample.time_s
                 self._pack_estimate = resume.pack.estimate()
             if self.online is not None:
-                self.online = OnlineEffects(self.vehicle.model, self.vehicle.mass_kg, self.effects)
+                self.online = OnlineEffects(
+                    self.vehicle.model, self.vehicle.mass_kg, self.power.effects
+                )
             self._refresh_speeds()
         self._battery = sample
         self._time_s = sample.time_s
@@ -539,8 +471,7 @@ class Pipeline:
         self.counts["reboot"] += 1
         estimate = self.flush()
         self.kinematics.reset()
-        self._held_turn.reset()
-        self._held_accel_mps2 = 0.0
+        self.power.restart()
         self._track_queue, self._track_bin, self._speeds_time_s = [], None, -math.inf
         self._gate.reset()
         self._phase, self._flying_since_s = Phase.GROUND, None
@@ -720,27 +651,15 @@ class Pipeline:
         online.update_readings(readings)
         if online.steps == steps:
             return  # nothing used (idle, vertical motion, bad values)
-        measured_w, tracked_w, file_w = online.last_step_w
-        self._tracked_sq_w2 += _SCORE_GAIN * ((measured_w - tracked_w) ** 2 - self._tracked_sq_w2)
-        self._file_sq_w2 += _SCORE_GAIN * ((measured_w - file_w) ** 2 - self._file_sq_w2)
-        if self._tracked_sq_w2 >= self._file_sq_w2:
-            chosen = self.file_effects  # the tracker went astray: the file's model is better
-        else:
-            identified = online.identified_effects(
-                self._track_rad,
-                _TRACKED_WIND_SIGMA_MPS,
-                _TRACKED_MASS_SIGMA_FRACTION * self.vehicle.mass_kg,
-                self.effects,
-            )
-            if identified is None:
-                return  # nothing identified (yet, or since a change): keep what is in use
-            chosen = identified
-        if chosen == self.effects:
+        chosen = self.power.choose(online)
+        if chosen is None:
             return
-        self.counts["file_effects" if chosen == self.file_effects else "tracked_effects"] += 1
+        file_chosen = chosen == self.power.file_effects
+        self.counts["file_effects" if file_chosen else "tracked_effects"] += 1
         before_w = self._steady_power_w
-        self.effects = chosen
-        after_w = self._steady_model_w()
+        self.power.effects = chosen
+        speed_mps = 0.0 if self._state is None else self._state.speed_mps
+        after_w = self.power.steady_w(speed_mps, self._time_s or 0.0, self._latest_v())
         if before_w > 0 and after_w > 0:
             # the bias absorbed what the model now explains: it moves by the model's change
             self.energy.rescale_bias(before_w / after_w)
@@ -762,7 +681,7 @@ class Pipeline:
         return ReturnInputs(
             time_s=self._time_s or 0.0,
             velocity_ne_mps=(0.0, 0.0) if state is None else (state.vn_mps, state.ve_mps),
-            effects=self.effects,
+            effects=self.power.effects,
             wind_sigma_ne_mps=wind_sigma,
             mass_sigma_kg=mass_sigma_kg,
             bias=est.bias,
@@ -778,7 +697,8 @@ class Pipeline:
         est = self.energy.estimate()
         state = self._state
         steady_w = est.bias * self._steady_power_w
-        model_w = np.array([self._steady_power_w, self._p_hover_w, self._p_me_w, self._p_mr_w])
+        power = self.power
+        model_w = np.array([self._steady_power_w, power.p_hover_w, power.p_me_w, power.p_mr_w])
         times_s, sigmas_s = self.energy.endurance_s(est.bias * model_w, est)
         endurance_s, hover_s, vme_s, vmr_s = (float(x) for x in times_s)
         endurance_sigma_s, hover_sigma_s, vme_sigma_s, vmr_sigma_s = (float(x) for x in sigmas_s)
@@ -801,8 +721,8 @@ class Pipeline:
             endurance_sigma_s=endurance_sigma_s,
             hover_endurance_s=hover_s,
             vme_endurance_s=vme_s,
-            v_me_mps=self.v_me_mps,
-            range_vmr_m=self.v_mr_mps * vmr_s,
+            v_me_mps=power.v_me_mps,
+            range_vmr_m=power.v_mr_mps * vmr_s,
             bias=est.bias,
             bias_sigma=est.bias_sigma,
             model_only=self.energy.model_only,
@@ -818,7 +738,7 @@ class Pipeline:
             steady_power_w=steady_w,
             hover_endurance_sigma_s=hover_sigma_s,
             vme_endurance_sigma_s=vme_sigma_s,
-            range_vmr_sigma_m=self.v_mr_mps * vmr_sigma_s,
+            range_vmr_sigma_m=power.v_mr_mps * vmr_sigma_s,
             endurance_valid=self.endurance_valid,
             home_distance_m=back.home_distance_m,
             rth_energy_wh=back.energy_wh,

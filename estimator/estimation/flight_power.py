@@ -1,0 +1,146 @@
+"""The model's power as the pipeline uses it: every prediction goes through
+:func:`~estimator.physics.effects.predict_power_w`, with the effects in use (the vehicle
+file's, or the wind and mass tracked online while they predict the measured power better),
+along the course flown and in the turn held (:mod:`estimator.estimation.held_turn`); and the
+hover power, V_me and V_mr with those effects.
+
+Frames and units: velocities NED (m/s), accelerations horizontal NED (m/s²), power at the
+battery terminals (W), course over ground in rad from north.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Sequence
+
+import numpy as np
+
+from estimator.estimation.held_turn import HeldTurn
+from estimator.estimation.online_effects import OnlineEffects
+from estimator.physics.effects import Effect, FlightState, predict_power_w
+from estimator.physics.kinematics import KinematicState
+from estimator.physics.vehicle import Vehicle
+
+#: Speeds (m/s) on which V_me and V_mr are searched, with the effects in use.
+_SPEED_GRID_MPS = np.linspace(0.0, 30.0, 601)
+#: Above this horizontal speed (m/s) the course over ground is the direction of flight.
+_TRACK_MIN_SPEED_MPS = 1.0
+#: Tracked wind and mass replace the file's while they predict the measured power better (one
+#: step ahead) than the file's, each part once it is known: the wind (or its component along
+#: the track flown) to this 1σ (m/s), the mass to this fraction of the vehicle's (1σ).
+#: Before that (hover, one-direction flight) wind and mass trade off against each other and
+#: the point estimate is biased by the curvature of P(V).
+_TRACKED_WIND_SIGMA_MPS = 1.0
+_TRACKED_MASS_SIGMA_FRACTION = 0.05
+#: Gain of the moving averages that score tracked against vehicle-file effects (per update).
+_SCORE_GAIN = 1.0 / 30.0
+
+
+class FlightPower:
+    """The effects in use and the model power of the flight with them."""
+
+    def __init__(self, vehicle: Vehicle, file_effects: tuple[Effect, ...]) -> None:
+        self.vehicle = vehicle
+        self.file_effects = file_effects
+        self.effects = file_effects
+        #: One-step-ahead squared power errors (W², moving averages) of the tracked effects
+        #: and of the vehicle file's: the tracked ones are used only while they predict better.
+        self.tracked_sq_w2 = 0.0
+        self.file_sq_w2 = 0.0
+        self.track_rad = 0.0  # course over ground (the last one while moving)
+        self._held_turn = HeldTurn()
+        self.held_accel_mps2 = 0.0  # the a⊥ steady figures assume, m/s²
+        self.v_me_mps = self.v_mr_mps = 0.0
+        self.p_hover_w = self.p_me_w = self.p_mr_w = 0.0
+
+    def observe(self, state: KinematicState) -> None:
+        """A new kinematic state: the turn held follows it."""
+        self.held_accel_mps2 = self._held_turn.update(state.time_s, state.accel_centripetal_mps2)
+
+    def follow_track(self, state: KinematicState | None) -> None:
+        """The course over ground of ``state`` while it moves (else the last one kept)."""
+        if state is not None and state.speed_mps > _TRACK_MIN_SPEED_MPS:
+            self.track_rad = math.atan2(state.ve_mps, state.vn_mps)
+
+    def restart(self) -> None:
+        """The autopilot's clock moved: the turn held is forgotten."""
+        self._held_turn.reset()
+        self.held_accel_mps2 = 0.0
+
+    def predict(
+        self,
+        states: Sequence[KinematicState],
+        steady_speeds_mps: np.ndarray,
+        latest_v: float,
+        accel_centripetal_mps2: float = 0.0,
+        voltages_v: Sequence[float] = (),
+        time_s: float = 0.0,
+        effects: Sequence[Effect] | None = None,
+    ) -> np.ndarray:
+        """Model power (W, ≥ 0): one row per kinematic state (at its battery voltage in
+        ``voltages_v``, V, else ``latest_v``), then level flight at each steady speed along
+        the course (it matters in wind) in a steady turn of a⊥ ``accel_centripetal_mps2``, at
+        ``time_s`` and ``latest_v``; with ``effects`` (default: those in use)."""
+        k = len(states)
+        north, east = math.cos(self.track_rad), math.sin(self.track_rad)
+        rows = np.empty((k + len(steady_speeds_mps), 8))
+        if k:
+            rows[:k] = [
+                (s.time_s, s.vn_mps, s.ve_mps, s.vd_mps, s.an_mps2, s.ae_mps2, 0.0, v)
+                for s, v in zip(states, voltages_v or [latest_v] * k, strict=True)
+            ]
+        # steady rows: level, along the track, a⊥ across it
+        rows[k:] = (
+            time_s,
+            0.0,
+            0.0,
+            0.0,
+            -east * accel_centripetal_mps2,
+            north * accel_centripetal_mps2,
+            0.0,
+            latest_v,
+        )
+        rows[k:, 1] = north * steady_speeds_mps
+        rows[k:, 2] = east * steady_speeds_mps
+        flight = FlightState(*rows.T)
+        if effects is None:
+            effects = self.effects
+        power = predict_power_w(self.vehicle.model, self.vehicle.mass_kg, flight, effects)
+        return np.maximum(power, 0.0)
+
+    def steady_w(self, speed_mps: float, time_s: float, latest_v: float) -> float:
+        """Model power (W) in steady level flight at ``speed_mps`` along the course, in the
+        turn held."""
+        speed = np.array([speed_mps])
+        return float(self.predict((), speed, latest_v, self.held_accel_mps2, time_s=time_s)[0])
+
+    def refresh_speeds(self, time_s: float, latest_v: float) -> None:
+        """V_me, V_mr and their powers, and the hover power, with the effects in use."""
+        power = self.predict((), _SPEED_GRID_MPS, latest_v, time_s=time_s)
+        i_me = int(np.argmin(power))
+        i_mr = int(np.argmin(power[1:] / _SPEED_GRID_MPS[1:])) + 1
+        self.v_me_mps, self.v_mr_mps = float(_SPEED_GRID_MPS[i_me]), float(_SPEED_GRID_MPS[i_mr])
+        self.p_me_w, self.p_mr_w = float(power[i_me]), float(power[i_mr])
+        self.p_hover_w = float(power[0])
+
+    def choose(self, online: OnlineEffects) -> tuple[Effect, ...] | None:
+        """After a step of the online tracker: score the tracked and the file's effects on
+        its readings (as predicted before the step) and give the effects to use from now on
+        (the file's when the tracked ones predict worse; the tracked ones once identified),
+        or None to keep those in use."""
+        measured_w, tracked_w, file_w = online.last_step_w
+        self.tracked_sq_w2 += _SCORE_GAIN * ((measured_w - tracked_w) ** 2 - self.tracked_sq_w2)
+        self.file_sq_w2 += _SCORE_GAIN * ((measured_w - file_w) ** 2 - self.file_sq_w2)
+        if self.tracked_sq_w2 >= self.file_sq_w2:
+            chosen = self.file_effects  # the tracker went astray: the file's model is better
+        else:
+            identified = online.identified_effects(
+                self.track_rad,
+                _TRACKED_WIND_SIGMA_MPS,
+                _TRACKED_MASS_SIGMA_FRACTION * self.vehicle.mass_kg,
+                self.effects,
+            )
+            if identified is None:
+                return None  # nothing identified (yet, or since a change)
+            chosen = identified
+        return None if chosen == self.effects else chosen
