@@ -17,7 +17,13 @@ from pathlib import Path
 
 import numpy as np
 
-from estimator.analysis.pack_flights import PackFlight, half_used_s, replay_pack_flight
+from estimator.analysis.pack_flights import (
+    PackFlight,
+    Restart,
+    half_used_s,
+    replay_pack_flight,
+    replay_restarted,
+)
 from estimator.physics.vehicle import load_vehicle
 
 REPO = Path(__file__).resolve().parent.parent
@@ -50,6 +56,14 @@ def table_row(flight: PackFlight, half: str) -> str:
     )
 
 
+def restart_row(restart: Restart, half: str) -> str:
+    """One flight's row of the restart table (docs/pack.md)."""
+    return (
+        f"| {restart.name} | {half} | {100 * restart.error_at:+.1f} % ({restart.z_at:+.1f}σ) "
+        f"| {restart.worst_abs_z:.1f}σ |"
+    )
+
+
 def main() -> None:
     vehicle = load_vehicle(VEHICLE)
     split = json.loads((FLIGHTS / "split.json").read_text())
@@ -75,6 +89,13 @@ def main() -> None:
             f" %, PX4-style {_pct(np.concatenate([f.px4_errors for f in flights]))} %, "
             f"ArduPilot {_pct(np.concatenate([f.ardupilot_errors for f in flights]))} %"
         )
+    print("\n| restarted flight | half | endurance error 60 s after | most \\|z\\| after |")
+    print("|---|---|---:|---:|")
+    for half in HALVES:
+        for name in split[half]:
+            restart = replay_restarted(FLIGHTS / name, vehicle)
+            if restart is not None:
+                print(restart_row(restart, half.replace("_", "-")))
 
 
 if __name__ == "__main__":

@@ -82,3 +82,50 @@ def half_used_s(readings: list[BatterySample], battery: dict[str, Any]) -> float
     return next(
         s.time_s for s in readings if s.consumed_mah is not None and s.consumed_mah >= half_mah
     )
+
+
+#: A daemon restarted this long after take-off (s) with no state file, and when its endurance
+#: is judged after the restart (s).
+RESTART_AFTER_TAKEOFF_S = 90.0
+RESTART_JUDGED_AFTER_S = 60.0
+
+
+@dataclass(frozen=True)
+class Restart:
+    """A flight replayed from :data:`RESTART_AFTER_TAKEOFF_S` on, as a daemon restarted then
+    under load with no state file: the endurance's relative error and z (σ, + is more time
+    than there is) :data:`RESTART_JUDGED_AFTER_S` after the restart; the largest |z| from
+    10 s after the restart until 60 s before the reserve, over ``scored`` estimates."""
+
+    name: str
+    error_at: float
+    z_at: float
+    worst_abs_z: float
+    scored: int
+
+
+def replay_restarted(directory: Path, vehicle: Vehicle) -> Restart | None:
+    """``directory``'s flight restarted (:class:`Restart`) under the pack's label; None when
+    the reserve comes too soon after the restart to judge."""
+    truth = json.loads((directory / "truth.json").read_text())
+    label = replace(vehicle.battery, capacity_ah=truth["battery"]["labelled_capacity_ah"])
+    labelled = replace(vehicle, battery=label)
+    start_s = truth["events"]["takeoff_s"] + RESTART_AFTER_TAKEOFF_S
+    reserve_s = truth["events"]["reserve_s"]
+    if reserve_s - start_s < RESTART_JUDGED_AFTER_S + 70.0:
+        return None
+    stream = iter_samples(directory / "flight.tlog", "auto", labelled.input_limits())
+    samples = (s for s in stream if getattr(s, "time_s", 0.0) >= start_s)
+    estimates = replay_stream(stream, labelled, directory.name, samples=samples).estimates
+    first_s = estimates[0].time_s
+    at = min(estimates, key=lambda e: abs(e.time_s - first_s - RESTART_JUDGED_AFTER_S))
+    left_s = reserve_s - at.time_s
+    scored = [e for e in estimates if first_s + 10.0 <= e.time_s <= reserve_s - 60.0]
+    z = [(e.endurance_s - (reserve_s - e.time_s)) / e.endurance_sigma_s for e in scored]
+    return Restart(
+        name=directory.name,
+        error_at=(at.endurance_s - left_s) / left_s,
+        z_at=(at.endurance_s - left_s) / at.endurance_sigma_s,
+        worst_abs_z=max(abs(v) for v in z),
+        scored=len(scored),
+    )

@@ -41,6 +41,7 @@ from typing import Any
 import numpy as np
 
 from estimator.estimation.kalman import state_from_json
+from estimator.estimation.step_resistance import Step, StepResistance
 from estimator.physics.battery import PackModel
 
 #: Iterations of the first (iterated) update.
@@ -171,6 +172,9 @@ class PackFilter:
         #: Variance of one terminal-voltage reading (V²): the configured one, then the data's.
         self.noise_var_v2 = settings.voltage_noise_v**2
         self._noise_mean_v2 = self.noise_var_v2
+        #: Steps of current between consecutive readings: R where the absolute model is
+        #: still unsure of the charge.
+        self.steps = StepResistance(settings.voltage_noise_v)
         self._noise_readings = _NOISE_PRIOR_READINGS
         #: The resting curve is the pack's own (measured), not its chemistry's typical one.
         self.own_curve = pack.spec.cell_ocv_v is not None
@@ -232,15 +236,48 @@ class PackFilter:
             self.start(voltage_v, current_a)
             if consumed_mah is not None:
                 self.count(consumed_mah)
+            self.steps.take(time_s, voltage_v, current_a, 0.0, float(self.x[2]))
         else:
             last_s = time_s if self.last_time_s is None else self.last_time_s
             dt_s = max(time_s - last_s, 0.0)
+            charge_before_ah = self.charge_ah
             if consumed_mah is not None:
                 self.count(consumed_mah)
             else:
                 self.draw(current_a, dt_s)
-            self.update(dt_s, voltage_v, current_a)
+            drift_v = self._resting_drift_v(self.charge_ah - charge_before_ah)
+            step = self.steps.take(time_s, voltage_v, current_a, drift_v, float(self.x[2]))
+            if step is not None and self.settings.internal_resistance_ohm is None:
+                self._update_resistance(step)
+            self.update(dt_s, voltage_v, current_a, learn_resistance=not self.steps.within_noise)
         self.last_time_s = time_s
+
+    def _resting_drift_v(self, drawn_ah: float) -> float:
+        """Change of the resting pack voltage (V) as ``drawn_ah`` (Ah) is drawn now."""
+        slope_v = self.cells * self.pack.cell_ocv_slope_v(self.soc)[0]
+        return -slope_v * self.x[1] * drawn_ah / self.label_ah
+
+    def _update_resistance(self, step: Step) -> None:
+        """Fold in the resistance a step of current measured, for what it adds to the two
+        absolute readings of the step: they tell R to 2·(reading noise)/ΔI² already, so the
+        step counts with the information beyond that (none where the differences are no
+        cleaner than the readings)."""
+        absolute_var_ohm2 = 2.0 * self.noise_var_v2 / step.current_step_a**2
+        if step.var_ohm2 >= absolute_var_ohm2:
+            return
+        var_ohm2 = 1.0 / (1.0 / step.var_ohm2 - 1.0 / absolute_var_ohm2)
+        resistance_ohm = step.resistance_ohm
+        h = np.array([0.0, 0.0, 1.0, 0.0])
+        innovation = resistance_ohm - float(self.x[2])
+        s_var = float(self.P[2, 2]) + var_ohm2
+        if innovation**2 > self.settings.innovation_gate_sigma**2 * s_var:
+            return
+        self.log_likelihood -= 0.5 * (innovation**2 / s_var + math.log(2.0 * math.pi * s_var))
+        gain = self.P @ h / s_var
+        self.x = self.x + gain * innovation
+        i_kh = np.eye(4) - np.outer(gain, h)
+        self.P = i_kh @ self.P @ i_kh.T + var_ohm2 * np.outer(gain, gain)
+        self.x[2] = min(max(self.x[2], _R_RANGE[0]), _R_RANGE[1])
 
     # -- the charge drawn ---------------------------------------------------------------------
 
@@ -277,11 +314,15 @@ class PackFilter:
 
     # -- voltage ------------------------------------------------------------------------------
 
-    def update(self, dt_s: float, voltage_v: float, current_a: float) -> None:
-        """Fold in one terminal voltage (V) at ``current_a`` (A), ``dt_s`` (s) after the last."""
+    def update(
+        self, dt_s: float, voltage_v: float, current_a: float, learn_resistance: bool = True
+    ) -> None:
+        """Fold in one terminal voltage (V) at ``current_a`` (A), ``dt_s`` (s) after the last;
+        without ``learn_resistance`` the resistance's uncertainty is weighed but the reading
+        does not move it (a current that moved only by its noise: errors in variables)."""
         if dt_s > 0 and self.settings.internal_resistance_ohm is None:
             self.P[2, 2] += self.settings.resistance_walk_ohm_per_sqrt_s**2 * dt_s
-        self._update(voltage_v, current_a, 1, gate=True)
+        self._update(voltage_v, current_a, 1, gate=True, learn_resistance=learn_resistance)
 
     def _measurement(
         self, x: np.ndarray, p: np.ndarray, current_a: float
@@ -302,7 +343,14 @@ class PackFilter:
         h = np.array([k, -k * c_rel, -current_a, 1.0])
         return self.cells * curve(soc)[0] + x[3] - current_a * x[2], h
 
-    def _update(self, voltage_v: float, current_a: float, iterations: int, gate: bool) -> None:
+    def _update(
+        self,
+        voltage_v: float,
+        current_a: float,
+        iterations: int,
+        gate: bool,
+        learn_resistance: bool = True,
+    ) -> None:
         x0, p0 = self.x, self.P
         r_var = self.noise_var_v2
         x = x0.copy()
@@ -318,6 +366,8 @@ class PackFilter:
                 )
                 return
             gain = pht / s_var
+            if not learn_resistance:
+                gain[2] = 0.0  # considered, not learnt (the covariance below stays right)
             x = x0 + gain * innovation
         self.log_likelihood -= 0.5 * (innovation**2 / s_var + math.log(2.0 * math.pi * s_var))
         i_kh = np.eye(4) - np.outer(gain, h)
