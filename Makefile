@@ -4,7 +4,7 @@ VENV := .venv
 BIN := $(VENV)/bin
 STAMP := $(VENV)/.installed
 
-.PHONY: demo test lint bench fit-real clean
+.PHONY: demo test lint bench fit-real figures figures-check clean
 
 $(STAMP): pyproject.toml
 	$(PYTHON) -m venv $(VENV)
@@ -26,6 +26,13 @@ fit-real: $(STAMP)
 
 bench: $(STAMP)
 	$(BIN)/python -m bench
+
+# The result figures of README.md and docs/*.md: rewrite their blocks, or check them.
+figures: $(STAMP)
+	$(BIN)/python scripts/figures.py
+
+figures-check: $(STAMP)
+	$(BIN)/python scripts/figures.py --check
 
 clean:
 	rm -rf $(VENV) .pytest_cache .mypy_cache .ruff_cache

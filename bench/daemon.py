@@ -7,7 +7,8 @@ datagram as ArduPilot sends them, into ``uav-energy run`` (a subprocess, default
 configuration, the SITL quad's vehicle file) which writes a JSON line for every estimate to a
 UDP port of this process.
 
-1. Resident memory (psutil) after start-up, before any telemetry (idle).
+1. Resident memory (psutil) after start-up (START_UP_S after it listens), before any
+   telemetry (idle).
 2. 50 messages/s for SECONDS (default 60): CPU share of one core over that window, resident
    memory after it, and latency. The daemon's latency is the time from sending the datagram
    that closed an estimate period (the last one sent before the estimate arrived: at
@@ -34,13 +35,14 @@ import socket
 import subprocess
 import sys
 import time
-from collections.abc import Iterator
+from collections.abc import Callable, Iterator
 from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
 import psutil
 
+from estimator.estimation.estimate import Estimate
 from estimator.estimation.pipeline import Pipeline
 from estimator.mavlink.config import build_config
 from estimator.mavlink.publish import json_line
@@ -111,20 +113,25 @@ def frame_id(frame: bytes) -> int:
     return frame[7] | frame[8] << 8 | frame[9] << 16 if frame[0] == 0xFD else frame[5]
 
 
-def estimates_after_each(frames: list[bytes]) -> np.ndarray:
-    """How many estimates the daemon's path has given after each frame, in process (no
-    flush at the end: the daemon publishes the open period only when it stops)."""
+def daemon_estimates(frames: list[bytes]) -> Iterator[tuple[int, Estimate]]:
+    """The estimates the daemon's path gives on ``frames``, in process, each with the index of
+    the frame that closed it (no flush at the end: the daemon publishes the open period only
+    when it stops)."""
     config = build_config({}, {})
     vehicle = load_vehicle(VEHICLE)
     decoder = TelemetryDecoder(own=(config.system_id, 191), limits=vehicle.input_limits())
     pipeline = Pipeline(vehicle, config.pipeline_settings())
-    counts, count = [], 0
-    for frame in frames:
+    for i, frame in enumerate(frames):
         for msg in FrameParser(USED_MESSAGE_IDS).feed(frame):
             for sample in decoder.decode(msg):
-                count += pipeline.process(sample) is not None
-        counts.append(count)
-    return np.array(counts)
+                if (estimate := pipeline.process(sample)) is not None:
+                    yield i, estimate
+
+
+def estimates_after_each(frames: list[bytes]) -> np.ndarray:
+    """How many estimates the daemon's path has given after each frame, in process."""
+    closed_by = [i for i, _ in daemon_estimates(frames)]
+    return np.searchsorted(closed_by, np.arange(len(frames)), side="right")
 
 
 def free_port() -> int:
@@ -133,9 +140,13 @@ def free_port() -> int:
         return int(s.getsockname()[1])
 
 
-def daemon_command(listen: int, answer: int) -> list[str]:
+def daemon_command(
+    listen: int, answer: int, program: tuple[str, ...] = (sys.executable, "-m", "estimator.cli")
+) -> list[str]:
+    """``uav-energy run`` (``program``: how to start ``uav-energy``) on the bench's ports."""
     return [
-        *(sys.executable, "-m", "estimator.cli", "run", "--vehicle", str(VEHICLE)),
+        *program,
+        *("run", "--vehicle", str(VEHICLE)),
         *("--connect", f"udpin:127.0.0.1:{listen}", "--json", f"udp:127.0.0.1:{answer}"),
         *("--publish", f"udpout:127.0.0.1:{free_port()}", "--log-level", "warning"),
     ]
@@ -156,45 +167,77 @@ class Answers(asyncio.DatagramProtocol):
 @dataclass
 class Run:
     """One process fed at 50 messages/s: latency (ms) by the index of the datagram answered,
-    CPU share of one core, resident memory idle and after the stream (MB)."""
+    CPU share of one core, resident memory idle and after the stream (MB), time from start to
+    listening (s), and the raw timings: each datagram's send time, each answer's arrival time
+    and content (s, ``time.perf_counter``)."""
 
     latency_ms: dict[int, float]
     cpu_share: float
     idle_rss_mb: float
     rss_mb: float
+    start_up_s: float
+    sent_s: list[float]
+    answers: Answers
 
 
-async def send_paced(frames: list[bytes], port: int, rate: float) -> list[float]:
-    """Send ``frames`` at ``rate`` datagrams/s (in batches of 1 ms above 1000/s); the send
-    time of each."""
+async def send_paced(
+    sock: socket.socket, frames: list[bytes], port: int, rate: float
+) -> list[float]:
+    """Send ``frames`` from ``sock`` at ``rate`` datagrams/s (in batches of 1 ms above
+    1000/s); the send time of each. One socket for a whole stream: the daemon takes frames
+    from another source port for a forger's (dropped for 3 s)."""
     sent: list[float] = []
-    with socket.socket(socket.AF_INET, socket.SOCK_DGRAM) as sock:
-        start = time.perf_counter()
-        while len(sent) < len(frames):
-            due = min(len(frames), int((time.perf_counter() - start) * rate) + 1)
-            for frame in frames[len(sent) : due]:
-                sent.append(time.perf_counter())
-                sock.sendto(frame, ("127.0.0.1", port))
-            delay = start + len(sent) / rate - time.perf_counter()
-            await asyncio.sleep(max(delay, 0.0) if rate < 1000 else 0.001)
+    start = time.perf_counter()
+    while len(sent) < len(frames):
+        due = min(len(frames), int((time.perf_counter() - start) * rate) + 1)
+        for frame in frames[len(sent) : due]:
+            sent.append(time.perf_counter())
+            sock.sendto(frame, ("127.0.0.1", port))
+        delay = start + len(sent) / rate - time.perf_counter()
+        await asyncio.sleep(max(delay, 0.0) if rate < 1000 else 0.001)
     return sent
 
 
-async def at_50_msg_s(command: list[str], listen: int, answer: int, frames: list[bytes]) -> Run:
-    """Start ``command``, stream ``frames`` to it at 50 msg/s, return its figures."""
+def udp_socket() -> socket.socket:
+    return socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
+
+
+async def listening(ps: psutil.Process, port: int, timeout_s: float = 60.0) -> float:
+    """Seconds from now until ``ps`` has a UDP socket bound to ``port``."""
+    start = time.perf_counter()
+    while all(c.laddr.port != port for c in ps.net_connections(kind="udp")):
+        if time.perf_counter() - start > timeout_s:
+            raise TimeoutError(f"{ps.cmdline()[:4]} not listening on {port}")
+        await asyncio.sleep(0.02)
+    return time.perf_counter() - start
+
+
+async def at_50_msg_s(
+    command: list[str],
+    listen: int,
+    answer: int,
+    frames: list[bytes],
+    preexec_fn: Callable[[], None] | None = None,
+) -> Run:
+    """Start ``command`` (``preexec_fn`` runs in the child before it), stream ``frames`` to it
+    at 50 msg/s once it listens, return its figures."""
     loop = asyncio.get_running_loop()
     transport, answers = await loop.create_datagram_endpoint(
         Answers, local_addr=("127.0.0.1", answer)
     )
-    proc = subprocess.Popen(command, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+    proc = subprocess.Popen(
+        command, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL, preexec_fn=preexec_fn
+    )
     ps = psutil.Process(proc.pid)
     try:
+        start_up_s = await listening(ps, listen)
         await asyncio.sleep(START_UP_S)
         idle_rss_mb = ps.memory_info().rss / 1e6
         warmup = int(WARMUP_S * RATE_MSG_S)
-        sent = await send_paced(frames[:warmup], listen, RATE_MSG_S)
-        cpu_start = (time.perf_counter(), sum(ps.cpu_times()[:2]))
-        sent += await send_paced(frames[warmup:], listen, RATE_MSG_S)
+        with udp_socket() as sock:
+            sent = await send_paced(sock, frames[:warmup], listen, RATE_MSG_S)
+            cpu_start = (time.perf_counter(), sum(ps.cpu_times()[:2]))
+            sent += await send_paced(sock, frames[warmup:], listen, RATE_MSG_S)
         await asyncio.sleep(0.5)
         wall = time.perf_counter() - cpu_start[0]
         cpu = sum(ps.cpu_times()[:2]) - cpu_start[1]
@@ -209,7 +252,7 @@ async def at_50_msg_s(command: list[str], listen: int, answer: int, frames: list
         assert isinstance(i, int)
         if i >= warmup:
             latency.setdefault(i, 1000 * (arrival - sent[i]))
-    return Run(latency, cpu / wall, idle_rss_mb, rss_mb)
+    return Run(latency, cpu / wall, idle_rss_mb, rss_mb, start_up_s, sent, answers)
 
 
 async def keeps_up(frames: list[bytes], rate: float, expected: int) -> tuple[bool, int, float]:
@@ -223,7 +266,8 @@ async def keeps_up(frames: list[bytes], rate: float, expected: int) -> tuple[boo
     proc = subprocess.Popen(command, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
     try:
         await asyncio.sleep(START_UP_S)
-        sent = await send_paced(frames, listen, rate)
+        with udp_socket() as sock:
+            sent = await send_paced(sock, frames, listen, rate)
         await asyncio.sleep(max(1.0, 4 * LAG_S))
     finally:
         proc.terminate()

@@ -1,11 +1,14 @@
 #!/bin/sh
-# Fit the power model to the real datasets; writes config/vehicles/*.toml, out/fit/*/ reports
-# and out/fit/*.json. Usage: scripts/fit_real.sh [DATA_DIR] (default ../shared/data).
-# Results and assumptions: docs/fit.md.
+# Fit the power model to the real datasets; writes out/fit/vehicles/*.toml, out/fit/*/ reports
+# and out/fit/*.json, and says which fitted vehicle files differ from the tracked ones in
+# config/vehicles (which it never writes: copy a file there to adopt its fit).
+# Usage: scripts/fit_real.sh [DATA_DIR] (default ../shared/data). Results and assumptions:
+# docs/fit.md.
 set -eu
 DATA=${1:-../shared/data}
 FIT=${UAV_ENERGY:-.venv/bin/uav-energy}
-mkdir -p out/fit
+VEHICLES=out/fit/vehicles
+mkdir -p out/fit "$VEHICLES"
 IRIS="$DATA/iris_quadcopter_logs"
 PRIORS_NOTE="Data cover 0-6 m/s: hover power is measured; tip speed and profile share come from the priors."
 
@@ -16,7 +19,7 @@ $FIT fit "$IRIS"/2016-03-*/*/*.log --title "IRIS+ March 2016" \
   --note "mass_kg: 3DR's published IRIS+ weight with battery, 1282 g (ASSUMED: mass is not in the logs)." \
   --note "battery: BATT_CAPACITY = 5100 mAh, 3S LiPo (mav.parm)." \
   --note "$PRIORS_NOTE" \
-  --out config/vehicles/iris_plus_2016_03.toml --report out/fit/iris_2016_03 \
+  --out "$VEHICLES/iris_plus_2016_03.toml" --report out/fit/iris_2016_03 \
   --json > out/fit/iris_2016_03.json
 
 $FIT fit "$IRIS"/2016-0[678]-*/*/*.log --title "IRIS+ June-August 2016" \
@@ -27,7 +30,7 @@ $FIT fit "$IRIS"/2016-0[678]-*/*/*.log --title "IRIS+ June-August 2016" \
   --note "change; momentum theory (hover power ~ m^1.5) gives 1.282 kg * (207/151)^(2/3) = 1.58 kg." \
   --note "battery: BATT_CAPACITY = 5100 mAh, 3S LiPo (mav.parm)." \
   --note "$PRIORS_NOTE" \
-  --out config/vehicles/iris_plus_2016_06_08.toml --report out/fit/iris_2016_06_08 \
+  --out "$VEHICLES/iris_plus_2016_06_08.toml" --report out/fit/iris_2016_06_08 \
   --json > out/fit/iris_2016_06_08.json
 
 $FIT fit "$DATA"/cmu_m100_subset/*.csv --title "CMU DJI Matrice 100 (8 flights)" \
@@ -38,5 +41,14 @@ $FIT fit "$DATA"/cmu_m100_subset/*.csv --title "CMU DJI Matrice 100 (8 flights)"
   --note "(anemometer, INS, Raspberry Pi: mass not documented). The model is for no package: flights" \
   --note "with 250/500 g were fitted rescaled to 2.355 kg + payload (c3 ~ m^1.5, c4 ~ m)." \
   --note "battery: TB47D 4.5 Ah 6S (dataset README). Power is the dataset's V*I column y." \
-  --out config/vehicles/dji_m100_cmu.toml --report out/fit/cmu_m100 \
+  --out "$VEHICLES/dji_m100_cmu.toml" --report out/fit/cmu_m100 \
   --json > out/fit/cmu_m100.json
+
+for fitted in "$VEHICLES"/*.toml; do
+  tracked=config/vehicles/${fitted##*/}
+  if cmp -s "$fitted" "$tracked"; then
+    echo "$fitted: the same as $tracked"
+  else
+    echo "$fitted: differs from $tracked (diff them; copy it there to adopt the fit)"
+  fi
+done

@@ -203,6 +203,37 @@ def test_ulog_unknown_current_and_invalid_velocity(tmp_path: Path) -> None:
     assert stream.skipped == 2
 
 
+#: The GPS fields the reader uses, as PX4 ≤ 1.14 (``alt``, mm) and ≥ 1.15 (``altitude_msl_m``)
+#: log them.
+_GPS_FIELDS = [("uint8_t", "fix_type"), ("bool", "vel_ned_valid"), ("float", "vel_n_m_s"),
+               ("float", "vel_e_m_s"), ("float", "vel_d_m_s")]  # fmt: skip
+_GPS_ALTITUDES = {"vehicle_gps_position": ("int32_t", "alt"),
+                  "sensor_gps": ("double", "altitude_msl_m")}  # fmt: skip
+
+
+@pytest.mark.parametrize("topic", ["vehicle_gps_position", "sensor_gps"])
+def test_ulog_without_a_valid_local_velocity_takes_the_gps_with_a_3d_fix(
+    tmp_path: Path, topic: str
+) -> None:
+    alt_type, alt_name = _GPS_ALTITUDES[topic]
+    log = ULogWriter()
+    log.add_format("vehicle_local_position")
+    log.add_format(topic, [("uint64_t", "timestamp"), (alt_type, alt_name), *_GPS_FIELDS])
+    log.subscribe("vehicle_local_position")
+    log.subscribe(topic)
+    log.write("vehicle_local_position", timestamp=1_000_000, vx=1.0, v_xy_valid=False)
+    for t_us, fix, alt_m, vn in ((1_100_000, 2, 100.0, 9.0), (1_200_000, 3, 101.0, 2.0),
+                                 (1_300_000, 3, 104.0, 3.0)):  # fmt: skip
+        alt = round(alt_m * 1000) if alt_name == "alt" else alt_m  # mm in PX4 ≤ 1.14
+        log.write(topic, timestamp=t_us, fix_type=fix, vel_ned_valid=True, vel_n_m_s=vn,
+                  vel_d_m_s=-1.0, **{alt_name: alt})  # fmt: skip
+    samples, stream = _read(log.save(tmp_path / "gps.ulg"))
+    assert samples == [VelocitySample(1.2, 2.0, 0.0, -1.0, 0.0),
+                       VelocitySample(1.3, 3.0, 0.0, -1.0, 3.0)]  # fmt: skip
+    assert stream.velocity_source == f"{topic}.vel_d_m_s"
+    assert stream.skipped == 2  # the invalid local velocity, the 2-D fix
+
+
 def test_ulog_takes_the_battery_instance_with_a_connected_pack(tmp_path: Path) -> None:
     log = ULogWriter()
     log.add_format("battery_status")

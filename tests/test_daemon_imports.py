@@ -1,6 +1,7 @@
-"""The daemon's import set stays lean: no scipy, matplotlib, scikit-learn or filterpy, neither
-at start-up nor once telemetry flows, return figures included (each would add tens of MB to its
-resident memory)."""
+"""The daemon's import set stays lean: no scipy, matplotlib, scikit-learn, filterpy, dask or
+pyarrow, neither at start-up nor once telemetry flows, return figures included (each would add
+tens of MB to its resident memory, and none is in ``pip install uav-energy``: they come with
+the ``analysis`` and ``fleet`` extras)."""
 
 from __future__ import annotations
 
@@ -14,7 +15,7 @@ import pytest
 FLIGHT_TLOG = Path(__file__).parent / "data" / "arducopter_guided.tlog"
 #: A flight in wind with the autopilot's wind reports (the tracker's second channel).
 RTL_TLOG = Path(__file__).parent.parent / "replay" / "rtl" / "north_upwind.tlog"
-HEAVY = ("scipy", "matplotlib", "sklearn", "filterpy")
+HEAVY = ("scipy", "matplotlib", "sklearn", "filterpy", "dask", "distributed", "pyarrow")
 
 DAEMON_PATH = """
 import json, sys
@@ -42,7 +43,7 @@ print(json.dumps({"started": started, "flying": sorted(sys.modules), "estimates"
 
 
 @pytest.mark.parametrize("log", [FLIGHT_TLOG, RTL_TLOG], ids=["guided", "rtl-in-wind"])
-def test_the_daemon_path_imports_no_scipy_matplotlib_sklearn_nor_filterpy(log: Path) -> None:
+def test_the_daemon_path_imports_no_analysis_nor_fleet_package(log: Path) -> None:
     out = subprocess.run(
         [sys.executable, "-c", DAEMON_PATH, str(log)],
         capture_output=True,

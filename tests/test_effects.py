@@ -121,15 +121,28 @@ def test_thin_air_raises_hover_power_and_lowers_profile_power() -> None:
 def test_climb_follows_momentum_theory() -> None:
     eff = 0.6
     v0 = math.sqrt(MODEL.c4 / 2.0)
-    climbs = np.array([0.0, 0.2, 2.0, 30.0, -2.0])
-    got = power(state(vd=list(-climbs), n=5), Climb(efficiency=eff)) - MODEL.hover_power_w
+    climbs = np.array([0.0, 0.2, 2.0, 30.0])
+    got = power(state(vd=list(-climbs), n=4), Climb(efficiency=eff)) - MODEL.hover_power_w
     weight = MASS_KG * G_MPS2
     exact = weight * (climbs / 2 + np.sqrt(climbs**2 / 4 + v0**2) - v0) / eff
     assert got == pytest.approx(exact)
     assert got[0] == pytest.approx(0.0)
     assert got[1] == pytest.approx(weight * 0.2 / 2 / eff, rel=0.02)  # slow: m g v_c / 2η
     assert got[3] == pytest.approx(weight * (30.0 - v0) / eff, rel=0.05)  # fast: m g (v_c − v0)/η
-    assert got[4] < 0  # descending needs less power
+
+
+def test_climb_power_rises_with_climb_rate_and_descent_needs_less_than_hover() -> None:
+    eff = 0.6
+    v0 = math.sqrt(MODEL.c4 / 2.0)
+    climbs = np.linspace(-4.0 * v0, 3.0 * v0, 701)
+    got = power(state(vd=list(-climbs), n=len(climbs)), Climb(efficiency=eff))
+    assert np.all(np.diff(got) >= -1e-9)
+    assert np.all(np.diff(got[climbs > 0]) > 0)
+    descending = got[climbs < 0]
+    assert np.all(descending < MODEL.hover_power_w)
+    # a descent saves at most hover's induced share m g v0 / η: v_c + v_i is held at ≥ 0
+    weight_v0 = MASS_KG * G_MPS2 * v0
+    assert descending.min() == pytest.approx(MODEL.hover_power_w - weight_v0 / eff)
 
 
 def test_avionics_adds_a_constant_load_from_at_s() -> None:

@@ -20,6 +20,7 @@ from pymavlink.dialects.v20 import common as mavlink
 from test_service import Messages, listen, play, running, wait_for
 
 from estimator.estimation.airborne import AirborneGate, Phase
+from estimator.estimation.rtl_profiles import px4_rtl
 from estimator.mavlink.config import ServiceConfig
 from estimator.mavlink.px4_streams import MESSAGES as PX4_MESSAGES
 from estimator.physics.vehicle import default_vehicle
@@ -70,7 +71,8 @@ def test_px4_unknown_current_is_not_measured(flight: Messages) -> None:
 
 async def test_daemon_asks_px4_for_message_intervals_only(flight: Messages) -> None:
     """To PX4: SET_MESSAGE_INTERVAL for the messages it uses (and reads), never
-    REQUEST_DATA_STREAM; estimates flow model-only on PX4's unknown current."""
+    REQUEST_DATA_STREAM; estimates flow model-only on PX4's unknown current; the return
+    figures follow PX4's RTL (its HEARTBEAT says PX4)."""
     messages = as_px4(flight, PX4_NO_CURRENT_CA)
     async with running(ServiceConfig()) as (service, sender):
         received: list[mavlink.MAVLink_message] = []
@@ -87,6 +89,8 @@ async def test_daemon_asks_px4_for_message_intervals_only(flight: Messages) -> N
                     received.extend(await sender.recv())
         assert service.latest is not None and service.latest.model_only
         assert service.latest.power_measured_w is None
+        given = ServiceConfig().pipeline_settings().return_home
+        assert service.pipeline.returning.settings == px4_rtl(given)
     kinds = {m.get_type() for m in received}
     assert "REQUEST_DATA_STREAM" not in kinds
     commands = [m for m in received if m.get_type() == "COMMAND_LONG"]

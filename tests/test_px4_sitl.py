@@ -1,7 +1,8 @@
 """PX4 live: the daemon on a real PX4 (v1.16 SITL, SIH quadrotor) that a pymavlink ground station
-flies — take-off, hover, a reposition, a 10 m/s OFFBOARD leg, hold, land (whenever the SITL
-folder is there: by default ``../shared/tools/px4-sitl``, or ``PX4_SITL_DIR``; see
-docs/sitl.md).
+flies — take-off, hover, a reposition, a 10 m/s OFFBOARD leg, hold, land (or, in one flight, a
+mission uploaded first, a longer leg and an RTL from 310 m out instead of the land) whenever
+the SITL folder is there: by default ``../shared/tools/px4-sitl``, or ``PX4_SITL_DIR``; see
+docs/sitl.md.
 
 ``uav-energy run`` listens on PX4's onboard link (udpin 14540+N) with the PX4 SIH vehicle
 file and publishes to a UDP port the test reads; the pilot flies on PX4's ground-station link.
@@ -37,6 +38,8 @@ from pymavlink.dialects.v20 import common as mavlink
 from test_sitl import EXE, GroundStation
 
 from estimator.analysis.replay import replay_log
+from estimator.logs.mission_files import MissionItem
+from estimator.mavlink.mission_download import item_text
 from estimator.physics.vehicle import load_vehicle
 from estimator.sitl.launch import stop_process
 from estimator.sitl.px4 import (
@@ -59,6 +62,7 @@ VEHICLE = REPO / "config/vehicles/px4_sih_quad.toml"
 DOC = (REPO / "docs/daemon.md").read_text()
 #: Lockstep speed factor: PX4 SIH kept it on a 2-core machine with the daemon beside it.
 SPEED = 10.0
+ON_GROUND = mavlink.MAV_LANDED_STATE_ON_GROUND
 #: PX4 parameters of both flights: take-off to the flight's height; and of the test's pack:
 #: PX4's own battery off, and its low-flight-time failsafe only warning (PX4 v1.16 reads an
 #: external BATTERY_STATUS's time left as 0 s: it would return home at take-off); its ULog on
@@ -69,6 +73,8 @@ TEST_PACK_PARAMS = {**PARAMS, "SIM_BAT_ENABLE": 0.0, "COM_FLTT_LOW_ACT": 0.0, "S
 #: PX4's default BATTERY_STATUS rate on its onboard link (Hz), and the daemon's request.
 PX4_DEFAULT_BATTERY_HZ = 0.5
 REQUESTED_BATTERY_HZ = 2.0
+#: PX4 seconds from take-off to the daemon's first estimate in the air (the done-when bound).
+FIRST_ESTIMATE_S = 15.0
 #: PX4 seconds after take-off by which the endurance is valid (the take-off transient and the
 #: pipeline's settling: 5-7 s measured).
 ENDURANCE_VALID_S = 20.0
@@ -79,6 +85,29 @@ DRAWN_TOLERANCE = 0.2
 MISMATCH_WALL_S = 5.0
 #: Wall seconds the daemon may take to publish the estimate of PX4's last second.
 CATCH_UP_WALL_S = 20.0
+#: PX4 SIH's home (run_px4_sitl.sh's default), deg; and a mission about it the pilot uploads
+#: (not flown): take-off, two waypoints, RTL (positions relative to home, PX4's frame
+#: GLOBAL_RELATIVE_ALT_INT; RTL without a position, frame MISSION).
+HOME_DEG = (47.397742, 8.545594)
+_NAN = math.nan
+MISSION = (
+    MissionItem(0, mavlink.MAV_CMD_NAV_TAKEOFF, mavlink.MAV_FRAME_GLOBAL_RELATIVE_ALT_INT,
+                (0.0, 0.0, 0.0, _NAN), HOME_DEG[0], HOME_DEG[1], 12.0, "take-off"),
+    MissionItem(1, mavlink.MAV_CMD_NAV_WAYPOINT, mavlink.MAV_FRAME_GLOBAL_RELATIVE_ALT_INT,
+                (0.0, 0.0, 0.0, _NAN), 47.3982, 8.5461, 15.0, "waypoint"),
+    MissionItem(2, mavlink.MAV_CMD_NAV_WAYPOINT, mavlink.MAV_FRAME_GLOBAL_RELATIVE_ALT_INT,
+                (0.0, 0.0, 0.0, _NAN), 47.3985, 8.5449, 20.5, "waypoint"),
+    MissionItem(3, mavlink.MAV_CMD_NAV_RETURN_TO_LAUNCH, mavlink.MAV_FRAME_MISSION,
+                (0.0, 0.0, 0.0, 0.0), _NAN, _NAN, 0.0, "RTL"),
+)  # fmt: skip
+#: The daemon's return time (rth_time_s just before RTL) against PX4's flown one (RTL
+#: command to its landed state ON_GROUND, PX4's clock): the done-when bound.
+RTL_TIME_TOLERANCE = 0.10
+#: PX4 seconds of the 10 m/s OFFBOARD leg: in the flight that ends with an RTL, longer, so
+#: the RTL starts some 300 m out (most of a real return is its leg home).
+LEG_S, RTL_LEG_S = 15.0, 25.0
+#: PX4 seconds from its landed state leaving ON_GROUND to the daemon's (the done-when bound).
+OFF_GROUND_S = 2.0
 
 
 @dataclass
@@ -136,10 +165,17 @@ def _estimates(path: Path) -> list[dict]:
     return [json.loads(line) for line in lines]
 
 
-def fly(tmp_path: Path, params: dict[str, float], pack: MotorPack | None) -> Flown:
+def fly(
+    tmp_path: Path,
+    params: dict[str, float],
+    pack: MotorPack | None,
+    mission: tuple[MissionItem, ...] = (),
+    rtl: bool = False,
+) -> Flown:
     """The daemon, then PX4 (with ``params``) on a free instance in ``tmp_path``, the flight
-    (``pack`` fed into PX4 when given), PX4 running on until the daemon has published the
-    estimate of its last second; everything stopped."""
+    (``pack`` fed into PX4 when given; ``mission`` uploaded first; ending in RTL with
+    ``rtl``), PX4 running on until the daemon has published the estimate of its last second;
+    everything stopped."""
     assert ROOT is not None
     instance = free_instance()
     drawn_wh: list[float] = []
@@ -152,7 +188,8 @@ def fly(tmp_path: Path, params: dict[str, float], pack: MotorPack | None) -> Flo
                 pilot = Px4Pilot(gcs_port(instance), system_id(instance), pack)
                 pilot.listeners.append(lambda _: drawn_at_changes(pilot, drawn_wh))
                 try:
-                    pilot.fly(alt_m=FLIGHT_ALT_M)
+                    leg_s = RTL_LEG_S if rtl else LEG_S
+                    pilot.fly(alt_m=FLIGHT_ALT_M, leg_s=leg_s, mission=mission, rtl=rtl)
                     end_s = pilot.state.boot_s - 1.0
                     deadline = time.monotonic() + CATCH_UP_WALL_S
                     while time.monotonic() < deadline:  # PX4 runs on: the daemon catches up
@@ -223,6 +260,12 @@ def test_px4_with_a_measured_pack(tmp_path: Path) -> None:
     doc_figure("the daemon's energy drop in the air against the pack's, error", error_pct)
     names = {m.name for m in flown.published if m.get_type() == "NAMED_VALUE_FLOAT"}
     assert {"ENERGY_WH", "ENDUR_S", "FLAGS"} <= names
+    battery = [m for m in flown.published if m.get_type() == "BATTERY_STATUS"]
+    assert battery and {m.get_srcComponent() for m in flown.published} == {191}
+    # the first estimate after PX4's take-off (its landed state leaving ON_GROUND)
+    takeoff_s = flown.px4.landed_changes[flown.landed_change(mavlink.MAV_LANDED_STATE_TAKEOFF)][0]
+    first_s = min(e["time_s"] for e in flown.estimates if e["time_s"] >= takeoff_s)
+    assert first_s - takeoff_s <= FIRST_ESTIMATE_S
     # the same flight from PX4's own log: `uav-energy replay` of the ULog, estimate by
     # estimate (one a second of PX4's clock: the same period in both)
     assert flown.ulog is not None
@@ -237,18 +280,56 @@ def test_px4_with_a_measured_pack(tmp_path: Path) -> None:
     doc_figure("ULog replay against the live energy, largest difference", energy_pct)
 
 
-def test_px4_own_pack_without_current_runs_on_the_model(tmp_path: Path) -> None:
+def test_px4_own_pack_mission_rtl_and_take_off(tmp_path: Path) -> None:
     """PX4's simulated pack (current −1: not measured): estimates flow, model only, with no
-    measured power; the energy left never rises."""
-    flown = fly(tmp_path, PARAMS, None)
+    measured power; the energy left never rises. The mission the pilot uploaded is the one
+    the daemon reads; the daemon follows PX4's RTL, and its return time before the RTL is
+    within :data:`RTL_TIME_TOLERANCE` of the one flown; it knows the vehicle is off the
+    ground within :data:`OFF_GROUND_S` of PX4's landed detector."""
+    flown = fly(tmp_path, PARAMS, None, MISSION, rtl=True)
     assert "message intervals requested (PX4)" in flown.log, flown.log
     airborne = flown.airborne()
     assert len(airborne) >= 30
     assert all(e["model_only"] and e["power_measured_w"] is None for e in airborne)
+    # SIH's voltage falls with armed time, not with load: with no current there is no pack
+    # filter, so that voltage never teaches the capacity (the label stands, unlearnt)
+    assert all(e["capacity_ah"] is None or math.isnan(e["capacity_ah"]) for e in flown.estimates)
     energy = [e["energy_remaining_wh"] for e in airborne]
     assert all(b <= a + 1e-6 for a, b in itertools.pairwise(energy))
     assert energy[-1] < energy[0]
-    doc_figure("PX4's own pack, model only: energy drop in the air", energy[0] - energy[-1])
+    doc_figure(
+        "PX4's own pack, model only: energy drop in the air (the RTL flight)",
+        energy[0] - energy[-1],
+    )
+    # the mission: read-only download, item for item what was uploaded
+    read = re.findall(r"mission read from the autopilot: (\d+) items: (.*)", flown.log)
+    assert read, flown.log
+    assert read[-1] == (str(len(MISSION)), "; ".join(item_text(i) for i in MISSION))
+    # PX4's RTL, from about 310 m out and 10 m up
+    assert "return figures follow PX4's RTL" in flown.log
+    rtl_s = flown.px4.rtl_s
+    assert rtl_s is not None
+    landed_s = next(t for t, s in flown.px4.landed_changes if t > rtl_s and s == ON_GROUND)
+    before = [e for e in flown.estimates if e["time_s"] <= rtl_s][-1]
+    assert rtl_s - before["time_s"] <= 1.5
+    assert before["home_distance_m"] > 250.0
+    flown_s, predicted_s = landed_s - rtl_s, before["rth_time_s"]
+    print(f"RTL from {before['home_distance_m']:.0f} m: {predicted_s:.1f} s predicted, "
+          f"{flown_s:.1f} s flown")  # fmt: skip
+    assert predicted_s == pytest.approx(flown_s, rel=RTL_TIME_TOLERANCE)
+    doc_figure("PX4's RTL flown, command to ON_GROUND", flown_s)
+    doc_figure("the daemon's RTL time against PX4's, error", 100 * (predicted_s / flown_s - 1))
+    # off the ground: the daemon's landed state against PX4's (its detector: TAKEOFF, then
+    # IN_AIR once the take-off is done)
+    up_s = next(t for t, s in flown.px4.landed_changes if s != ON_GROUND)
+    in_air_s = flown.px4.landed_changes[flown.landed_change(mavlink.MAV_LANDED_STATE_IN_AIR)][0]
+    daemon_up_s = float(re.findall(r"landed detector: off the ground at ([\d.]+) s", flown.log)[0])
+    first = next(e for e in flown.estimates if e["time_s"] >= daemon_up_s)
+    print(f"off the ground: PX4 {up_s:.2f} s (IN_AIR {in_air_s:.2f} s), daemon "
+          f"{daemon_up_s:.2f} s, its first estimate after {first['time_s']:.2f} s")  # fmt: skip
+    assert daemon_up_s - up_s <= OFF_GROUND_S
+    assert daemon_up_s <= in_air_s + OFF_GROUND_S
+    doc_figure("the daemon off the ground after PX4's detector", daemon_up_s - up_s)
 
 
 def test_px4_pack_against_a_3s_vehicle_file_is_named(tmp_path: Path) -> None:

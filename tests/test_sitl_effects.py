@@ -9,20 +9,28 @@ today are strict expected failures, each with its cause (docs/residuals.md, "Ard
 
 from __future__ import annotations
 
+import importlib.util
 from functools import cache
 from pathlib import Path
+from types import ModuleType
 
 import pytest
 
-from estimator.analysis.residuals import analyze
-from estimator.logs import iter_samples, load_flights
+from estimator.logs import iter_samples
 from estimator.physics.vehicle import Vehicle, load_vehicle
-from estimator.sitl.truth_check import FlightScore, FlightTruth, score_summary
+from estimator.sitl.truth_check import (
+    FlightScore,
+    FlightTruth,
+    RecordingCheck,
+    score_recording,
+    score_summary,
+)
 from estimator.telemetry.samples import GripperSample
 
 REPO = Path(__file__).resolve().parent.parent
 RECORDINGS = REPO / "replay" / "sitl"
 VEHICLE = REPO / "config" / "vehicles" / "ardupilot_sitl_quad.toml"
+THIS_FILE = "tests/test_sitl_effects.py"
 #: Flown for the endurance to the reserve, not for effects; AUTO missions (their own test).
 NOT_SCORED = {"battery_reserve", "missions"}
 KNOWN_WRONG = {
@@ -38,13 +46,12 @@ def sitl_vehicle() -> Vehicle:
 
 
 @cache
+def checked(scenario: str) -> RecordingCheck:
+    return score_recording(RECORDINGS / scenario, sitl_vehicle())
+
+
 def scored(scenario: str) -> FlightScore:
-    vehicle = sitl_vehicle()
-    folder = RECORDINGS / scenario
-    truth = FlightTruth.load(folder / "truth.json", vehicle.mass_kg)
-    result = analyze(load_flights([folder / "flight.tlog"]), vehicle)
-    time_s = result.samples.state.time_s
-    return score_summary(truth.within(float(time_s.min()), float(time_s.max())), result.summary())
+    return checked(scenario).score
 
 
 def test_enough_recordings_of_each_kind_are_scored() -> None:
@@ -81,6 +88,32 @@ def test_clean_flights_name_nothing() -> None:
 def test_the_held_out_error_ends_within_twice_the_noise_floor(scenario: str) -> None:
     score = scored(scenario)
     assert score.rmse_to_floor <= 2.0, [(m.label, m.params) for m in score.matches]
+
+
+def test_the_docs_give_the_results_as_measured() -> None:
+    """The SITL effect blocks of README.md and docs/residuals.md are what these recordings
+    give now (``scripts/figures.py`` writes them: ``make figures``)."""
+    figures = _figures_script()
+    assert figures.sitl.effect_scenarios() == SCENARIOS
+    checks = {s: checked(s) for s in SCENARIOS}
+    now = {
+        "sitl-effects-table": figures.sitl.effects_table(checks),
+        "sitl-effects-right": figures.sitl.effects_right(checks),
+        "sitl-effects-floors": figures.sitl.effects_floors(checks),
+    }
+    assert set(now) == {n for n, test in figures.CHECKED_BY.items() if test == THIS_FILE}
+    blocks = [b for b in figures.all_blocks() if b.name in now]
+    assert {b.name for b in blocks} == set(now)
+    stale = [b.name for b in blocks if b.text != now[b.name]]
+    assert not stale, f"{stale}: run `make figures` and review the diff"
+
+
+def _figures_script() -> ModuleType:
+    spec = importlib.util.spec_from_file_location("figures", REPO / "scripts" / "figures.py")
+    assert spec is not None and spec.loader is not None
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    return module
 
 
 def test_a_release_is_timed_by_the_autopilots_gripper_report() -> None:

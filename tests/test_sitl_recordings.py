@@ -4,12 +4,14 @@ and every tlog and DataFlash log replays. Also the command's answers to user mis
 
 from __future__ import annotations
 
+import importlib.util
 import json
+from functools import cache
 from pathlib import Path
 
 import pytest
 
-from estimator.analysis.replay import replay_log, summarize
+from estimator.analysis.replay import FlightReplay, replay_log, summarize
 from estimator.cli import main
 from estimator.physics.vehicle import load_vehicle
 from estimator.sitl.scenarios import SCENARIOS, Grip, SetWind
@@ -17,6 +19,7 @@ from estimator.sitl.scenarios import SCENARIOS, Grip, SetWind
 REPO = Path(__file__).resolve().parent.parent
 RECORDINGS = REPO / "replay/sitl"
 VEHICLE = REPO / "config/vehicles/ardupilot_sitl_quad.toml"
+THIS_FILE = "tests/test_sitl_recordings.py"
 #: What the recordings may weigh together (they are committed), bytes.
 MAX_TOTAL_BYTES = 25 * 2**20
 
@@ -57,19 +60,46 @@ def test_truth_names_the_effects_of_the_scenario_within_the_flight(name: str) ->
         assert truth["battery"]["drains"] and ev["reserve_s"] < ev["landed_s"]
 
 
+@cache
+def replayed(log: Path) -> FlightReplay:
+    return replay_log(log, load_vehicle(VEHICLE))
+
+
 @pytest.mark.parametrize("name", sorted(SCENARIOS))
 def test_recording_replays_with_its_airborne_time(name: str) -> None:
     ev = _truth(name)["events"]
-    vehicle = load_vehicle(VEHICLE)
     logs = [RECORDINGS / name / "flight.tlog"]
     if (RECORDINGS / name / "flight.BIN").is_file():
         logs.append(RECORDINGS / name / "flight.BIN")
     for log in logs:
-        flight = replay_log(log, vehicle)
+        flight = replayed(log)
         summary = summarize([flight])
         assert flight.bad_frames == 0
         assert summary.airborne_s == pytest.approx(ev["landed_s"] - ev["takeoff_s"], abs=5.0)
         assert summary.energy_measured_wh > 10.0
+
+
+def test_the_docs_give_the_replays_as_measured() -> None:
+    """docs/sitl.md's table of the recordings and docs/residuals.md's of the wind in use on
+    them are what they replay to now (``make figures`` writes them from
+    ``scripts/figures.py``)."""
+    spec = importlib.util.spec_from_file_location("figures", REPO / "scripts" / "figures.py")
+    assert spec is not None and spec.loader is not None
+    figures = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(figures)
+    flights = {n: replayed(RECORDINGS / n / "flight.tlog") for n in figures.sitl.recordings()}
+    with_wind = {n: f.estimates for n, f in flights.items()}
+    now = {
+        "sitl-recordings-table": figures.sitl.recordings_table(flights),
+        "tracked-wind-sitl": "\n".join(
+            figures.script_module("tracked_wind_sitl").table_lines(with_wind)
+        ),
+    }
+    assert {n for n, test in figures.CHECKED_BY.items() if test == THIS_FILE} == set(now)
+    blocks = [b for b in figures.all_blocks() if b.name in now]
+    assert {b.name for b in blocks} == set(now)
+    stale = [b.name for b in blocks if b.text != now[b.name]]
+    assert not stale, f"{stale}: run `make figures` and review the diff"
 
 
 def test_sitl_record_answers_user_mistakes_in_one_line(

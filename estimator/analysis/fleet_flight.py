@@ -3,7 +3,9 @@
 Every mode replays the log through the daemon's pipeline (:func:`replay_stream`): identity
 (start time, autopilot, pack), duration, airborne time, energy, the model's power error, the
 pipeline's internal resistance and online mass, a usable-capacity estimate from the resting
-voltage before and after the flight, and the capacity the pack filter learnt (with its σ).
+voltage before and after the flight, the capacity the pack filter learnt (with its σ), and
+the log's sanity warnings against the vehicle file (:mod:`estimator.logs.sanity`, as replay
+says them: a pack of other cells makes the resistance and energy figures wrong).
 ``fit`` adds a per-flight fit of the theory model (:func:`fit_theory`: hover power, V_me);
 ``residuals`` adds the residual analysis (:func:`analyze`: effects the model lacks). Column
 meanings and units: ``docs/fleet.md``.
@@ -169,6 +171,7 @@ def replay_columns(path: Path, job: FleetJob) -> dict[str, Any]:
         "capacity_ah": capacity_ah,
         "pack_capacity_ah": None if learnt is None else learnt[0],
         "pack_capacity_sigma_ah": None if learnt is None else learnt[1],
+        "warnings": stream.problems(vehicle.battery.cells),
     }
 
 

@@ -50,6 +50,11 @@ COLUMNS: tuple[tuple[str, pa.DataType, str], ...] = (
     ("capacity_ah", pa.float64(), "charge used ÷ resting-SoC drop (drop ≥ 0.15), Ah"),
     ("pack_capacity_ah", pa.float64(), "pack filter's learnt capacity at the end, Ah"),
     ("pack_capacity_sigma_ah", pa.float64(), "its 1σ, Ah"),
+    (
+        "warnings",
+        pa.map_(pa.string(), pa.string()),
+        "sanity checks against the vehicle file: cause → sentence (logs/sanity.py)",
+    ),
     ("fit_points", pa.int64(), "fit: points kept by the paper's preprocessing"),
     ("hover_power_fit_w", pa.float64(), "fit: hover power of this flight's fit, W"),
     ("hover_power_fit_stderr_w", pa.float64(), "fit: its 1σ, W"),

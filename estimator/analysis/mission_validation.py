@@ -75,26 +75,35 @@ def truth_conditions(truth: dict, wind_sigma_mps: float = 0.0) -> Conditions:
 
 
 def predict_recording(
-    directory: Path, vehicle: Vehicle, settings: FlightSettings | None = None
+    directory: Path,
+    vehicle: Vehicle,
+    settings: FlightSettings | None = None,
+    conditions: Conditions | None = None,
 ) -> MissionEnergy:
-    """The plan of a recording's mission file in its truth's wind and payload."""
+    """The plan of a recording's mission file in its truth's wind and payload (or in
+    ``conditions``: what the planner is told instead)."""
     files = sorted(directory.glob("mission.*"))
     if not files:
         raise UserError(f"{directory}: no mission.plan or mission.waypoints")
-    truth = json.loads((directory / "truth.json").read_text())
+    if conditions is None:
+        conditions = truth_conditions(json.loads((directory / "truth.json").read_text()))
     legs = load_mission(files[0]).legs()
-    return mission_energy(legs, vehicle, truth_conditions(truth), settings or FlightSettings())
+    return mission_energy(legs, vehicle, conditions, settings or FlightSettings())
 
 
 def check_recording(
-    directory: Path, vehicle: Vehicle, settings: FlightSettings | None = None
+    directory: Path,
+    vehicle: Vehicle,
+    settings: FlightSettings | None = None,
+    conditions: Conditions | None = None,
 ) -> MissionCheck:
-    """Predicted against measured for one recording directory."""
+    """Predicted against measured for one recording directory (planned in its truth's
+    conditions, or in ``conditions``)."""
     truth = json.loads((directory / "truth.json").read_text())
     events = truth["events"]
     start, end = events.get("mission_start_s", math.nan), events.get("disarmed_s", math.nan)
     measured_wh, measured_s = measured_energy(directory / "flight.tlog", start, end)
-    plan = predict_recording(directory, vehicle, settings)
+    plan = predict_recording(directory, vehicle, settings, conditions)
     return MissionCheck(
         name=directory.name,
         predicted_wh=plan.total.energy_wh,

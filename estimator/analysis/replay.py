@@ -75,14 +75,19 @@ class PowerTrace:
         than ``idle_below_w`` (a barometer drifting on the ground while the motors spin up at
         arming is not flight).
         A log that never gives the armed state (or the altitude) is judged on the rest."""
+        armed, high, powered = self.conditions()
+        return armed & high & powered
+
+    def conditions(self) -> tuple[NDArray[np.bool_], NDArray[np.bool_], NDArray[np.bool_]]:
+        """Per reading, the three tests of :meth:`airborne`: armed (all true when the log
+        never gives the state), high (likewise for the altitude), powered."""
         armed = np.asarray(self.armed, dtype=float)
         alt = np.asarray(self.alt_m, dtype=float)
-        ok = np.asarray(self.measured_w, dtype=float) >= self.idle_below_w
-        if np.isfinite(armed).any():
-            ok &= armed == 1.0
-        if np.isfinite(alt).any():
-            ok &= alt > AIRBORNE_ALT_M
-        return ok
+        powered = np.asarray(self.measured_w, dtype=float) >= self.idle_below_w
+        every = np.ones(len(powered), dtype=bool)
+        armed_ok = armed == 1.0 if np.isfinite(armed).any() else every
+        high = alt > AIRBORNE_ALT_M if np.isfinite(alt).any() else every
+        return armed_ok, high, powered
 
     def arrays(self) -> tuple[FloatArray, FloatArray, FloatArray, NDArray[np.bool_]]:
         """(time, measured, model, airborne)."""
@@ -250,3 +255,32 @@ def with_batteries(
         if isinstance(sample, BatterySample):
             batteries.append(sample)
         yield sample
+
+
+def no_airborne_reason(flight: FlightReplay, stream: SampleStream, vehicle_name: str) -> str:
+    """Why a replay of ``stream`` with no airborne time had none (no two successive power
+    readings airborne as :meth:`PowerTrace.airborne` judges: armed, above
+    :data:`~estimator.estimation.airborne.AIRBORNE_ALT_M`, above idle power): the reader's
+    ``missing``, else which of these never held, with the message types the log has."""
+    if stream.missing is not None:
+        return stream.missing
+    power = flight.power
+    measured = np.asarray(power.measured_w, dtype=float)
+    armed_ok, high, powered = power.conditions()
+    if not len(measured):
+        why = "no power reading (a battery current with a velocity) reached the estimator"
+    elif not armed_ok.any():
+        why = "never armed while the battery reported"
+    elif not (armed_ok & high).any():
+        why = f"never more than {AIRBORNE_ALT_M:.0f} m above home while armed (did not fly)"
+    elif not (flying := armed_ok & high & powered).any():
+        top = float(np.nanmax(measured[armed_ok & high]))
+        why = (
+            f"power never above idle while armed and above {AIRBORNE_ALT_M:.0f} m ({top:.0f} W "
+            f"at most, idle below {power.idle_below_w:.0f} W for the '{vehicle_name}' vehicle)"
+        )
+    else:
+        n = np.count_nonzero(flying)
+        why = f"airborne for {n} isolated power reading{'s' if n > 1 else ''} only"
+    types = sorted(stream.message_types)
+    return f"{why}; it has {', '.join(types) if types else 'none of the types read'}"

@@ -8,6 +8,8 @@ log; a log that fails is a row with its reason (listed on stderr), never a stopp
 whose content hash is already in ``--out`` for the same mode are skipped (resume). A
 progress bar shows on a terminal (stderr); the counts go to stdout. ``--report DIR`` (or
 ``fleet trends``) writes the per-vehicle and per-pack trends across dates with a plot.
+The logs' sanity warnings against the vehicle file (a pack of other cells, a vertical
+velocity the wrong way up) go to stderr once per cause, with how many more logs they hold for.
 """
 
 from __future__ import annotations
@@ -23,6 +25,8 @@ from rich.console import Console
 
 from estimator.analysis.fleet_flight import MODES
 from estimator.commands.progress import logs_progress
+from estimator.errors import naming
+from estimator.logs.sanity import RunWarnings
 
 DEFAULT_OUT = Path("results.parquet")
 
@@ -77,16 +81,20 @@ def run(args: argparse.Namespace) -> int:
     console = Console(file=sys.stderr)
     progress = logs_progress(console, f"fleet {args.fleet_mode}")
     task = progress.add_task("logs", total=None)
+    said = RunWarnings()  # each cause's warning once per run
+
+    def say(line: str) -> None:
+        progress.console.print(
+            f"uav-energy fleet: {line}", highlight=False, markup=False, soft_wrap=True
+        )
 
     def on_row(row: dict[str, Any]) -> None:
         progress.advance(task)
         if row["status"] != "ok":
-            progress.console.print(
-                f"uav-energy fleet: failed: {row['path']}: {row['error']}",
-                highlight=False,
-                markup=False,
-                soft_wrap=True,
-            )
+            say(f"failed: {naming(row['path'], row['error'])}")
+        for cause, warning in row.get("warnings") or ():
+            if said.first(cause):
+                say(f"warning: {row['path']}: {warning}")
 
     with connect(args.scheduler, args.workers) as client, progress:
         workers = len(client.scheduler_info()["workers"])
@@ -99,6 +107,8 @@ def run(args: argparse.Namespace) -> int:
             on_total=lambda n: progress.update(task, total=n),
             on_row=on_row,
         )
+        for line in said.repeats():
+            say(f"warning: {line}")
     print(
         f"fleet {args.fleet_mode}: {counts.logs} logs: {counts.ok} ok, {counts.failed} failed "
         f"({counts.unexpected} unexpected), {counts.already_done} already in {args.out}, "

@@ -14,8 +14,11 @@ scored against the true time left (:mod:`estimator.analysis.endurance_truth`).
 ``--speed N`` paces the samples at N times the log's own time (``max``, the default, as fast
 as possible); pacing happens here, outside the pipeline, so it never changes an estimate. A
 progress bar shows on a terminal.
-With several logs, one that cannot be read is reported and skipped (``logs_skipped``); with a
-single log, or when none can be read, the error ends the command (exit 2).
+A log with estimates but no airborne time says why on stderr
+(:func:`~estimator.analysis.replay.no_airborne_reason`: what it lacks, the message types it
+has). With several logs, one that cannot be read is reported and skipped
+(``logs_skipped``); with a single log, or when none can be read, the error ends the command
+(exit 2).
 """
 
 from __future__ import annotations
@@ -42,15 +45,27 @@ from rich.progress import (
 from rich.table import Table
 
 from estimator.analysis.endurance_truth import coverage_json, score_replays
-from estimator.analysis.replay import FlightReplay, Summary, replay_stream, summarize
+from estimator.analysis.replay import (
+    FlightReplay,
+    Summary,
+    no_airborne_reason,
+    replay_stream,
+    summarize,
+)
 from estimator.commands.progress import logs_progress
-from estimator.errors import UserError
+from estimator.errors import UserError, naming
 from estimator.estimation.estimate import Estimate
 from estimator.estimation.pack_identity import FlightPack
 from estimator.estimation.pack_memory import check_pack_id
 from estimator.estimation.pipeline import Pipeline, PipelineSettings
 from estimator.estimation.return_home import MissionSample
-from estimator.logs import FORMATS, SampleStream, iter_samples, voltage_window_problem
+from estimator.logs import (
+    FORMATS,
+    SampleStream,
+    iter_samples,
+    suffixed_where_shared,
+    voltage_window_problem,
+)
 from estimator.logs.mission_files import MissionFile, load_mission
 from estimator.logs.sanity import RunWarnings
 from estimator.mavlink.config import build_config, load_config_file
@@ -181,7 +196,10 @@ def run(args: argparse.Namespace) -> int:
                 if len(args.logs) == 1:
                     raise
                 console.print(
-                    f"uav-energy replay: skipped {path}: {exc}", highlight=False, soft_wrap=True
+                    f"uav-energy replay: skipped: {naming(path, str(exc))}",
+                    highlight=False,
+                    soft_wrap=True,
+                    markup=False,
                 )
                 skipped_logs.append({"log": str(path), "error": str(exc)})
                 continue
@@ -283,6 +301,8 @@ def _replay_one(
             problem = voltage_window_problem(stream, vehicle.battery.cells, limits)
             if problem is not None:
                 raise UserError(f"{path}: {problem}")
+        elif summarize([flight]).airborne_s == 0:
+            note(no_airborne_reason(flight, stream, vehicle.name), "no airborne time")
         note(pack.remember(), "warning")
         note(pack.unnamed())
         for cause, warning in stream.problems(vehicle.battery.cells):
@@ -318,12 +338,14 @@ def _progress(console: Console, n_logs: int) -> Progress:
 
 
 def flight_names(paths: Sequence[Path]) -> list[str]:
-    """Short unique labels: the path below the logs' common folder, without the suffix."""
+    """Short unique labels: the path below the logs' common folder, without the suffix unless
+    only it tells two logs apart (``flight.BIN``, ``flight.tlog``)."""
     if len(paths) == 1:
         return [paths[0].stem]
     absolute = [p.resolve() for p in paths]
     common = Path(os.path.commonpath([p.parent for p in absolute]))
-    return ["/".join(p.relative_to(common).with_suffix("").parts[-_NAME_PARTS:]) for p in absolute]
+    names = ["/".join(p.relative_to(common).with_suffix("").parts[-_NAME_PARTS:]) for p in absolute]
+    return suffixed_where_shared(names, paths)
 
 
 def write_csv(path: Path, flights: Sequence[FlightReplay]) -> None:

@@ -4,14 +4,15 @@ The pipeline hands every position, home, mission and mission-item sample to
 :class:`ReturnHome` and asks it for :class:`ReturnFigures` with each estimate, so the daemon
 and a replay give the same figures.
 
-Return (ArduPilot's RTL, which PX4's resembles): climb to ``return_alt_m`` over home when
-lower (a vehicle higher returns at its height), fly the great-circle bearing to home, descend
-and land. The horizontal leg flies at the airspeed of least energy per metre over ground in
-the wind in use (or at ``return_speed_mps`` over ground when the autopilot's return speed is
-set), the climb and the landing at the vertical speeds of :mod:`estimator.physics.route_energy`
-(the leg physics is there, not here). Energies are electrical (terminal) energy scaled by the
-fused bias; the margin compares them, times the pack's loss factor OCV/V, with the usable
-energy left above the reserve.
+Return (ArduPilot's RTL by default; PX4's with the settings of
+:func:`estimator.estimation.rtl_profiles.px4_rtl`): climb to ``return_alt_m`` over home when
+lower (a vehicle higher returns at its height), fly the great-circle bearing to home, loiter
+(PX4: after a descent to ``descend_alt_m``), land. The horizontal leg flies at the airspeed
+of least energy per metre over ground in the wind in use (or at ``return_speed_mps`` over
+ground when the autopilot's return speed is set), the climb and the landing at the vertical
+speeds of :mod:`estimator.physics.route_energy` (the leg physics is there, not here).
+Energies are electrical (terminal) energy scaled by the fused bias; the margin compares them,
+times the pack's loss factor OCV/V, with the usable energy left above the reserve.
 
 σ of the return energy: the bias's (model error), and the change of the energy when the wind
 moves by its 1σ along and across the bearing and the mass by its 1σ (the online tracker's, or
@@ -114,12 +115,19 @@ class ReturnSettings:
     RTL_SPEED ≤ 20 m/s), m/s.
     accel_mps2, jerk_mps3, vertical_accel_mps2: how the autopilot changes speed (ArduCopter
     WPNAV_ACCEL, WPNAV_JERK, WPNAV_ACCEL_Z): the stop from the current velocity and the speed
-    ramps (:class:`~estimator.physics.route_energy.Kinematics`). pause_s: RTL's pause in
+    ramps (:class:`~estimator.physics.route_energy.Kinematics`); vertical_jerk_mps3: the
+    vertical ramps' jerk limit (None: none; PX4's MPC_JERK_AUTO). pause_s: RTL's pause in
     place before it turns home (2 s, measured in SITL by the mission-energy work).
     climb_rate_mps / descent_rate_mps: vertical speeds of the climb and of the landing above
     land_alt_low_m (ArduCopter WPNAV_SPEED_UP / _DN, m/s); land_speed_mps below it (LAND_SPEED);
     loiter_s: hover over home before the descent (RTL_LOIT_TIME); touchdown_s: hover power
     until the motors stop.
+    descend_alt_m: PX4's RTL_DESCEND_ALT: with a loiter (``loiter_s`` > 0) the vehicle descends
+    to this height over home first and loiters there (m); None: it loiters at its return height
+    (ArduCopter). blend_alt_m: PX4's MPC_LAND_ALT1: from this height the landing rate goes
+    linearly down to land_speed_mps at land_alt_low_m (m; None: a step at land_alt_low_m).
+    crawl_alt_m / crawl_speed_mps: PX4's MPC_LAND_ALT3 / MPC_LAND_CRWL, the last metres over a
+    distance sensor (0: no crawl).
     rate_time_constant_s: smoothing of the return energy's rate of change (s).
     mission_period_s: the mission's remaining energy is recomputed this often (s).
     wind_source: "tracked" (the wind in use: the online tracker's once identified, else the
@@ -138,6 +146,7 @@ class ReturnSettings:
     accel_mps2: float = DEFAULT_ACCEL_MPS2
     jerk_mps3: float = DEFAULT_JERK_MPS3
     vertical_accel_mps2: float = DEFAULT_VERTICAL_ACCEL_MPS2
+    vertical_jerk_mps3: float | None = None
     pause_s: float = DEFAULT_RTL_PAUSE_S
     climb_rate_mps: float = DEFAULT_CLIMB_RATE_MPS
     descent_rate_mps: float = DEFAULT_DESCENT_RATE_MPS
@@ -145,6 +154,10 @@ class ReturnSettings:
     land_alt_low_m: float = DEFAULT_LAND_ALT_LOW_M
     land_speed_mps: float = DEFAULT_LAND_SPEED_MPS
     touchdown_s: float = 0.0
+    descend_alt_m: float | None = None
+    blend_alt_m: float | None = None
+    crawl_alt_m: float = 0.0
+    crawl_speed_mps: float = 0.0
     rate_time_constant_s: float = 10.0
     mission_period_s: float = 5.0
     wind_source: str = "tracked"
@@ -466,10 +479,12 @@ class ReturnHome:
         """The return (:mod:`estimator.physics.route_energy`, model energy before the bias) from
         a ground velocity ``velocity_ne_mps`` (m/s): stop and pause in place (at hover power;
         the distance flown away while stopping is added to the leg), climb in place to the
-        return height, the leg home with the autopilot's speed ramps, the loiter over home, the
-        landing; and the leg's cruise ground speed (m/s)."""
+        return height, the leg home with the autopilot's speed ramps, the descent to the
+        loiter height (PX4), the loiter over home, the landing; and the leg's cruise ground
+        speed (m/s)."""
         s = self.settings
-        rv, k = self._vehicle, Kinematics(s.accel_mps2, s.jerk_mps3, s.vertical_accel_mps2)
+        k = Kinematics(s.accel_mps2, s.jerk_mps3, s.vertical_accel_mps2, s.vertical_jerk_mps3)
+        rv = self._vehicle
         height_m = max(alt_m, s.return_alt_m)
         vn, ve = velocity_ne_mps
         rad = math.radians(track_deg)
@@ -492,16 +507,37 @@ class ReturnHome:
                 rv, conditions, distance_m=distance_m, track_deg=track_deg,
                 ground_speed_mps=MIN_GROUND_SPEED_MPS,
             )  # fmt: skip
+        loiter_m = height_m
+        if s.descend_alt_m is not None and s.loiter_s > 0:
+            loiter_m = min(height_m, s.descend_alt_m)
         total = sum_energies(
             [
                 hover_energy(rv, conditions, stop_s + s.pause_s),
                 vertical_energy(rv, conditions, height_m - alt_m, s.climb_rate_mps, kinematics=k),
                 leg,
-                hover_energy(rv, conditions, s.loiter_s),
-                landing_energy(
-                    rv, conditions, height_m, s.descent_rate_mps, final_height_m=s.land_alt_low_m,
-                    final_rate_mps=s.land_speed_mps, touchdown_s=s.touchdown_s, kinematics=k,
+                vertical_energy(
+                    rv, conditions, loiter_m - height_m, s.descent_rate_mps, kinematics=k
                 ),
+                hover_energy(rv, conditions, s.loiter_s),
+                *self._landing(conditions, loiter_m, k),
             ]
-        )  # fmt: skip
+        )
         return total, leg.ground_speed_mps
+
+    def _landing(self, conditions: Conditions, height_m: float, k: Kinematics) -> list[RouteEnergy]:
+        """The landing from ``height_m`` (m over home): fast, (PX4) blended, slow, and the
+        crawl over a distance sensor when set, then the touchdown."""
+        s, rv = self.settings, self._vehicle
+        crawl_m = min(s.crawl_alt_m, height_m) if s.crawl_speed_mps > 0 else 0.0
+        above = landing_energy(
+            rv, conditions, height_m - crawl_m, s.descent_rate_mps,
+            final_height_m=s.land_alt_low_m - crawl_m, final_rate_mps=s.land_speed_mps,
+            blend_height_m=None if s.blend_alt_m is None else s.blend_alt_m - crawl_m,
+            touchdown_s=0.0 if crawl_m else s.touchdown_s, kinematics=k,
+        )  # fmt: skip
+        if not crawl_m:
+            return [above]
+        crawl = landing_energy(
+            rv, conditions, crawl_m, s.crawl_speed_mps, touchdown_s=s.touchdown_s
+        )
+        return [above, crawl]

@@ -32,6 +32,7 @@ from numpy.typing import NDArray
 
 from estimator.errors import UserError
 from estimator.file_checks import regular_file
+from estimator.logs.coverage import Coverage
 from estimator.logs.sanity import SanityRecorder
 from estimator.physics.effects import wind_from_deg
 from estimator.telemetry.decode import SKIP_COUNTERS
@@ -119,8 +120,11 @@ class SampleStream(Iterator[Sample]):
     plausibility and time checks skipped, by reason; ``bad_frames``: corrupt records;
     ``truncated``: the file ended in the middle of a record (everything before the damage was
     read). ``velocity_source`` names the logged vertical velocity (for warnings). ``missing``:
-    where the reader can tell, what a log that gave no battery current or no velocity lacks,
-    naming the message types it has (a sentence part); None otherwise.
+    once iterated, what a log that gave no battery voltage, no known non-zero current or no
+    velocity lacks, naming the message types it has (a sentence part,
+    :meth:`~estimator.logs.coverage.Coverage.gap` over the reader's ``message_types``,
+    ``battery_types`` and ``velocity_types``, unless the reader said more); None otherwise.
+    ``firmware``: the autopilot's name and version as the log states it, else None.
     Where the log has them (tlogs): ``start_unix_s``, the first record's receive time (s since
     the Unix epoch, UTC); ``autopilot``, the (system id, component id) decoded; ``pack_id``, the
     pack's serial number (else its device name) from SMART_BATTERY_INFO. None otherwise.
@@ -138,15 +142,28 @@ class SampleStream(Iterator[Sample]):
         self.start_unix_s: float | None = None
         self.autopilot: tuple[int, int] | None = None
         self.pack_id: str | None = None
+        self.firmware: str | None = None
+        self.message_types: set[str] = set()
+        self.battery_types: tuple[str, ...] = ()
+        self.velocity_types: tuple[str, ...] = ()
         self.sanity = SanityRecorder()
+        self.coverage = Coverage()
         self._it = iter(samples)
 
     def __iter__(self) -> SampleStream:
         return self
 
     def __next__(self) -> Sample:
-        sample = next(self._it)
+        try:
+            sample = next(self._it)
+        except StopIteration:
+            if self.missing is None and self.battery_types:
+                self.missing = self.coverage.gap(
+                    self.message_types, self.battery_types, self.velocity_types
+                )
+            raise
         self.sanity.observe(sample)
+        self.coverage.observe(sample)
         return sample
 
     def warnings(self, cells: int | None = None) -> list[str]:
@@ -231,7 +248,7 @@ def load_flights(
         if hasattr(module, "load_flights"):
             flights.extend(module.load_flights(group))
             continue
-        jobs = list(zip(group, _unique_names(group), [name] * len(group), strict=True))
+        jobs = list(zip(group, _unique_names(paths, group), [name] * len(group), strict=True))
         if workers > 1 and len(jobs) > 1:
             import multiprocessing  # only here: the daemon imports this module
             from concurrent.futures import ProcessPoolExecutor
@@ -252,14 +269,31 @@ def _read_flights(job: tuple[Path, str, str]) -> list[FlightSeries]:
     return list(flights_from_stream(iter_samples(path, fmt), flight_name))
 
 
-def _unique_names(paths: list[Path]) -> list[str]:
-    """Short distinct names: file stems, or paths below the common folder if stems repeat."""
-    stems = [p.stem for p in paths]
+def _unique_names(paths: Sequence[str | Path], group: list[Path]) -> list[str]:
+    """Short distinct names of the logs ``group`` among all ``paths`` read together: file
+    stems, or paths below the common folder if stems repeat (with the suffix where only it
+    tells two apart: ``flight.BIN``, ``flight.tlog``)."""
+    every = [Path(p) for p in paths]
+    stems = [p.stem for p in every]
     if len(set(stems)) == len(stems):
-        return stems
-    resolved = [p.resolve() for p in paths]
-    common = Path(os.path.commonpath(resolved))
-    return [p.relative_to(common).with_suffix("").as_posix() for p in resolved]
+        names = stems
+    else:
+        resolved = [p.resolve() for p in every]
+        common = Path(os.path.commonpath(resolved))
+        below = [p.relative_to(common).with_suffix("").as_posix() for p in resolved]
+        names = suffixed_where_shared(below, every)
+    of_path = dict(zip(every, names, strict=True))
+    return [of_path[p] for p in group]
+
+
+def suffixed_where_shared(names: Sequence[str], paths: Sequence[Path]) -> list[str]:
+    """``names`` of the files ``paths``, each name that several files share followed by its
+    file's suffix (``flight.BIN`` and ``flight.tlog`` rather than ``flight`` twice)."""
+    counts = Counter(names)
+    return [
+        f"{name}{path.suffix}" if counts[name] > 1 else name
+        for name, path in zip(names, paths, strict=True)
+    ]
 
 
 def flights_from_stream(

@@ -9,12 +9,15 @@ the record before it. What is used:
 
 - velocity (NED, m/s): the EKF's ``XKF1`` (EKF3, its first core ``C``), ``NKF1`` (EKF2) or
   ``EKF1`` (the first EKF, Copter 3.2–3.3) ``VN, VE, VD`` with altitude ``−PD``; without any,
-  ``GPS`` ``Spd, GCrs, VZ`` (3-D fix only) with altitude above the first fix;
-- battery: ``BAT`` instance 0: ``Volt`` (V), ``Curr`` (A), ``CurrTot`` (mAh), ``RemPct`` (%);
-  ArduPilot logs NaN for values it does not know: they become ``None`` (no usable voltage
-  drops the record). Logs older than ``BAT`` (Copter ≤ 3.4) have ``CURR``: its ``Volt`` /
-  ``Curr`` are integer centivolts / centiamps up to Copter 3.3 and float V / A in 3.4,
-  ``CurrTot`` mAh;
+  ``GPS`` (instance 0 where it has an ``I`` column, Copter ≥ 4.1) ``Spd, GCrs, VZ`` (3-D fix
+  only) with altitude above the first fix;
+- battery: ``BAT``, the instance with the most known non-zero currents (else 0; a vehicle
+  with several monitors may measure the current on one only): ``Volt`` (V), ``Curr`` (A),
+  ``CurrTot`` (mAh), ``RemPct`` (%); ArduPilot logs NaN for values it does not know: they
+  become ``None`` (no usable voltage drops the record). Logs older than ``BAT``
+  (Copter ≤ 3.4) have ``CURR``: its ``Volt`` / ``Curr`` are integer centivolts / centiamps up
+  to Copter 3.3 and float V / A in 3.4, ``CurrTot`` mAh;
+- firmware: the first ``MSG`` text naming it (:data:`FIRMWARE_TEXT`), as ``firmware``;
 - gripper actions: ``MSG`` texts "Gripper load released"/"grabbed" (as the tlog's STATUSTEXT,
   :func:`~estimator.telemetry.decode.gripper_released`);
 - armed state: ``ARM.ArmState``, or ``EV`` ids 10 (armed) / 11 (disarmed) in older logs.
@@ -25,7 +28,8 @@ the record before it. What is used:
 Counters, final after iteration: ``skipped`` (records with unusable values, or older than
 samples already given), ``bad_frames`` (corrupt regions between records), ``truncated`` (the
 last record is cut off); ``missing`` says what a log without a usable battery current or
-velocity lacks, naming the message types it has.
+velocity lacks, naming the message types it has (a current of 0 A throughout: no current
+sensor, :mod:`estimator.logs.coverage`).
 """
 
 from __future__ import annotations
@@ -35,6 +39,7 @@ import heapq
 import io
 import math
 import os
+import re
 import sys
 from collections.abc import Iterator
 from pathlib import Path
@@ -62,11 +67,14 @@ BATTERY_TYPES = ("BAT", "CURR")
 EVENT_ARMED, EVENT_DISARMED = 10, 11
 #: A GPS ``Status`` at least this is a 3-D fix.
 GPS_FIX_3D = 3
+#: The ``MSG`` text naming the firmware and its version, written when logging starts
+#: ("ArduCopter V3.2.1 (36b405fb)", "APM:Copter V3.1.5 (3c57e771)").
+FIRMWARE_TEXT = re.compile(r"^(?:Ardu\w+|APM:\w+) V?\d+\.\d+")
 #: Records are re-sorted by time within this window (ArduPilot logs from several threads).
 REORDER_WINDOW_S = 0.5
 #: Records parsed between yields (pymavlink's diagnostics are silenced per batch).
 _BATCH = 2000
-_BAT_INSTANCE_COLUMNS = ("Inst", "Instance", "I")
+_INSTANCE_COLUMNS = ("Inst", "Instance", "I")
 _INTEGER_CHARS = frozenset("bBhHiI")
 FMT_TYPE = 0x80
 
@@ -83,6 +91,9 @@ def iter_samples(path: str | Path) -> SampleStream:
     path = Path(path)
     stream = SampleStream(path, "dataflash", ())
     decoder = _Decoder(_open(path), stream)
+    stream.message_types = {name for name in _HANDLERS if decoder.count(name) > 0}
+    stream.battery_types = BATTERY_TYPES
+    stream.velocity_types = VELOCITY_TYPES
     if decoder.velocity_type is not None:
         stream.velocity_source = (
             f"{decoder.velocity_type}.{'VZ' if decoder.velocity_type == 'GPS' else 'VD'}"
@@ -97,13 +108,15 @@ class _Decoder:
     def __init__(self, log: _DataFlashIndex, stream: SampleStream) -> None:
         self._log = log
         self._stream = stream
-        self.velocity_type = next((t for t in VELOCITY_TYPES if self._count(t) > 0), None)
+        self.velocity_type = next((t for t in VELOCITY_TYPES if self.count(t) > 0), None)
         self._ekf_core: int | None = None
         self._gps_alt0_m: float | None = None
         self._armed: bool | None = None
-        self._battery_type = next((t for t in BATTERY_TYPES if self._count(t) > 0), "BAT")
-        self._bat_instance = _column(log, self._battery_type, _BAT_INSTANCE_COLUMNS)
-        self._arming_type = "ARM" if self._count("ARM") > 0 else "EV"
+        self._battery_type = next((t for t in BATTERY_TYPES if self.count(t) > 0), "BAT")
+        self._bat_instance = _column(log, self._battery_type, _INSTANCE_COLUMNS)
+        self._bat_chosen = self._battery_with_current()
+        self._gps_instance = _column(log, "GPS", _INSTANCE_COLUMNS)
+        self._arming_type = "ARM" if self.count("ARM") > 0 else "EV"
         self._clocks = {name: _clock(log, name) for name in _HANDLERS}
         self._time_s = 0.0  # the time of the record being read, s since boot
         self._battery_seen = False
@@ -112,7 +125,7 @@ class _Decoder:
 
     # -- reading -------------------------------------------------------------------------------
 
-    def _count(self, name: str) -> int:
+    def count(self, name: str) -> int:
         type_id = self._log.name_to_id.get(name)
         return 0 if type_id is None else int(self._log.counts[type_id])
 
@@ -126,7 +139,7 @@ class _Decoder:
     def missing(self) -> str | None:
         """After iteration: what the log lacks for an estimate, and the types it has; None
         when it gave a battery current and a velocity."""
-        if self._count(self._battery_type) == 0:
+        if self.count(self._battery_type) == 0:
             gap = f"no battery record ({' or '.join(BATTERY_TYPES)})"
         elif _column(self._log, self._battery_type, ("Curr",)) is None:
             gap = f"{self._battery_type} present but no current column"
@@ -138,12 +151,33 @@ class _Decoder:
             gap = f"no velocity record ({', '.join(VELOCITY_TYPES)})"
         else:
             return None
-        found = [name for name in _HANDLERS if self._count(name) > 0]
+        found = [name for name in _HANDLERS if self.count(name) > 0]
         return f"{gap}; it has {', '.join(found) or 'none of the records read'}"
+
+    def _battery_with_current(self) -> int:
+        """The battery instance with the most known, non-zero current readings (the lowest of
+        equals; 0 when none has any): a vehicle with several monitors may measure the
+        current on one only."""
+        if self._bat_instance is None or self.count(self._battery_type) == 0:
+            return 0
+        readings: dict[int, int] = {}
+        with _quiet_python_output():
+            while (msg := self._log.recv_match(type={self._battery_type}, strict=True)) is not None:
+                try:
+                    instance = int(getattr(msg, self._bat_instance))
+                    current_a = float(msg.Curr)
+                except (AttributeError, KeyError, TypeError, ValueError):
+                    continue  # a corrupt FMT: counted when the records are read
+                measured = math.isfinite(current_a) and current_a != 0.0
+                readings[instance] = readings.get(instance, 0) + int(measured)
+            self._log.rewind()
+        if not readings or not any(readings.values()):
+            return 0
+        return min(readings, key=lambda i: (-readings[i], i))
 
     def _first_arming_is_disarm(self) -> bool:
         """Whether the log's first arming record (ARM, else EV 10/11) is a disarm."""
-        if self._count(self._arming_type) == 0:
+        if self.count(self._arming_type) == 0:
             return False
         first: bool | None = None
         with _quiet_python_output():
@@ -163,7 +197,7 @@ class _Decoder:
 
     def samples(self) -> Iterator[Sample]:
         self._check_framing()
-        wanted = {t for t in (self._battery_type, self._arming_type, "MSG") if self._count(t) > 0}
+        wanted = {t for t in (self._battery_type, self._arming_type, "MSG") if self.count(t) > 0}
         if self.velocity_type is not None:
             wanted.add(self.velocity_type)
         heap: list[tuple[float, int, Sample]] = []
@@ -240,6 +274,8 @@ class _Decoder:
         return VelocitySample(self._time_s, v[0], v[1], v[2], -msg.PD)
 
     def _gps(self, msg: Any) -> Sample | None:
+        if self._gps_instance is not None and getattr(msg, self._gps_instance) != 0:
+            return None
         if msg.Status < GPS_FIX_3D:
             self._stream.skipped += 1
             return None
@@ -255,7 +291,7 @@ class _Decoder:
         )
 
     def _battery(self, msg: Any) -> Sample | None:
-        if self._bat_instance is not None and getattr(msg, self._bat_instance) != 0:
+        if self._bat_instance is not None and getattr(msg, self._bat_instance) != self._bat_chosen:
             return None
         voltage_v = _centi_if_integer(msg, "Volt")
         if not math.isfinite(voltage_v) or voltage_v <= 0.0:
@@ -282,7 +318,10 @@ class _Decoder:
         return self._armed_change(self._time_s, msg.Id == EVENT_ARMED)
 
     def _message(self, msg: Any) -> Sample | None:
-        released = gripper_released(str(msg.Message))
+        text = str(msg.Message)
+        if self._stream.firmware is None and FIRMWARE_TEXT.match(text):
+            self._stream.firmware = text.strip()
+        released = gripper_released(text)
         return None if released is None else GripperSample(self._time_s, released)
 
     def _armed_change(self, time_s: float, armed: bool) -> Sample | None:

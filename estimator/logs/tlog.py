@@ -18,7 +18,7 @@ import struct
 from collections.abc import Iterator
 from pathlib import Path
 
-from pymavlink.dialects.v20.common import MAVLink_message
+from pymavlink.dialects.v20.common import MAVLink_message, mavlink_map
 
 from estimator.errors import UserError
 from estimator.logs import SampleStream
@@ -34,6 +34,9 @@ _V2_SIGNATURE = 13
 _SIGNED_FLAG = 0x01
 #: SMART_BATTERY_INFO (MAVLink 2): the pack's identity, read for ``SampleStream.pack_id``.
 _SMART_BATTERY_INFO = 370
+#: The battery and velocity message types, as named in ``SampleStream.missing``.
+BATTERY_TYPES = ("BATTERY_STATUS", "SYS_STATUS")
+VELOCITY_TYPES = ("GLOBAL_POSITION_INT", "LOCAL_POSITION_NED")
 #: A resync candidate's stamp must lie within this distance (µs) of the last good stamp.
 _RESYNC_WINDOW_US = 3600 * 1_000_000
 
@@ -49,6 +52,8 @@ def iter_samples(path: Path, limits: InputLimits | None = None) -> SampleStream:
         raise UserError(f"{path} is not a MAVLink telemetry log (no frame after the first stamp)")
     stream = SampleStream(path, "tlog", iter(()))
     stream.start_unix_s = _stamp_us(data, 0) / 1e6
+    stream.battery_types = BATTERY_TYPES
+    stream.velocity_types = VELOCITY_TYPES
     stream._it = _records(data, stream, TelemetryDecoder(limits=limits))
     return stream
 
@@ -87,6 +92,7 @@ def _records(data: bytes, stream: SampleStream, decoder: TelemetryDecoder) -> It
     pos = 0
     last_good: int | None = None  # offset of the last good record (its stamp anchors resync)
     used = USED_MESSAGE_IDS
+    found: set[int] = set()
     while pos < end:
         if pos + STAMP_BYTES >= end:
             stream.truncated = True
@@ -105,7 +111,12 @@ def _records(data: bytes, stream: SampleStream, decoder: TelemetryDecoder) -> It
         last_good = pos
         if msgid == _SMART_BATTERY_INFO and stream.pack_id is None:
             stream.pack_id = _pack_id(parser.decode_frame(data[pos + STAMP_BYTES : frame_end]))
-        if msgid not in used or decoder.discards(msgid, *frame_source(data, pos + STAMP_BYTES)):
+        if msgid not in used:
+            stream.skipped += 1
+            pos = frame_end
+            continue
+        found.add(msgid)
+        if decoder.discards(msgid, *frame_source(data, pos + STAMP_BYTES)):
             stream.skipped += 1
             pos = frame_end
             continue
@@ -120,6 +131,13 @@ def _records(data: bytes, stream: SampleStream, decoder: TelemetryDecoder) -> It
     if decoder.velocity_type is not None:
         stream.velocity_source = f"{decoder.velocity_type}.vz"
     stream.autopilot = decoder.target
+    stream.message_types = {_message_name(msgid) for msgid in found}
+
+
+def _message_name(msgid: int) -> str:
+    """The MAVLink name of a message id the decoder uses (ArduPilot's WIND is not common)."""
+    entry = mavlink_map.get(msgid)
+    return "WIND" if entry is None else str(entry.msgname)
 
 
 def _pack_id(msg: MAVLink_message | None) -> str | None:

@@ -55,12 +55,17 @@ class ServiceConfig:
     of
     keeping the vehicle file's values for the whole flight.
     log_level: debug, info, warning or error.
-    return_alt_m: height over home (m) the return flies at (ArduPilot's RTL_ALT; 15 m).
+    return_alt_m: height over home (m) the return flies at (ArduPilot's RTL_ALT; 15 m; PX4's
+    RTL takes its own default).
     return_speed_mps: the autopilot's return ground speed (m/s; 0: the wind-optimal one, which
     the ground station may then set as RTL_SPEED). max_airspeed_mps: the vehicle's fastest
     airspeed (lean-angle limit; 0: the vehicle file's), max_ground_speed_mps: the autopilot's
     fastest return speed.
     return_wind: "tracked" (the online tracker's wind) or "autopilot" (its WIND / WIND_COV).
+    return_autopilot: whose RTL the return figures follow: "ardupilot" (ArduCopter's, with the
+    settings above), "px4" (PX4 v1.16's at its defaults,
+    :func:`~estimator.estimation.rtl_profiles.px4_rtl`; return_speed_mps, when set, stands for
+    MPC_XY_CRUISE) or "auto" (the autopilot's HEARTBEAT says which).
     warning_margin_pct / critical_margin_pct: STATUSTEXT WARNING / CRITICAL to the ground
     stations when the return margin (energy above the reserve after the return) falls below
     this share (%) of a full pack's usable energy; hysteresis_pct: it must rise this much above
@@ -102,6 +107,7 @@ class ServiceConfig:
     max_airspeed_mps: float = 0.0
     max_ground_speed_mps: float = DEFAULT_MAX_GROUND_SPEED_MPS
     return_wind: str = "tracked"
+    return_autopilot: str = "auto"
     warning_margin_pct: float = 15.0
     critical_margin_pct: float = 5.0
     hysteresis_pct: float = 2.0
@@ -165,6 +171,7 @@ _KEYS = {
     ("return", "max_airspeed_mps"): "max_airspeed_mps",
     ("return", "max_ground_speed_mps"): "max_ground_speed_mps",
     ("return", "wind"): "return_wind",
+    ("return", "autopilot"): "return_autopilot",
     ("return", "warning_margin_pct"): "warning_margin_pct",
     ("return", "critical_margin_pct"): "critical_margin_pct",
     ("return", "hysteresis_pct"): "hysteresis_pct",
@@ -292,6 +299,7 @@ def _fusion_pairs(table: Any) -> tuple[tuple[str, float], ...]:
 def validate(config: ServiceConfig) -> None:
     """Check ranges and connection strings; one UserError per first problem found."""
     from estimator.estimation.pack_memory import check_pack_id
+    from estimator.estimation.rtl_profiles import RTL_AUTOPILOTS
 
     if config.pack_id and not config.pack_dir:
         raise UserError("config [pack] id (--pack) needs [pack] dir")
@@ -330,6 +338,8 @@ def validate(config: ServiceConfig) -> None:
         raise UserError("config 'max_ground_speed_mps' must be in [1, 50] m/s")
     if config.return_wind not in ("tracked", "autopilot"):
         raise UserError("config 'return_wind' must be 'tracked' or 'autopilot'")
+    if config.return_autopilot not in ("auto", *RTL_AUTOPILOTS):
+        raise UserError("config 'return_autopilot' must be 'auto', 'ardupilot' or 'px4'")
     if not config.critical_margin_pct <= config.warning_margin_pct <= 100:
         raise UserError(
             "config 'critical_margin_pct' ≤ 'warning_margin_pct' ≤ 100 % of the usable energy"

@@ -37,6 +37,8 @@ MESSAGE_TYPES = frozenset({"MISSION_COUNT", "MISSION_ITEM_INT", "MISSION_ACK", "
 #: Their message ids (the daemon's link must let them through its header filter).
 MESSAGE_IDS = frozenset(getattr(mavlink, f"MAVLINK_MSG_ID_{name}") for name in MESSAGE_TYPES)
 _FRAMES_WITHOUT_POSITION = frozenset({mavlink.MAV_FRAME_MISSION})
+#: Items the log line of a completed download spells out (the count is always given).
+LOGGED_ITEMS = 10
 
 
 class MissionDownload:
@@ -159,7 +161,9 @@ class MissionDownload:
         self._active = False
         self.items = tuple(self._items[i] for i in range(len(self._items)))
         self.counts["downloads"] += 1
-        log.info("mission read from the autopilot: %d items", len(self.items))
+        shown = "; ".join(item_text(item) for item in self.items[:LOGGED_ITEMS])
+        more = " …" if len(self.items) > LOGGED_ITEMS else ""
+        log.info("mission read from the autopilot: %d items: %s%s", len(self.items), shown, more)
         self._done(self.items)
 
     def _fail(self, now_s: float, why: str) -> None:
@@ -196,3 +200,9 @@ def _item(msg: mavlink.MAVLink_message) -> MissionItem:
         alt_m=float(msg.z),
         where=f"item {msg.seq}",
     )
+
+
+def item_text(item: MissionItem) -> str:
+    """An item as the log gives it: ``command/frame lat,lon altm`` (degrees to 1e-7, metres
+    to the centimetre; ``nan,nan`` without a position)."""
+    return f"{item.command}/{item.frame} {item.lat_deg:.7f},{item.lon_deg:.7f} {item.alt_m:.2f}m"

@@ -54,6 +54,7 @@ from estimator.estimation.estimate import Estimate
 from estimator.estimation.pack_identity import FlightPack
 from estimator.estimation.pipeline import Pipeline, PipelineSettings
 from estimator.estimation.return_home import MissionEnergyFn, MissionSample
+from estimator.estimation.rtl_profiles import rtl_settings
 from estimator.logs.mission_files import MissionItem
 from estimator.mavlink import publish
 from estimator.mavlink.autopilot_lock import AutopilotLock
@@ -76,7 +77,7 @@ from estimator.telemetry.decode import (
     message_source,
 )
 from estimator.telemetry.plausibility import fitting_cells, pack_voltage_problem
-from estimator.telemetry.samples import BatterySample
+from estimator.telemetry.samples import BatterySample, LandedSample
 
 log = logging.getLogger("uav_energy.service")
 
@@ -122,6 +123,9 @@ class Service:
         if settings is None:
             settings = config.pipeline_settings()
         self.pipeline = Pipeline(vehicle, settings, mission_energy)
+        self._rtl = "ardupilot"  # whose RTL the return figures follow
+        if config.return_autopilot != "auto":
+            self._follow_rtl(config.return_autopilot)
         pack_dir = Path(config.pack_dir) if config.pack_dir else None
         # this run is one flight: its row of the pack's history starts now
         self.flight_pack = FlightPack(self.pipeline, pack_dir, config.pack_id or None, time.time())
@@ -350,6 +354,8 @@ class Service:
         if msg.get_type() == "HEARTBEAT" and message_source(msg) == self.decoder.target:
             self._home_first = msg.autopilot == mavlink.MAV_AUTOPILOT_ARDUPILOTMEGA
             self._px4 = msg.autopilot == mavlink.MAV_AUTOPILOT_PX4
+            if self.config.return_autopilot == "auto":
+                self._follow_rtl("px4" if self._px4 else "ardupilot")
         if self.mission is not None and msg.get_type() in MISSION_MESSAGES:
             self.mission.on_message(msg, now_s)
         if msg.get_msgId() == PACK_INFO_ID:
@@ -383,6 +389,9 @@ class Service:
             log.info("telemetry resumed: estimates live again")
         was_initialized = self.pipeline.energy.initialized
         for sample in samples:
+            if isinstance(sample, LandedSample):
+                where = "on the ground" if sample.on_ground else "off the ground"
+                log.info("landed detector: %s at %.2f s autopilot time", where, sample.time_s)
             estimate = self.pipeline.process(sample)
             if estimate is not None:
                 self._deliver(estimate, now_s)
@@ -406,6 +415,17 @@ class Service:
         if latest is not None and self._model_only_said not in (None, latest.model_only):
             self._model_only_said = latest.model_only  # said once per change
             log.info("estimating, %s", _mode(latest.model_only))
+
+    def _follow_rtl(self, autopilot: str) -> None:
+        """Return figures modelled on ``autopilot``'s RTL (said once per change)."""
+        if autopilot == self._rtl:
+            return
+        self._rtl = autopilot
+        returning = self.pipeline.returning
+        returning.settings = rtl_settings(autopilot, self.pipeline.settings.return_home)
+        log.info(
+            "return figures follow %s's RTL", {"px4": "PX4", "ardupilot": "ArduCopter"}[autopilot]
+        )
 
     def _start_mission(self, target: tuple[int, int]) -> None:
         """The mission download for this autopilot (read-only; off by configuration)."""

@@ -32,6 +32,7 @@ import numpy as np
 from numpy.typing import ArrayLike
 
 from estimator.errors import UserError
+from estimator.physics.axial import axial_induced_power_ratio
 from estimator.physics.kinematics import centripetal_accel_mps2
 from estimator.physics.model import G_MPS2, SEA_LEVEL_DENSITY_KGPM3, FloatArray, PowerModel
 
@@ -355,13 +356,18 @@ class AirDensity(Effect):
 
 @dataclass(frozen=True)
 class Climb(Effect):
-    """Vertical motion, by momentum theory at the hover induced velocity v0 = sqrt(c4/2).
+    """Axial flight (climb and descent), by momentum theory at the hover induced velocity
+    v0 = sqrt(c4/2) (:mod:`estimator.physics.axial`, Leishman ch. 2).
 
     Rotor power changes by m g (v_c + v_i(v_c) − v0) / efficiency, with climb rate
-    v_c = −v_d and induced velocity v_i = −v_c/2 + sqrt(v_c²/4 + v0²): ≈ m g v_c/2 for slow
-    climbs, → m g (v_c − v0) for fast ones; negative (less power) in descent, never below −hover's
-    induced share. efficiency (0..1]: electrical to rotor-work conversion (motor × ESC ×
-    rotor figure of merit); about m g v0 / c3 for a consistent model.
+    v_c = −v_d (m/s, up) and v_i the induced velocity of the climb branch
+    v_i = −v_c/2 + sqrt(v_c²/4 + v0²) in climb (≈ m g v_c/2 extra for slow climbs,
+    → m g (v_c − v0) for fast ones), of the vortex-ring bridge for descents slower than 2 v0
+    and of the windmill branch beyond. Descent needs less power, and saves at most
+    m g v0 / efficiency, hover's induced share (v_c + v_i is held ≥ 0: no power returns to
+    the battery). efficiency
+    (0..1]: electrical to rotor-work conversion (motor × ESC × rotor figure of merit); about
+    m g v0 / c3 for a consistent model.
     """
 
     name: ClassVar[str] = "climb"
@@ -371,9 +377,8 @@ class Climb(Effect):
     def propulsion_w(self, ctx: PowerContext) -> FloatArray:
         assert ctx.hover_induced_velocity_mps is not None
         v0 = ctx.hover_induced_velocity_mps
-        vc = -ctx.state.vd_mps
-        induced_mps = -0.5 * vc + np.sqrt(0.25 * vc * vc + v0 * v0)
-        return ctx.mass_kg * G_MPS2 * (vc + induced_mps - v0) / self.efficiency
+        ratio = axial_induced_power_ratio(-ctx.state.vd_mps, v0)
+        return ctx.mass_kg * G_MPS2 * v0 * (ratio - 1.0) / self.efficiency
 
 
 @dataclass(frozen=True)

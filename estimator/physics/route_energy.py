@@ -419,25 +419,30 @@ def reachable_ground_speed_mps(
 @dataclass(frozen=True)
 class Kinematics:
     """How the autopilot changes speed: horizontal ``accel_mps2`` (m/s²) with ``jerk_mps3``
-    (m/s³; None: no jerk limit), vertical ``vertical_accel_mps2`` (m/s²). A speed change of Δv
-    takes Δv/a + a/j when Δv ≥ a²/j, else 2 sqrt(Δv/j) (a jerk-limited S-curve), and is
-    flown at the mean speed with the mean acceleration (so eq. (2)'s kinetic term and the
-    file's ``acceleration`` effect count the kinetic energy gained and lost)."""
+    (m/s³; None: no jerk limit), vertical ``vertical_accel_mps2`` (m/s²; None: at once) with
+    ``vertical_jerk_mps3`` (m/s³; None: none, ArduCopter's model; PX4's MPC_JERK_AUTO limits
+    every axis). A speed change of Δv takes Δv/a + a/j when Δv ≥ a²/j, else 2 sqrt(Δv/j) (a
+    jerk-limited S-curve), and is flown at the mean speed with the mean acceleration (so eq.
+    (2)'s kinetic term and the file's ``acceleration`` effect count the kinetic energy gained
+    and lost)."""
 
     accel_mps2: float
     jerk_mps3: float | None = None
     vertical_accel_mps2: float | None = None
+    vertical_jerk_mps3: float | None = None
 
     def ramp_s(self, dv_mps: float, vertical: bool = False) -> float:
         """Time (s) to change speed by ``dv_mps``."""
         dv = abs(dv_mps)
+        accel, jerk = self.accel_mps2, self.jerk_mps3
         if vertical:
-            return dv / self.vertical_accel_mps2 if self.vertical_accel_mps2 else 0.0
-        jerk = self.jerk_mps3
+            accel, jerk = self.vertical_accel_mps2 or 0.0, self.vertical_jerk_mps3
+            if not accel:
+                return 0.0
         if jerk is None or jerk <= 0:
-            return dv / self.accel_mps2
-        if dv >= self.accel_mps2**2 / jerk:
-            return dv / self.accel_mps2 + self.accel_mps2 / jerk
+            return dv / accel
+        if dv >= accel**2 / jerk:
+            return dv / accel + accel / jerk
         return 2.0 * math.sqrt(dv / jerk)
 
 
@@ -630,20 +635,25 @@ def landing_energy(
     *,
     final_height_m: float = 0.0,
     final_rate_mps: float | None = None,
+    blend_height_m: float | None = None,
     touchdown_s: float = 0.0,
     kinematics: Kinematics | None = None,
 ) -> RouteEnergy:
     """Landing from ``height_m`` (m above the ground): down to ``final_height_m`` at
     ``descent_rate_mps``, the rest at ``final_rate_mps`` (m/s; None: the same rate), then
     ``touchdown_s`` (s) at hover power until the motors stop (ArduCopter's LAND: WPNAV_SPEED_DN
-    above LAND_ALT_LOW, then LAND_SPEED); with ``kinematics``, the first descent starts from
-    rest at its vertical acceleration."""
+    above LAND_ALT_LOW, then LAND_SPEED); with ``blend_height_m`` (m, above
+    ``final_height_m``), the rate goes linearly with height from the first to the final
+    between the two heights (PX4's MPC_LAND_ALT1 / MPC_LAND_ALT2); with ``kinematics``, the
+    first descent starts from rest at its vertical acceleration."""
     if height_m < 0 or descent_rate_mps <= 0:
         raise ValueError("landing needs a height ≥ 0 and a descent rate > 0")
     slow_rate = descent_rate_mps if final_rate_mps is None else final_rate_mps
     if slow_rate <= 0:
         raise ValueError("final descent rate must be > 0")
-    fast_m = max(height_m - final_height_m, 0.0)
+    top_m = final_height_m if blend_height_m is None else max(blend_height_m, final_height_m)
+    fast_m = max(height_m - top_m, 0.0)
+    blend_m = max(min(height_m, top_m) - final_height_m, 0.0)
     ramp_s = kinematics.ramp_s(descent_rate_mps, vertical=True) if kinematics else 0.0
     ramp_s = min(ramp_s, 2.0 * fast_m / descent_rate_mps)  # starting from rest
     phases = [
@@ -651,10 +661,24 @@ def landing_energy(
         _Phase(
             0.0, 0.0, descent_rate_mps, (fast_m - descent_rate_mps * ramp_s / 2) / descent_rate_mps
         ),
-        _Phase(0.0, 0.0, slow_rate, (height_m - fast_m) / slow_rate),
+        _blend_phase(blend_m, top_m - final_height_m, descent_rate_mps, slow_rate),
+        _Phase(0.0, 0.0, slow_rate, (height_m - fast_m - blend_m) / slow_rate),
         _Phase(0.0, 0.0, 0.0, max(touchdown_s, 0.0)),
     ]
     return _result(vehicle, conditions, "landing", phases, 0.0, -height_m, 0.0)
+
+
+def _blend_phase(height_m: float, span_m: float, top_rate: float, low_rate: float) -> _Phase:
+    """The last ``height_m`` of a ``span_m`` over which the descent rate goes linearly with
+    height from ``top_rate`` (at its top) to ``low_rate`` (at its bottom), as one phase at its
+    mean rate: at rate v(h) = low + k·h, the time is ln(v(height)/low)/k."""
+    if height_m <= 0:
+        return _Phase(0.0, 0.0, 0.0, 0.0)
+    slope = (top_rate - low_rate) / span_m
+    if abs(slope) < 1e-9:
+        return _Phase(0.0, 0.0, low_rate, height_m / low_rate)
+    time_s = math.log((low_rate + slope * height_m) / low_rate) / slope
+    return _Phase(0.0, 0.0, height_m / time_s, time_s)
 
 
 def _result(

@@ -1,7 +1,9 @@
 """``uav-energy residuals --report DIR``: residual plots before/after and the selection table.
 
 Writes ``residual_time.png`` (residual over each flight, before and after the selected
-effects, held-out, with the time windows of effects that change in flight shaded),
+effects, held-out, with the time windows of effects that change in flight shaded; lines
+break at gaps in the samples, and of many flights only the names that stay clear are
+written),
 ``residual_channels.png`` (the same against every channel, with binned
 means), ``attribution.png`` (held-out R² of each channel, before and after) and
 ``summary.md`` (figures, selected effects, the full selection table, the verdict).
@@ -18,8 +20,13 @@ import matplotlib.pyplot as plt
 import numpy as np
 from matplotlib.axes import Axes
 
+from estimator.analysis.replay import MAX_GAP_S
 from estimator.analysis.residuals import FloatArray, ResidualResult, describe
 
+#: Time between two flights on the time plot's axis, s.
+FLIGHT_SPACING_S = 10.0
+#: Most flight names along the time plot's top (rotated 6 pt text clears its neighbours).
+MAX_FLIGHT_LABELS = 40
 _BEFORE = dict(color="tab:red", alpha=0.35, s=3, linewidths=0)
 _AFTER = dict(color="tab:blue", alpha=0.35, s=3, linewidths=0)
 
@@ -38,39 +45,75 @@ def write_report(result: ResidualResult, out_dir: Path, title: str) -> list[Path
 
 
 def _time_plot(result: ResidualResult, path: Path) -> Path:
-    s = result.samples
     fig, ax = plt.subplots(figsize=(11, 4))
+    draw_time(ax, result)
+    fig.tight_layout()
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
+    return path
+
+
+def draw_time(ax: Axes, result: ResidualResult) -> None:
+    """The residual (W) before and after over each flight, flights end to end on one time axis
+    (s, :data:`FLIGHT_SPACING_S` apart), lines broken where a flight's samples stop for more
+    than :data:`~estimator.analysis.replay.MAX_GAP_S`; names only where they stay clear of the
+    previous one (:func:`clear_labels`)."""
+    s = result.samples
     offset = 0.0
-    for k, name in enumerate(s.flight_ids):
+    starts: list[float] = []
+    for k in range(len(s.flight_ids)):
         rows = s.flight == k
         t = s.state.time_s[rows]
         x = t - t[0] + offset
-        ax.plot(x, result.residual_before_w()[rows], color="tab:red", lw=0.6, alpha=0.7)
-        ax.plot(x, result.residual_after_w()[rows], color="tab:blue", lw=0.6, alpha=0.8)
+        for residual, color, alpha in (
+            (result.residual_before_w(), "tab:red", 0.7),
+            (result.residual_after_w(), "tab:blue", 0.8),
+        ):
+            ax.plot(*broken_at_gaps(x, residual[rows]), color=color, lw=0.6, alpha=alpha)
         _mark_windows(ax, result, float(t[0]), float(t[-1]), offset - float(t[0]))
-        if len(s.flight_ids) > 1:
-            ax.axvline(offset, color="0.7", lw=0.5)
+        starts.append(offset)
+        offset = float(x[-1]) + FLIGHT_SPACING_S
+    named = clear_labels(starts, offset) if len(starts) > 1 else []
+    if named:
+        for x0 in starts:
+            ax.axvline(x0, color="0.7", lw=0.5)
+        for k in named:
             ax.text(
-                offset,
+                starts[k],
                 1.0,
-                f" {name}",
+                f" {s.flight_ids[k]}",
                 transform=ax.get_xaxis_transform(),
                 fontsize=6,
                 va="top",
                 rotation=90,
             )
-        offset = float(x[-1]) + 10.0
     ax.axhline(0.0, color="k", lw=0.5)
-    ax.set_xlabel("flight time, flights end to end (s)")
+    names = f"; {len(named)} of {len(starts)} flights named" if named else ""
+    ax.set_xlabel(f"flight time, flights end to end (s){names}")
     ax.set_ylabel("measured − model (W)")
     ax.set_title(
         f"held-out residual: before (red, RMSE {result.rmse_w(False):.1f} W), "
         f"after (blue, RMSE {result.rmse_w(True):.1f} W)"
     )
-    fig.tight_layout()
-    fig.savefig(path, dpi=110)
-    plt.close(fig)
-    return path
+
+
+def broken_at_gaps(x_s: FloatArray, y: FloatArray) -> tuple[FloatArray, FloatArray]:
+    """``x_s`` (s) and ``y`` with a NaN point after every step of ``x_s`` longer than
+    :data:`~estimator.analysis.replay.MAX_GAP_S`: a line drawn through them stops there."""
+    cut = np.flatnonzero(np.diff(x_s) > MAX_GAP_S) + 1
+    return np.insert(x_s, cut, np.nan), np.insert(np.asarray(y, dtype=float), cut, np.nan)
+
+
+def clear_labels(starts_s: list[float], span_s: float) -> list[int]:
+    """Indexes of the flights (starting at ``starts_s`` on an axis ``span_s`` long) whose
+    names are written: the first, then each at least ``span_s`` / :data:`MAX_FLIGHT_LABELS`
+    after the last one written."""
+    room_s = span_s / MAX_FLIGHT_LABELS
+    chosen: list[int] = []
+    for k, x0 in enumerate(starts_s):
+        if not chosen or x0 - starts_s[chosen[-1]] >= room_s:
+            chosen.append(k)
+    return chosen
 
 
 def _mark_windows(

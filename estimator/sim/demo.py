@@ -195,6 +195,7 @@ async def fly_live(
         publish_rate_hz=publish_rate_hz,
         json="-",
         log_level="warning",
+        download_mission=False,  # the simulator flies its own plan: no MAVLink mission to read
     )
     validate(config)
     service = Service(config, vehicle or default_vehicle())
@@ -383,8 +384,26 @@ class LiveTable:
 
     #: Header → meaning: time s; ground speed m/s; centripetal accel m/s²; model power,
     #: fused (bias × model) and measured V·I in W; remaining energy estimate ± 1σ and truth
-    #: in Wh; endurance at the current power ± 1σ and the truth's time to reserve in min.
-    COLUMNS = ("t s", "V", "a⊥", "P mod", "P fus", "P meas", "E Wh ±σ", "E true", "end min", "true")
+    #: in Wh; endurance at the current power ± 1σ and the truth's time to reserve flying the
+    #: rest of the mission in min (:data:`CAPTION`).
+    COLUMNS = (
+        "t s",
+        "V",
+        "a⊥",
+        "P mod",
+        "P fus",
+        "P meas",
+        "E Wh ±σ",
+        "E true",
+        "end min",
+        "mission min",
+    )
+    #: What the two endurance columns measure, under the table.
+    CAPTION = (
+        "end min: endurance at the present power ± 1σ (what the daemon publishes); mission "
+        "min: the simulator's time to the reserve flying the rest of the mission. They differ "
+        "while the power changes and meet in the final cruise."
+    )
 
     def __init__(self, run: SimRun, title: str) -> None:
         self.run, self.title = run, title
@@ -422,6 +441,8 @@ class LiveTable:
             box=box.SIMPLE_HEAD,
             pad_edge=False,
             collapse_padding=True,
+            caption=self.CAPTION,
+            caption_justify="left",
         )
         for name in self.COLUMNS:
             table.add_column(name, justify="right", no_wrap=True)

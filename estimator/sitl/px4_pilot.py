@@ -8,7 +8,8 @@ makes the flight slower); the wall clock only detects a PX4 that stopped talking
 
 The flight is the one of the SITL folder's ``example_flight.py``: GPS fix and home, arm
 (retried: PX4 refuses until its estimator is ready), NAV_TAKEOFF (altitude AMSL), hover,
-DO_REPOSITION (AMSL too), an OFFBOARD velocity leg, HOLD, NAV_LAND until disarmed.
+DO_REPOSITION (AMSL too), an OFFBOARD velocity leg, HOLD, NAV_LAND (or AUTO.RTL) until
+disarmed; a mission may be uploaded first with the mission protocol (not flown).
 
 :class:`MotorPack` is a battery for PX4 started with ``SIM_BAT_ENABLE=0``: its current
 follows PX4's own motor outputs (SERVO_OUTPUT_RAW) through a motor/ESC model, its voltage a
@@ -19,7 +20,7 @@ component, PX4 takes it as its battery and republishes it on every link.
 from __future__ import annotations
 
 import math
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -27,12 +28,14 @@ from pymavlink import mavutil
 from pymavlink.dialects.v20 import common as mavlink
 
 from estimator.errors import UserError
+from estimator.logs.mission_files import MissionItem
 from estimator.sitl.receiver import Receiver
 
 #: Wall seconds without any message from PX4 that mean it has stopped.
 STALL_WALL_S = 30.0
-#: PX4 custom modes (main << 16 | sub << 24): AUTO.LOITER (hold) and OFFBOARD.
+#: PX4 custom modes (main << 16 | sub << 24): AUTO.LOITER (hold), AUTO.RTL and OFFBOARD.
 HOLD_MODE = (4, 3)
+RTL_MODE = (4, 5)
 OFFBOARD_MODE = (6, 0)
 #: SET_POSITION_TARGET_LOCAL_NED type mask: velocity only.
 VELOCITY_MASK = 0b0000_1101_1100_0111
@@ -53,6 +56,8 @@ GCS_RATES_HZ = {
     mavlink.MAVLINK_MSG_ID_RC_CHANNELS: -1.0,
 }
 M_PER_DEG_LAT = 111_320.0
+#: The station's MAVLink (system, component).
+OWN_ID = (245, 190)
 
 
 @dataclass
@@ -138,6 +143,11 @@ class Px4State:
     acks: dict[int, int] = field(default_factory=dict)
     #: (PX4 time s, MAV_LANDED_STATE) at each change of the landed state.
     landed_changes: list[tuple[float, int]] = field(default_factory=list)
+    #: The last MISSION_ACK to us (MAV_MISSION_RESULT) and the item PX4 last asked for.
+    mission_ack: int | None = None
+    mission_request: int | None = None
+    #: PX4's time (s) RTL was commanded (None: not yet).
+    rtl_s: float | None = None
 
 
 class Px4Pilot(Receiver):
@@ -154,7 +164,7 @@ class Px4Pilot(Receiver):
     ) -> None:
         super().__init__()
         self.conn: Any = mavutil.mavlink_connection(
-            f"udpout:127.0.0.1:{gcs_port}", source_system=245, source_component=190
+            f"udpout:127.0.0.1:{gcs_port}", source_system=OWN_ID[0], source_component=OWN_ID[1]
         )
         self.system_id = system_id
         self.source = (system_id, mavlink.MAV_COMP_ID_AUTOPILOT1)
@@ -199,6 +209,10 @@ class Px4Pilot(Receiver):
             s.landed_changes.append((s.boot_s, msg.landed_state))
         elif kind == "COMMAND_ACK":
             s.acks[msg.command] = msg.result
+        elif kind in ("MISSION_REQUEST_INT", "MISSION_REQUEST") and self._to_us(msg):
+            s.mission_request = msg.seq
+        elif kind == "MISSION_ACK" and self._to_us(msg):
+            s.mission_ack = msg.type
         elif kind == "SERVO_OUTPUT_RAW" and self.pack is not None:
             pwm = [msg.servo1_raw, msg.servo2_raw, msg.servo3_raw, msg.servo4_raw]
             self.pack.drive(msg.time_usec / 1e6, pwm, s.armed)
@@ -208,6 +222,9 @@ class Px4Pilot(Receiver):
         if self.pack is not None and s.boot_s - self._pack_sent_s >= self.pack_period_s:
             self._pack_sent_s = s.boot_s
             self.conn.write(self.pack.status(self._pack_mav).pack(self._pack_mav))
+
+    def _to_us(self, msg: Any) -> bool:
+        return (msg.target_system, msg.target_component) == OWN_ID
 
     def _heartbeat(self) -> None:
         """Our HEARTBEAT (a ground station's), once a second of PX4's clock."""
@@ -320,19 +337,66 @@ class Px4Pilot(Receiver):
         self.hold(sim_s, setpoint)
         self.set_mode(*HOLD_MODE)
 
+    def upload_mission(self, items: Sequence[MissionItem]) -> None:
+        """Upload ``items`` (their seq in order from 0; positions in degrees, sent as degE7)
+        with the mission protocol: MISSION_COUNT, each MISSION_ITEM_INT PX4 asks for, until
+        its MISSION_ACK; a UserError when PX4 refuses."""
+        s = self.state
+        s.mission_ack, s.mission_request = None, None
+        mission_type = mavlink.MAV_MISSION_TYPE_MISSION
+        self.conn.mav.mission_count_send(self.system_id, 1, len(items), mission_type)
+        deadline = s.boot_s + 30.0
+        while s.mission_ack is None:
+            if s.boot_s > deadline:
+                raise UserError("PX4: mission upload not acknowledged in 30 s of its clock")
+            self.pump()
+            if s.mission_request is not None and s.mission_request < len(items):
+                self._send_item(items[s.mission_request])
+            s.mission_request = None
+        if s.mission_ack != mavlink.MAV_MISSION_ACCEPTED:
+            raise UserError(f"PX4 refused the mission: MISSION_ACK {s.mission_ack}")
+
+    def _send_item(self, item: MissionItem) -> None:
+        positioned = not math.isnan(item.lat_deg)
+        self.conn.mav.mission_item_int_send(
+            self.system_id, 1, item.seq, item.frame, item.command, 0, 1, *item.params,
+            round(item.lat_deg * 1e7) if positioned else 0,
+            round(item.lon_deg * 1e7) if positioned else 0,
+            item.alt_m, mavlink.MAV_MISSION_TYPE_MISSION,
+        )  # fmt: skip
+
+    def return_home(self) -> None:
+        """AUTO.RTL (PX4's clock noted in ``state.rtl_s``), until PX4 disarms after landing."""
+        self.state.rtl_s = self.state.boot_s
+        if self.set_mode(*RTL_MODE) != mavlink.MAV_RESULT_ACCEPTED:
+            raise UserError("PX4 refused RTL")
+        self.wait_for(lambda: not self.state.armed, 300.0, "RTL")
+
     def land(self) -> None:
         """NAV_LAND, until PX4 disarms (it does on its own after touching down)."""
         nan = math.nan
         self.command(mavlink.MAV_CMD_NAV_LAND, 0, 0, 0, nan, nan, nan, nan)
         self.wait_for(lambda: not self.state.armed, 90.0, "landing")
 
-    def fly(self, alt_m: float = 10.0, hover_s: float = 10.0, leg_mps: float = 10.0) -> None:
-        """The whole flight: take-off, hover, a reposition, an OFFBOARD leg, hold, land."""
+    def fly(
+        self,
+        alt_m: float = 10.0,
+        hover_s: float = 10.0,
+        leg_mps: float = 10.0,
+        leg_s: float = 15.0,
+        mission: Sequence[MissionItem] = (),
+        rtl: bool = False,
+    ) -> None:
+        """The whole flight: ``mission`` uploaded (when given; not flown), take-off, hover, a
+        reposition, an OFFBOARD leg (``leg_s`` of PX4's clock), hold, land (or RTL with
+        ``rtl``)."""
         self.connect()
+        if mission:
+            self.upload_mission(mission)
         self.arm()
         self.take_off(alt_m)
         self.hold(hover_s)
         self.reposition(60.0, 40.0, alt_m)
-        self.velocity_leg(leg_mps, 15.0)
+        self.velocity_leg(leg_mps, leg_s)
         self.hold(5.0)
-        self.land()
+        self.return_home() if rtl else self.land()

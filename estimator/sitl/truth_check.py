@@ -16,6 +16,10 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
+from estimator.analysis.residuals import analyze
+from estimator.logs import load_flights
+from estimator.physics.vehicle import Vehicle
+
 #: Residual effect name → truth effect name.
 KINDS = {"wind": "wind", "mass": "payload", "avionics": "load"}
 
@@ -177,3 +181,23 @@ def score_summary(
         float(summary["rmse_after_w"]),
         float(summary["noise_floor_w"]),
     )
+
+
+@dataclass
+class RecordingCheck:
+    """``uav-energy residuals`` on one recording (``summary``: its ``--json`` object) and the
+    score of what it named against the recording's truth."""
+
+    summary: dict[str, Any]
+    score: FlightScore
+
+
+def score_recording(folder: Path, vehicle: Vehicle) -> RecordingCheck:
+    """Analyse ``folder/flight.tlog`` against ``vehicle`` and score it against
+    ``folder/truth.json`` within the span of the samples the analysis kept."""
+    truth = FlightTruth.load(folder / "truth.json", vehicle.mass_kg)
+    result = analyze(load_flights([folder / "flight.tlog"]), vehicle)
+    time_s = result.samples.state.time_s
+    summary = result.summary()
+    span = truth.within(float(time_s.min()), float(time_s.max()))
+    return RecordingCheck(summary, score_summary(span, summary))

@@ -1,0 +1,555 @@
+"""The result figures of README.md and docs/*.md, generated from the committed data.
+
+Each ``<!-- figures:NAME -->`` … ``<!-- /figures:NAME -->`` block of those documents
+(:mod:`estimator.reports.doc_blocks`) has one generator here that prints its text:
+
+- ``iris-replay-*``: the IRIS+ flights of ``../shared/data/iris_quadcopter_logs`` replayed as
+  ``uav-energy replay LOG… --vehicle F --json`` does, each period with the vehicle file fitted
+  on it (in-sample), and once with the built-in vehicle; ``replay-regression-march``: the
+  March flights' figures frozen in ``replay/expected.json``.
+- ``plan-*``: ``uav-energy plan`` against the nine ArduCopter SITL missions of
+  ``replay/sitl/missions`` (told the wind and payload SITL flew; and told still air).
+- ``sim-mixed-*``: ``uav-energy sim --plan mixed [--wind 6@135] --tlog F`` and ``uav-energy
+  replay F --json`` (the built-in vehicle); ``sitl-run1-builtin``: ``../shared``'s recorded
+  ArduCopter SITL flight replayed with the built-in vehicle on SITL's pack.
+- ``experiments-*``: ``uav-energy experiments`` (generated flights, seed 0).
+- ``sitl-recordings-table``, ``sitl-effects-*``: the recordings of ``replay/sitl`` replayed,
+  and the effects ``uav-energy residuals`` names on them scored against their truth
+  (``scripts/sitl_figures.py``; checked by ``tests/test_sitl_recordings.py`` and
+  ``tests/test_sitl_effects.py``, which compute the same results anyway, not by
+  ``tests/test_figures.py``).
+- ``tracked-wind-sitl``: ``python scripts/tracked_wind_sitl.py`` (the wind the pipeline uses
+  on the ArduCopter SITL recordings of ``replay/sitl``, against their truth; checked by
+  ``tests/test_sitl_recordings.py``).
+
+Run: ``python scripts/figures.py`` rewrites the blocks (``make figures``);
+``python scripts/figures.py --check`` prints the stale ones and exits 1 (``make
+figures-check``; ``tests/test_figures.py`` runs the same check). Every generator is
+deterministic: the check compares text exactly.
+"""
+
+from __future__ import annotations
+
+import argparse
+import contextlib
+import importlib.util
+import io
+import json
+import os
+import sys
+import tempfile
+from collections.abc import Callable, Mapping, Sequence
+from dataclasses import replace
+from functools import cache
+from pathlib import Path
+from types import ModuleType
+from typing import Any
+
+import numpy as np
+
+from estimator import cli
+from estimator.analysis.mission_energy import FlightSettings
+from estimator.analysis.mission_validation import (
+    MissionCheck,
+    check_recording,
+    truth_conditions,
+)
+from estimator.analysis.replay import (
+    FlightReplay,
+    Summary,
+    replay_log,
+    replay_stream,
+    summarize,
+)
+from estimator.commands.replay import flight_names, vehicle_and_settings
+from estimator.errors import UserError
+from estimator.logs import iter_samples
+from estimator.logs.mission_files import load_mission
+from estimator.physics.vehicle import BatterySpec, default_vehicle, load_vehicle
+from estimator.reports.doc_blocks import Block, blocks_in, rewrite
+from estimator.sim.experiments import reproduce
+
+REPO = Path(__file__).resolve().parent.parent
+DOCUMENTS = (REPO / "README.md", *sorted((REPO / "docs").glob("*.md")))
+SHARED_DATA = REPO.parent / "shared" / "data"
+IRIS = SHARED_DATA / "iris_quadcopter_logs"
+SITL_RUN1 = SHARED_DATA / "ardupilot_sitl" / "run1_default_quad.tlog"
+#: The two IRIS+ periods: their logs (as the README's ``find`` selects them) and vehicle file.
+PERIODS = {
+    "March 2016": ("2016-03-*", "iris_plus_2016_03.toml"),
+    "June–August 2016": ("2016-0[678]-*", "iris_plus_2016_06_08.toml"),
+}
+
+
+def script_module(name: str) -> ModuleType:
+    """Another script of this folder, loaded as a module."""
+    spec = importlib.util.spec_from_file_location(name, Path(__file__).with_name(f"{name}.py"))
+    assert spec is not None and spec.loader is not None
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    return module
+
+
+sitl = script_module("sitl_figures")
+fits = script_module("fit_figures")
+MISSIONS = sitl.SITL_RECORDINGS / "missions"
+#: The missions the planner's flight settings were read off (docs/plan.md, "Calibration").
+CALIBRATION = ("climbs_wind6", "outback_wind8", "square_wind5")
+
+GENERATORS: dict[str, Callable[[], str]] = {}
+#: The blocks whose generator reads data outside the repository, and that data.
+OUTSIDE_DATA: dict[str, Path] = {}
+#: The blocks whose results another test computes anyway (a minute or more of CPU), and that
+#: test: it checks them, ``tests/test_figures.py`` does not.
+CHECKED_BY: dict[str, str] = {}
+
+
+def generator(
+    name: str, reads: Path | None = None, checked_by: str | None = None
+) -> Callable[[Callable[[], str]], Callable[[], str]]:
+    """Register ``fn`` as the generator of the blocks called ``name``; ``reads``: the data
+    outside the repository it needs; ``checked_by``: the test that checks a slow one."""
+
+    def register(fn: Callable[[], str]) -> Callable[[], str]:
+        GENERATORS[name] = fn
+        if reads is not None:
+            OUTSIDE_DATA[name] = reads
+        if checked_by is not None:
+            CHECKED_BY[name] = checked_by
+        return fn
+
+    return register
+
+
+# --- IRIS+ replay ------------------------------------------------------------------------
+
+
+def _iris_logs(pattern: str) -> list[Path]:
+    return sorted(IRIS.glob(f"{pattern}/**/*.log"))
+
+
+def _replay(logs: Sequence[Path], vehicle_file: Path | None) -> list[FlightReplay]:
+    """``uav-energy replay LOG… [--vehicle F]``'s flights, with its names."""
+    vehicle, settings = vehicle_and_settings(vehicle_file, None)
+    flights = []
+    for path, name in zip(logs, flight_names(logs), strict=True):
+        stream = iter_samples(path, "auto", vehicle.input_limits())
+        flights.append(replay_stream(stream, vehicle, name, settings))
+    return flights
+
+
+@cache
+def iris_periods() -> dict[str, tuple[str, list[FlightReplay]]]:
+    """Each period's vehicle file name and its flights replayed with it."""
+    out = {}
+    for period, (pattern, vehicle_name) in PERIODS.items():
+        vehicle_file = REPO / "config" / "vehicles" / vehicle_name
+        out[period] = (vehicle_name, _replay(_iris_logs(pattern), vehicle_file))
+    return out
+
+
+def _all_iris_flights() -> list[FlightReplay]:
+    return [f for _, flights in iris_periods().values() for f in flights]
+
+
+def _row(name: str, s: Summary) -> str:
+    def fmt(x: float | None) -> str:
+        return "–" if x is None else f"{x:.1f}"
+
+    return (
+        f"| {name} | {s.messages} | {s.airborne_s:.0f} | {s.power_points} "
+        f"| {fmt(s.power_rmse_w)} | {fmt(s.power_mape_pct)} "
+        f"| {s.energy_measured_wh:.2f} | {s.energy_predicted_wh:.2f} |"
+    )
+
+
+@generator("iris-replay-table", reads=IRIS)
+def iris_replay_table() -> str:
+    """Per flight, per period and over all logs: samples fed, airborne s, power points, power
+    RMSE (W) and MAPE (%) against V·I, energy measured and predicted (Wh)."""
+    lines = [
+        "| flight | samples | airborne s | power points | RMSE W | MAPE % "
+        "| E measured Wh | E model Wh |",
+        "|---|---:|---:|---:|---:|---:|---:|---:|",
+    ]
+    lines += [_row(f.name, summarize([f])) for f in _all_iris_flights()]
+    for period, (vehicle_name, flights) in iris_periods().items():
+        lines.append(_row(f"**{period} (`{vehicle_name}`)**", summarize(flights)))
+    everything = _all_iris_flights()
+    lines.append(_row(f"**all {len(everything)} logs**", summarize(everything)))
+    return "\n".join(lines)
+
+
+@generator("iris-replay-total", reads=IRIS)
+def iris_replay_total() -> str:
+    s = summarize(_all_iris_flights())
+    return (
+        f"{s.power_rmse_w:.1f} W RMSE, {s.power_mape_pct:.1f} % MAPE over all "
+        f"{len(_all_iris_flights())}"
+    )
+
+
+@generator("iris-replay-periods", reads=IRIS)
+def iris_replay_periods() -> str:
+    """The two periods' RMSE and MAPE ranges, and how close each one's energy comes."""
+    summaries = {p: summarize(flights) for p, (_, flights) in iris_periods().items()}
+    rmse = sorted(s.power_rmse_w or 0.0 for s in summaries.values())
+    mape = sorted(s.power_mape_pct or 0.0 for s in summaries.values())
+    energy = " and ".join(
+        f"{100 * abs(s.energy_predicted_wh / s.energy_measured_wh - 1):.1f} % ({p.split()[0]})"
+        for p, s in summaries.items()
+    )
+    return (
+        f"**{rmse[0]:.1f}–{rmse[-1]:.1f} W RMSE ({mape[0]:.1f}–{mape[-1]:.1f} % MAPE)** "
+        f"in-sample, and over a whole period to {energy} of the measured energy"
+    )
+
+
+@generator("iris-replay-builtin", reads=IRIS)
+def iris_replay_builtin() -> str:
+    """The same logs with the built-in vehicle (no ``--vehicle``)."""
+    s = summarize(_replay(sorted(IRIS.glob("**/*.log")), None))
+    return (
+        f"{s.power_rmse_w:.0f} W RMSE and {s.energy_predicted_wh:.0f} Wh predicted against "
+        f"{s.energy_measured_wh:.0f} Wh measured"
+    )
+
+
+@generator("replay-regression-march")
+def replay_regression_march() -> str:
+    """The span of the power RMSE frozen in ``replay/expected.json`` for the March flights
+    (replayed there with the June–August vehicle file)."""
+    flights = json.loads((REPO / "replay" / "expected.json").read_text())["flights"]
+    rmse = [f["power_rmse_w"] for name, f in flights.items() if "/2016-03-" in name]
+    return f"{min(rmse):.0f}–{max(rmse):.0f} W RMSE"
+
+
+# --- mission plans against ArduCopter SITL ---------------------------------------------------
+
+
+def _mission_dirs() -> list[Path]:
+    return sorted(p for p in MISSIONS.iterdir() if p.is_dir())
+
+
+def _truth(directory: Path) -> dict[str, Any]:
+    return dict(json.loads((directory / "truth.json").read_text()))
+
+
+@cache
+def mission_checks(
+    still_air: bool = False, settings: FlightSettings | None = None
+) -> tuple[MissionCheck, ...]:
+    """Every recorded mission planned with the SITL vehicle file and ``settings``, told the
+    wind and payload SITL flew (or, ``still_air``, the payload only)."""
+    vehicle = load_vehicle(sitl.SITL_VEHICLE)
+    checks = []
+    for directory in _mission_dirs():
+        told = truth_conditions(_truth(directory))
+        conditions = replace(told, wind_speed_mps=0.0) if still_air else told
+        checks.append(check_recording(directory, vehicle, settings, conditions))
+    return tuple(checks)
+
+
+def _mission_inputs(directory: Path) -> str:
+    """The mission file, the wind and payload SITL flew and the legs: a row's first cells."""
+    told = truth_conditions(_truth(directory))
+    mission_file = sorted(directory.glob("mission.*"))[0]
+    legs = load_mission(mission_file).legs()
+    load = "–"
+    if told.payload_kg > 0:
+        load = f"{told.payload_kg:g} kg" + (", released" if not legs[-1].payload else "")
+    return (
+        f"| {directory.name} | `{mission_file.name}` "
+        f"| {told.wind_speed_mps:g} m/s from {told.wind_from_deg:03.0f}° | {load} | {len(legs)}"
+    )
+
+
+def _abs_errors(checks: Sequence[MissionCheck], px4: bool = False) -> np.ndarray:
+    return np.abs([c.px4_error_pct if px4 else c.error_pct for c in checks])
+
+
+@generator("plan-missions")
+def plan_missions() -> str:
+    """The per-mission rows of docs/plan.md's SITL table."""
+    rows = []
+    for directory, c in zip(_mission_dirs(), mission_checks(), strict=True):
+        half = "calibration" if c.name in CALIBRATION else "held out"
+        rows.append(
+            f"{_mission_inputs(directory)} | {c.predicted_wh:.2f} ± {c.predicted_sigma_wh:.2f} "
+            f"| {c.measured_wh:.2f} | {fits.number(c.error_pct, '+.1f')} % | {c.px4_wh:.2f} "
+            f"| {fits.number(c.px4_error_pct, '+.1f')} % "
+            f"| {c.predicted_time_s:.0f} / {c.measured_time_s:.0f} | {half} |"
+        )
+    header = (
+        "| mission | file | wind | payload | legs | predicted Wh ± 1σ | measured Wh | error "
+        "| PX4-style Wh | PX4-style error | time s plan / flown | |\n"
+        "|---|---|---|---|---:|---:|---:|---:|---:|---:|---:|---|"
+    )
+    return header + "\n" + "\n".join(rows)
+
+
+@generator("plan-summary")
+def plan_summary() -> str:
+    checks = mission_checks()
+    held = [c for c in checks if c.name not in CALIBRATION]
+    ours, px4 = _abs_errors(checks), _abs_errors(checks, px4=True)
+    return (
+        f"Median |error| {np.median(ours):.1f} % (max {ours.max():.1f} %) over all "
+        f"{len(checks)}, the planner told the wind and payload SITL flew; "
+        f"{np.median(_abs_errors(held)):.1f} % (max {_abs_errors(held).max():.1f} %) over the "
+        f"{len(held)} held out; the PX4-style estimate misses by {np.median(px4):.0f} % in "
+        f"the median ({px4.min():.0f}–{px4.max():.0f} %)"
+    )
+
+
+@generator("plan-still-air")
+def plan_still_air() -> str:
+    errors = _abs_errors(mission_checks(still_air=True))
+    return f"{np.median(errors):.1f} % / {errors.max():.1f} %"
+
+
+@generator("plan-airspeed-total")
+def plan_airspeed_total() -> str:
+    """The airspeed limit (10.5 m/s) on the total airspeed instead of along the track."""
+    settings = FlightSettings(max_airspeed_mps=10.5, airspeed_along_track=False)
+    errors = _abs_errors(mission_checks(settings=settings))
+    return f"{np.median(errors):.1f} % / {errors.max():.1f} %"
+
+
+@generator("plan-headline")
+def plan_headline() -> str:
+    told, still = _abs_errors(mission_checks()), _abs_errors(mission_checks(still_air=True))
+    px4 = _abs_errors(mission_checks(), px4=True)
+    return (
+        f"told the wind SITL flew: median error {np.median(told):.1f} %, max {told.max():.1f} % "
+        f"(3 of the {len(told)} missions set the flight settings); told still air: "
+        f"{np.median(still):.1f} % / {still.max():.0f} %; a PX4-style distance/set-speed "
+        f"estimate misses by {np.median(px4):.0f} %"
+    )
+
+
+# --- the simulator's flights replayed -------------------------------------------------------------
+
+
+def _cli(*argv: str) -> str:
+    """What ``uav-energy ARGV…`` prints on stdout (run in this process)."""
+    out = io.StringIO()
+    with contextlib.redirect_stdout(out):
+        code = cli.main(list(argv))
+    if code != 0:
+        raise UserError(f"uav-energy {' '.join(argv)} ended with exit code {code}")
+    return out.getvalue()
+
+
+@cache
+def simulated_mixed(wind: str | None) -> tuple[str, dict[str, Any]]:
+    """``uav-energy sim --plan mixed [--wind S@DEG] --tlog F``'s line and ``uav-energy replay
+    F --json`` (the built-in vehicle, told nothing of the wind)."""
+    with tempfile.TemporaryDirectory() as tmp:
+        tlog = str(Path(tmp) / "mixed.tlog")
+        line = _cli("sim", "--plan", "mixed", *(["--wind", wind] if wind else []), "--tlog", tlog)
+        return line.strip(), json.loads(_cli("replay", tlog, "--json"))
+
+
+def _replay_sentence(result: Mapping[str, Any]) -> str:
+    return (
+        f"power RMSE {result['power_rmse_w']:.1f} W (MAPE {result['power_mape_pct']:.1f} %), "
+        f"energy {result['energy_measured_wh']:.2f} Wh measured vs "
+        f"{result['energy_predicted_wh']:.2f} Wh predicted"
+    )
+
+
+@generator("sim-mixed-clean")
+def sim_mixed_clean() -> str:
+    return _replay_sentence(simulated_mixed(None)[1])
+
+
+@generator("sim-mixed-wind")
+def sim_mixed_wind() -> str:
+    return _replay_sentence(simulated_mixed("6@135")[1])
+
+
+@generator("sim-mixed-wind-line")
+def sim_mixed_wind_line() -> str:
+    """The summary line ``uav-energy sim`` prints, as an indented code block."""
+    return "    " + simulated_mixed("6@135")[0]
+
+
+@generator("sitl-run1-builtin", reads=SITL_RUN1.parent)
+def sitl_run1_builtin() -> str:
+    """``../shared``'s recorded SITL flight replayed with the built-in vehicle on SITL's pack
+    (docs/sitl.md gives the commands)."""
+    with tempfile.TemporaryDirectory() as tmp:
+        vehicle_file = Path(tmp) / "sitl.toml"
+        pack = BatterySpec(3.3, 3, 0.2)
+        replace(default_vehicle(), name="sitl-quad", battery=pack).save(vehicle_file)
+        result = json.loads(
+            _cli("replay", str(SITL_RUN1), "--vehicle", str(vehicle_file), "--json")
+        )
+    return (
+        f"{result['airborne_s']:.1f} s airborne, power RMSE {result['power_rmse_w']:.1f} W "
+        f"(MAPE {result['power_mape_pct']:.1f} %), {result['energy_measured_wh']:.1f} Wh "
+        f"measured vs {result['energy_predicted_wh']:.1f} Wh predicted"
+    )
+
+
+# --- the power model fitted on real data, and on SITL's clean flights ---------------------------
+
+
+@cache
+def real_fits() -> dict[str, dict[str, Any]]:
+    """``uav-energy fit LOG… --mass-kg M --capacity-ah C --cells N --json`` of each dataset as
+    ``make fit-real`` runs it (without writing the vehicle files)."""
+    out = {}
+    for title, (pattern, mass_kg, capacity_ah, cells) in fits.REAL_FITS.items():
+        logs = [str(p) for p in sorted(SHARED_DATA.glob(pattern))]
+        options = ("--mass-kg", f"{mass_kg}", "--capacity-ah", f"{capacity_ah}")
+        out[title] = json.loads(_cli("fit", *logs, *options, "--cells", f"{cells}", "--json"))
+    return out
+
+
+@cache
+def sitl_quad_fit() -> dict[str, Any]:
+    """``uav-energy fit`` of the clean SITL recordings, as docs/sitl.md gives the command (the
+    SITL vehicle file is this fit plus the acceleration effect found later)."""
+    logs = [str(sitl.SITL_RECORDINGS / s / "flight.tlog") for s in sitl.CLEAN_RECORDINGS]
+    options = ("--mass-kg", "3.0", "--capacity-ah", "2.2", "--cells", "3")
+    return dict(json.loads(_cli("fit", *logs, *options, "--json")))
+
+
+generator("fit-real-table", reads=SHARED_DATA)(lambda: fits.summary_table(real_fits()))
+generator("fit-real-details", reads=SHARED_DATA)(lambda: fits.details_table(real_fits()))
+generator("fit-real-folds", reads=SHARED_DATA)(
+    lambda: ", ".join(fits.fold_difference(f, "polynomial") for f in real_fits().values())
+)
+generator("sitl-quad-fit")(lambda: fits.sitl_quad_summary(sitl_quad_fit()))
+generator("sitl-quad-fit-data")(lambda: fits.sitl_quad_data(sitl_quad_fit()))
+generator("sitl-quad-fit-errors")(lambda: fits.sitl_quad_errors(sitl_quad_fit()))
+
+
+# --- the paper's experiments ------------------------------------------------------------------
+
+
+@cache
+def experiments() -> tuple[str, str]:
+    """``uav-energy experiments`` (seed 0): the fit's and the circles' sentences."""
+    with tempfile.TemporaryDirectory() as out:
+        result = reproduce(Path(out), seed=0)
+    truth, fitted = result.vehicle.model, result.fit.theory.model
+    scores = result.fit.scores
+    fit = (
+        f"fitted hover power {fitted.hover_power_w:.1f} W (truth {truth.hover_power_w:.1f}), "
+        f"V_me {fitted.max_endurance_speed_mps():.2f} m/s "
+        f"({truth.max_endurance_speed_mps():.2f}), V_mr {fitted.max_range_speed_mps():.2f} m/s "
+        f"({truth.max_range_speed_mps():.2f}); held-out RMSE theory "
+        f"{scores['theory'].rmse_w:.2f} W, polynomial {scores['polynomial'].rmse_w:.2f} W, "
+        f"network {scores['dnn'].rmse_w:.2f} W at a residual σ of "
+        f"{result.fit.theory.sigma_w:.1f} W"
+    )
+    eq2 = max(abs(c.eq2_w - c.measured_w) for c in result.circles)
+    miss, worst = max(
+        (abs(c.eq1_w - c.measured_w), (c, r))
+        for c, r in zip(result.circles, result.radii_m, strict=True)
+    )
+    circle, radius = worst
+    circles = (
+        f"eq. (2) predicts the power within {np.ceil(eq2):.0f} W; eq. (1), which ignores a⊥, "
+        f"misses by up to {miss:.0f} W at {circle.speed_mps:.0f} m/s, r = {radius:.0f} m"
+    )
+    return fit, circles
+
+
+@generator("experiments-fit")
+def experiments_fit() -> str:
+    return experiments()[0]
+
+
+@generator("experiments-circles")
+def experiments_circles() -> str:
+    return experiments()[1]
+
+
+# --- the SITL recordings: replayed, the effects named on them, the wind in use -------------------
+
+
+_SITL_RECORDINGS_TEST = "tests/test_sitl_recordings.py"
+_SITL_EFFECTS_TEST = "tests/test_sitl_effects.py"
+
+
+@generator("sitl-recordings-table", checked_by=_SITL_RECORDINGS_TEST)
+def sitl_recordings_table() -> str:
+    vehicle = load_vehicle(sitl.SITL_VEHICLE)
+    logs = {s: sitl.SITL_RECORDINGS / s / "flight.tlog" for s in sitl.recordings()}
+    return sitl.recordings_table({s: replay_log(log, vehicle) for s, log in logs.items()})
+
+
+@generator("sitl-effects-table", checked_by=_SITL_EFFECTS_TEST)
+def sitl_effects_table() -> str:
+    return sitl.effects_table(sitl.effect_checks())
+
+
+@generator("sitl-effects-right", checked_by=_SITL_EFFECTS_TEST)
+def sitl_effects_right() -> str:
+    return sitl.effects_right(sitl.effect_checks())
+
+
+@generator("sitl-effects-floors", checked_by=_SITL_EFFECTS_TEST)
+def sitl_effects_floors() -> str:
+    return sitl.effects_floors(sitl.effect_checks())
+
+
+@generator("tracked-wind-sitl", checked_by=_SITL_RECORDINGS_TEST)
+def tracked_wind_sitl() -> str:
+    """``python scripts/tracked_wind_sitl.py``'s table (20 s of CPU; its check shares the
+    replays with WIND of ``tests/test_sitl_recordings.py``)."""
+    return "\n".join(script_module("tracked_wind_sitl").table_lines())
+
+
+# --- the documents ----------------------------------------------------------------------------
+
+
+def all_blocks() -> list[Block]:
+    return [b for path in DOCUMENTS for b in blocks_in(path)]
+
+
+def generated(names: set[str]) -> dict[str, str]:
+    """Each named block's text now; UserError for a block without a generator or data."""
+    unknown = names - GENERATORS.keys()
+    if unknown:
+        raise UserError(f"no generator for block(s) {', '.join(sorted(unknown))}")
+    for name in sorted(names & OUTSIDE_DATA.keys()):
+        if not OUTSIDE_DATA[name].is_dir():
+            raise UserError(f"block {name} needs {OUTSIDE_DATA[name]}, which is not there")
+    return {name: GENERATORS[name]() for name in sorted(names)}
+
+
+def stale(blocks: Sequence[Block]) -> list[tuple[Block, str]]:
+    """The blocks whose text differs from what their generator prints now, with that text."""
+    now = generated({b.name for b in blocks})
+    return [(b, now[b.name]) for b in blocks if b.text != now[b.name]]
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--check", action="store_true", help="exit 1 if a block is stale")
+    parser.add_argument("names", nargs="*", help="only these blocks (default: all)")
+    args = parser.parse_args(argv)
+    try:
+        blocks = [b for b in all_blocks() if not args.names or b.name in args.names]
+        if args.check:
+            differ = stale(blocks)
+            for block, text in differ:
+                print(f"{os.path.relpath(block.path)}: {block.name} is stale; now:\n{text}\n")
+            return 1 if differ else 0
+        now = generated({b.name for b in blocks})
+        for path in DOCUMENTS:
+            if rewrite(path, now):
+                print(f"rewrote {os.path.relpath(path)}")
+    except UserError as exc:
+        print(f"figures: {exc}", file=sys.stderr)
+        return 2
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

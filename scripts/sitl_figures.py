@@ -1,0 +1,109 @@
+"""The figures of the ArduCopter SITL recordings of ``replay/sitl`` in docs/sitl.md,
+docs/residuals.md and README.md: each recording replayed with the SITL vehicle file, and what
+``uav-energy residuals`` names on the effect recordings against their truth.
+
+The tables are functions of results the tests compute anyway (``tests/test_sitl_recordings.py``
+replays every recording, ``tests/test_sitl_effects.py`` analyses and scores every effect
+recording), so those tests check them; ``scripts/figures.py`` registers them as blocks.
+"""
+
+from __future__ import annotations
+
+import json
+from collections.abc import Mapping
+from functools import cache
+from pathlib import Path
+from typing import Any
+
+from estimator.analysis.replay import FlightReplay, summarize
+from estimator.physics.vehicle import load_vehicle
+from estimator.sitl.truth_check import RecordingCheck, score_recording
+
+REPO = Path(__file__).resolve().parent.parent
+SITL_RECORDINGS = REPO / "replay" / "sitl"
+SITL_VEHICLE = REPO / "config" / "vehicles" / "ardupilot_sitl_quad.toml"
+#: The clean recordings the SITL vehicle file was fitted on.
+CLEAN_RECORDINGS = ("clean_legs", "clean_circles", "clean_mission")
+#: Recordings of ``replay/sitl`` flown for something else than effects.
+NOT_EFFECT_RECORDINGS = {"battery_reserve"}
+
+
+def recordings() -> list[str]:
+    """The recordings of ``replay/sitl`` (each flown once, with its truth)."""
+    return sorted(p.name for p in SITL_RECORDINGS.iterdir() if (p / "truth.json").is_file())
+
+
+def _truth(name: str) -> dict[str, Any]:
+    return dict(json.loads((SITL_RECORDINGS / name / "truth.json").read_text()))
+
+
+def recordings_table(replays: Mapping[str, FlightReplay]) -> str:
+    """docs/sitl.md's table: per recording its airborne span (s, autopilot clock) and effects
+    (the truth's description), whether it has a DataFlash log, its size (MB), and its tlog
+    replayed with the SITL vehicle file: power RMSE against V·I (W), energy measured / model
+    (Wh)."""
+    lines = [
+        "| scenario | airborne s | effects (truth) | .BIN | MB "
+        "| power RMSE W | energy measured / model Wh |",
+        "|---|---|---|---|---|---|---|",
+    ]
+    for name, flight in replays.items():
+        folder = SITL_RECORDINGS / name
+        truth, s = _truth(name), summarize([flight])
+        events = truth["events"]
+        size_mb = sum(f.stat().st_size for f in folder.iterdir() if f.is_file()) / 1e6
+        dataflash = "yes" if (folder / "flight.BIN").is_file() else ""
+        lines.append(
+            f"| {name} | {events['takeoff_s']:.0f}–{events['landed_s']:.0f} "
+            f"| {truth['description']} | {dataflash} | {size_mb:.2f} | {s.power_rmse_w:.1f} "
+            f"| {s.energy_measured_wh:.2f} / {s.energy_predicted_wh:.2f} |"
+        )
+    return "\n".join(lines)
+
+
+def effect_scenarios() -> list[str]:
+    return [s for s in recordings() if s not in NOT_EFFECT_RECORDINGS]
+
+
+@cache
+def effect_checks() -> dict[str, RecordingCheck]:
+    """``uav-energy residuals`` on each effect recording, scored against its truth (≈ 5 s of
+    CPU a recording)."""
+    vehicle = load_vehicle(SITL_VEHICLE)
+    return {s: score_recording(SITL_RECORDINGS / s, vehicle) for s in effect_scenarios()}
+
+
+def effects_table(checks: Mapping[str, RecordingCheck]) -> str:
+    """docs/residuals.md's table: per recording its truth (the recording's own description),
+    what was named, whether the first named is right, held-out RMSE and its noise floor (W)."""
+    lines = [
+        "| flight | truth | named | right? | held-out RMSE before → after (W) "
+        "| noise floor (W) | × floor |",
+        "|---|---|---|---|---|---|---|",
+    ]
+    for name, check in checks.items():
+        score, summary = check.score, check.summary
+        named = "; then ".join(e["description"] for e in summary["effects"]) or "nothing"
+        lines.append(
+            f"| {name} | {_truth(name)['description']} | {named} "
+            f"| {'yes' if score.first_right else '**no**'} "
+            f"| {score.rmse_before_w:.1f} → {score.rmse_after_w:.1f} "
+            f"| {score.noise_floor_w:.1f} | {score.rmse_to_floor:.2f} |"
+        )
+    return "\n".join(lines)
+
+
+def effects_right(checks: Mapping[str, RecordingCheck]) -> str:
+    right = sum(c.score.first_right for c in checks.values())
+    return f"names the right effect first on {right} of {len(checks)}"
+
+
+def effects_floors(checks: Mapping[str, RecordingCheck]) -> str:
+    """The held-out RMSE over the noise floor: on the clean flights, on the others."""
+    spans = []
+    for clean in (True, False):
+        ratios = [
+            c.score.rmse_to_floor for c in checks.values() if clean != bool(c.score.truth.effects)
+        ]
+        spans.append(f"{min(ratios):.2f}–{max(ratios):.2f}")
+    return f"clean flights at {spans[0]}× their noise floor, the others at {spans[1]}×"
