@@ -19,7 +19,7 @@ import pytest
 from distributed import Client
 from pymavlink.dialects.v20 import common as mavlink
 
-from estimator.analysis.fleet import connect, expand_inputs, run_fleet
+from estimator.analysis.fleet import connect, expand_inputs, run_fleet, tasks
 from estimator.analysis.fleet_flight import FleetJob, file_sha256, flight_row
 from estimator.analysis.fleet_table import SCHEMA, read_table, to_table
 from estimator.analysis.fleet_trends import fleet_trends
@@ -164,6 +164,20 @@ def test_every_glob_match_gets_a_row_with_its_reason_in_plain_words(
     assert errors["dangling.log"].endswith("dangling.log is a symbolic link to a missing file")
     assert errors["loop.log"].endswith("loop.log is a symbolic link loop")
     assert errors["fifo.log"].endswith("fifo.log is a FIFO, not a regular file")
+
+
+def test_small_logs_share_a_task_and_every_worker_gets_tasks() -> None:
+    todo = {f"/logs/{k}.log": f"{k:064x}" for k in range(100)}
+    sizes = dict.fromkeys(todo, 300_000)
+    # 30 MB: tasks close at TASK_BYTES (1 MiB), four logs of 300 kB each
+    assert [len(t) for t in tasks(todo, sizes, 2)] == [4] * 25
+    few = dict(list(todo.items())[:10])
+    # 3 MB on 2 workers: tasks of 375 kB, for TASKS_PER_WORKER = 4 tasks each at least
+    assert [len(t) for t in tasks(few, sizes, 2)] == [2] * 5
+    sizes["/logs/1.log"] = 50_000_000  # a large log is a task of its own
+    grouped = tasks(todo, sizes, 2)
+    assert grouped[0] == [("/logs/0.log", f"{0:064x}"), ("/logs/1.log", f"{1:064x}")]
+    assert [log for task in grouped for log in task] == list(todo.items())
 
 
 def test_inputs_expand_globs_and_reject_directories(tmp_path: Path) -> None:

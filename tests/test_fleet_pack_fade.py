@@ -1,11 +1,11 @@
-"""Capacity fade per pack in ``fleet``: the 13 ArduCopter SITL pack flights (replay/sitl_packs,
-packs holding 100, 80 and 65 % of a 5.0 Ah label) as two packs that age, each log naming its
-pack in SMART_BATTERY_INFO and dated so that the true capacity falls linearly: the pack's
-full-capacity flights on day 0, its 80 % ones on day 40, its 65 % ones on day 70
-(−0.75 Ah per 30 days). Pack A flies the 0.01 Ω flights, pack B the 0.03 Ω ones. A real dask
-LocalCluster of two worker processes runs ``fleet replay``; the learnt capacity, its σ, the
-per-pack trend and the report must show the truth (truth.json). A results file written before
-the learnt-capacity columns reads with them null."""
+"""Capacity fade per pack in ``fleet``: the first 13 ArduCopter SITL pack flights
+(replay/sitl_packs, packs holding 100, 80 and 65 % of a 5.0 Ah label) as two packs that
+age, each log naming its pack in SMART_BATTERY_INFO and dated so that the true capacity falls
+linearly: the pack's full-capacity flights on day 0, its 80 % ones on day 40, its 65 % ones
+on day 70 (−0.75 Ah per 30 days). Pack A flies the 0.01 Ω flights, pack B the 0.03 Ω ones.
+A real dask LocalCluster of two worker processes runs ``fleet replay``; the learnt capacity,
+its σ, the per-pack trend and the report must show the truth (truth.json). A results file
+written before the learnt-capacity columns reads with them null."""
 
 from __future__ import annotations
 
@@ -41,7 +41,8 @@ def truth(name: str) -> dict[str, float]:
 
 def test_the_learnt_capacity_shows_each_packs_fade(tmp_path: Path) -> None:
     logs, true_ah = [], {}
-    for flight in sorted(p for p in FLIGHTS.iterdir() if p.is_dir()):
+    split = json.loads((FLIGHTS / "split.json").read_text())
+    for flight in sorted(FLIGHTS / n for n in split["tuning"] + split["held_out"]):
         battery = truth(flight.name)
         pack = "PACK-A" if battery["internal_resistance_ohm"] == 0.01 else "PACK-B"
         shift_s = DAY_OF_CAPACITY[battery["capacity_ah"]] * DAY_S

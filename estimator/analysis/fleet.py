@@ -4,10 +4,11 @@ Parquet file (:mod:`fleet_table`).
 The client hashes every log (SHA-256 of its content), skips those whose hash the results
 file already holds for the same mode (resume) and identical files met twice in one run,
 scatters the job (mode and vehicle) to the workers once, maps :func:`flight_row` over the
-rest and gathers rows as they complete. A worker that dies on a log gives that log a failed
-row, like a log that cannot be read. The results file is rewritten atomically every
-:data:`FLUSH_S` and at the end (also on Ctrl-C), so an interrupted run resumes where it
-stopped. Workers must see the logs at the same absolute paths (a shared file system).
+rest, consecutive small logs in one task (:func:`tasks`), and gathers rows as they complete.
+A worker that dies on a log gives that log a failed row, like a log that cannot be read. The
+results file is rewritten atomically every :data:`FLUSH_S` and at the end (also on Ctrl-C),
+so an interrupted run resumes where it stopped. Workers must see the logs at the same
+absolute paths (a shared file system).
 """
 
 from __future__ import annotations
@@ -23,6 +24,7 @@ from pathlib import Path
 from typing import Any
 
 import pyarrow as pa
+from dask.typing import Key
 from distributed import Client, KilledWorker, LocalCluster, as_completed
 
 from estimator.analysis.fleet_flight import (
@@ -40,6 +42,13 @@ from estimator.file_checks import regular_file
 FLUSH_S = 10.0
 #: Seconds to wait for a scheduler given by address.
 CONNECT_TIMEOUT_S = 5.0
+#: A dask task replays consecutive logs up to this many bytes: dask's cost per task (a few
+#: ms of CPU on the client and the scheduler) stays small beside the replay of small logs.
+TASK_BYTES = 1 << 20
+#: Tasks per worker at least, when the logs are too few for tasks of :data:`TASK_BYTES`.
+TASKS_PER_WORKER = 4
+#: A log to process: its path and content hash.
+Log = tuple[str, str]
 _GLOB_CHARS = frozenset("*?[")
 #: Reason of a log whose workers died on it (dask gives up after its allowed failures).
 _WORKER_DIED = "the workers analysing the log died on it (out of memory or crashed)"
@@ -120,18 +129,24 @@ def run_fleet(
     retry_failed: bool = False,
     on_total: Callable[[int], None] | None = None,
     on_row: Callable[[dict[str, Any]], None] | None = None,
+    every_path: bool = False,
 ) -> FleetRun:
     """Process ``paths`` on ``client``'s cluster into ``out`` (see the module docstring).
-    ``on_total(n)`` is told how many logs will be processed, ``on_row(row)`` each row."""
+    ``on_total(n)`` is told how many logs will be processed, ``on_row(row)`` each row.
+    ``every_path`` processes a path whose content another path of the run has too (a bench
+    repeating logs under other names) instead of counting it in ``duplicates``."""
     start = time.perf_counter()
     counts = FleetRun(logs=len(paths))
     existing = read_table(out)
     done = done_keys(existing, job.mode, retry_failed)
-    todo: dict[str, str] = {}  # hash → path
+    todo: dict[str, str] = {}  # path → hash
+    sizes: dict[str, int] = {}  # path → bytes
+    seen: set[str] = set()
     rows: list[dict[str, Any]] = []
     for path in paths:
         try:
             digest = file_sha256(regular_file(path, "log"))
+            size = path.stat().st_size
         except UserError as exc:
             rows.append(_failed(str(path), None, job, str(exc)))
             continue
@@ -140,12 +155,14 @@ def run_fleet(
             continue
         if digest in done:
             counts.already_done += 1
-        elif digest in todo:
+        elif digest in seen and not every_path:
             counts.duplicates += 1
         else:
-            todo[digest] = str(path)
+            seen.add(digest)
+            todo[str(path)] = digest
+            sizes[str(path)] = size
     if existing is not None and retry_failed:
-        existing = without(existing, job.mode, set(todo))
+        existing = without(existing, job.mode, seen)
     if on_total is not None:
         on_total(len(todo) + len(rows))
     for row in rows:
@@ -156,20 +173,8 @@ def run_fleet(
             # a fresh key per run: an equal job's key from a previous run may still be
             # being released on the scheduler
             job_future = client.scatter(job, broadcast=True, hash=False)
-            futures = client.map(
-                flight_row, list(todo.values()), list(todo), job=job_future, pure=False
-            )
-            keys = {f.key: (p, h) for f, p, h in zip(futures, todo.values(), todo, strict=True)}
-            for future in as_completed(futures):
-                try:
-                    row = future.result()
-                except KilledWorker:
-                    name, digest = keys[future.key]
-                    row = _failed(name, digest, job, _WORKER_DIED)
-                except Exception as exc:  # the task could not run
-                    name, digest = keys[future.key]
-                    row = _failed(name, digest, job, failure_reason(exc))
-                future.release()
+            workers = sum(client.nthreads().values())
+            for row in _completed_rows(client, tasks(todo, sizes, workers), job, job_future):
                 rows.append(row)
                 _count(counts, row, on_row)
                 if time.perf_counter() - last_flush > FLUSH_S:
@@ -179,6 +184,60 @@ def run_fleet(
         _flush(out, existing, rows)
     counts.wall_s = time.perf_counter() - start
     return counts
+
+
+def tasks(todo: dict[str, str], sizes: dict[str, int], workers: int) -> list[list[Log]]:
+    """``todo``'s logs (path → hash) in dask tasks of consecutive logs: a task is closed once
+    its logs reach :data:`TASK_BYTES` (``sizes``: path → bytes), or less when the logs are too
+    few to give each of ``workers`` :data:`TASKS_PER_WORKER` tasks; a larger log is a task
+    of its own."""
+    target = min(TASK_BYTES, sum(sizes[p] for p in todo) / (TASKS_PER_WORKER * max(workers, 1)))
+    grouped: list[list[Log]] = []
+    task: list[Log] = []
+    task_bytes = 0
+    for path, digest in todo.items():
+        task.append((path, digest))
+        task_bytes += sizes[path]
+        if task_bytes >= target:
+            grouped.append(task)
+            task, task_bytes = [], 0
+    if task:
+        grouped.append(task)
+    return grouped
+
+
+def flight_rows(task: list[Log], job: FleetJob) -> list[dict[str, Any]]:
+    """The rows of one task's logs (:func:`flight_row`, on a worker)."""
+    return [flight_row(path, digest, job) for path, digest in task]
+
+
+def _completed_rows(
+    client: Client, grouped: list[list[Log]], job: FleetJob, job_future: Any
+) -> Iterator[dict[str, Any]]:
+    """Rows of ``grouped``'s tasks as they complete. A task whose workers died is split into
+    tasks of one log, so that only the log they die on gets a failed row."""
+    logs_of: dict[Key, list[Log]] = {}
+
+    def submit(more: list[list[Log]]) -> list[Any]:
+        futures = client.map(flight_rows, more, job=job_future, pure=False)
+        logs_of.update(zip((f.key for f in futures), more, strict=True))
+        return futures
+
+    completed = as_completed(submit(grouped))
+    for future in completed:
+        task = logs_of.pop(future.key)
+        try:
+            found = future.result()
+        except KilledWorker:
+            if len(task) > 1:
+                completed.update(submit([[log] for log in task]))
+                found = []
+            else:
+                found = [_failed(path, digest, job, _WORKER_DIED) for path, digest in task]
+        except Exception as exc:  # the task could not run
+            found = [_failed(path, digest, job, failure_reason(exc)) for path, digest in task]
+        future.release()
+        yield from found
 
 
 def _failed(path: str, digest: str | None, job: FleetJob, reason: str) -> dict[str, Any]:
