@@ -263,10 +263,15 @@ class PackFilter:
         step counts with the information beyond that (none where the differences are no
         cleaner than the readings)."""
         absolute_var_ohm2 = 2.0 * self.noise_var_v2 / step.current_step_a**2
-        if step.var_ohm2 >= absolute_var_ohm2:
+        if not step.var_ohm2 > 0.0:
             return
-        var_ohm2 = 1.0 / (1.0 / step.var_ohm2 - 1.0 / absolute_var_ohm2)
+        added_info = 1.0 / step.var_ohm2 - 1.0 / absolute_var_ohm2  # 1/Ω²
+        if not (math.isfinite(added_info) and added_info > 0.0):
+            return  # no cleaner than the readings (or a value no pack gives)
+        var_ohm2 = 1.0 / added_info
         resistance_ohm = step.resistance_ohm
+        if not (math.isfinite(var_ohm2) and math.isfinite(resistance_ohm)):
+            return
         h = np.array([0.0, 0.0, 1.0, 0.0])
         innovation = resistance_ohm - float(self.x[2])
         s_var = float(self.P[2, 2]) + var_ohm2
