@@ -126,27 +126,9 @@ class Pilot(Receiver):
         elif kind == "MISSION_ITEM_REACHED":
             s.mission_reached = msg.seq
 
-    def wait_for(
-        self,
-        done: Callable[[], bool],
-        sim_timeout_s: float,
-        what: str,
-        tick: Callable[[], None] | None = None,
-    ) -> None:
-        """Pump until ``done()``; ``tick()`` after every message from the autopilot; a
-        UserError naming ``what`` after ``sim_timeout_s`` of the autopilot's clock."""
-        deadline = self.state.boot_s + sim_timeout_s
-        while not done():
-            if self.state.boot_s > deadline:
-                recent = "; ".join(t for _, t in self.said[-4:])
-                raise UserError(f"SITL: {what} not done in {sim_timeout_s:.0f} s ({recent})")
-            if self.pump() is not None and tick is not None:
-                tick()
-
-    def hold(self, sim_s: float, tick: Callable[[], None] | None = None) -> None:
-        """Let ``sim_s`` seconds of the autopilot's clock pass (ticking)."""
-        end = self.state.boot_s + sim_s
-        self.wait_for(lambda: self.state.boot_s >= end, sim_s + 30.0, "hold", tick)
+    def _not_done_text(self, what: str, sim_timeout_s: float) -> str:
+        recent = "; ".join(t for _, t in self.said[-4:])
+        return f"SITL: {what} not done in {sim_timeout_s:.0f} s ({recent})"
 
     def every(self, period_s: float, send: Callable[[], None]) -> Callable[[], None]:
         """A tick that calls ``send`` at most once per ``period_s`` of the autopilot's clock."""

@@ -20,7 +20,7 @@ component, PX4 takes it as its battery and republishes it on every link.
 from __future__ import annotations
 
 import math
-from collections.abc import Callable, Sequence
+from collections.abc import Sequence
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -232,26 +232,8 @@ class Px4Pilot(Receiver):
             mavlink.MAV_TYPE_GCS, mavlink.MAV_AUTOPILOT_INVALID, 0, 0, mavlink.MAV_STATE_ACTIVE
         )
 
-    def wait_for(
-        self,
-        done: Callable[[], bool],
-        sim_timeout_s: float,
-        what: str,
-        tick: Callable[[], None] | None = None,
-    ) -> None:
-        """Pump until ``done()``; ``tick()`` after every message; a UserError naming ``what``
-        after ``sim_timeout_s`` of PX4's clock."""
-        deadline = self.state.boot_s + sim_timeout_s
-        while not done():
-            if self.state.boot_s > deadline:
-                raise UserError(f"PX4: {what} not done in {sim_timeout_s:.0f} s of its clock")
-            if self.pump() is not None and tick is not None:
-                tick()
-
-    def hold(self, sim_s: float, tick: Callable[[], None] | None = None) -> None:
-        """Let ``sim_s`` seconds of PX4's clock pass."""
-        end = self.state.boot_s + sim_s
-        self.wait_for(lambda: self.state.boot_s >= end, sim_s + 30.0, "hold", tick)
+    def _not_done_text(self, what: str, sim_timeout_s: float) -> str:
+        return f"PX4: {what} not done in {sim_timeout_s:.0f} s of its clock"
 
     # -- commands ----------------------------------------------------------------------------
 
