@@ -9,7 +9,8 @@ Every bench log is read three ways, each timed as the best of a few runs:
 - **reader**: ``estimator.logs.iter_samples`` — the same messages decoded into samples, with
   the plausibility and time checks;
 - **replay**: the reader plus the daemon's whole pipeline (``replay_log``): estimates, the
-  power trace, the online wind/mass tracker.
+  power trace, the online wind/mass tracker. The pipeline's own cost is printed beside it in
+  µs per sample: (replay − reader) / samples.
 
 Both "reader only" (in this process) and "whole process" (``uav-energy replay LOG --vehicle F
 --json`` against ``python -c <baseline loop>``, interpreter start and imports included) are
@@ -226,9 +227,10 @@ def bench_one(log: BenchLog) -> None:
         f"    reader  {t_read:6.3f} s  {n_samples / t_read:8.0f} samples/s   "
         f"baseline/reader {ratio(t_base, t_read)}"
     )
+    pipeline_us = (t_replay - t_read) / n_samples * 1e6
     print(
         f"    replay  {t_replay:6.3f} s  {n_samples / t_replay:8.0f} samples/s   "
-        f"baseline/replay {ratio(t_base, t_replay)}"
+        f"baseline/replay {ratio(t_base, t_replay)}   pipeline {pipeline_us:5.1f} µs/sample"
     )
     shown = "—" if p_base is None else f"{p_base:.2f} s"
     print(

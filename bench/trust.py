@@ -8,7 +8,8 @@
    directory fsync) in a temporary directory: size, median and worst write time.
 3. A restart mid-flight, in process: the flight replayed until 60 s, its snapshot through
    JSON, telemetry lost until 63 s, then a new pipeline continuing from the snapshot, and
-   one starting from scratch, against the uninterrupted replay (energy, endurance).
+   one starting from scratch, against the uninterrupted replay (energy, endurance): the table
+   of docs/daemon.md (deterministic; ``scripts/figures.py`` writes it there).
 
 Run: ``python -m bench.trust``.
 """
@@ -62,33 +63,60 @@ def replay(
     return pipeline, estimates
 
 
-def restart(timed: list[tuple[float, mavlink.MAVLink_message]]) -> None:
+def flight() -> list[tuple[float, mavlink.MAVLink_message]]:
+    """The bench's flight: the simulator's 120 s ``hover-cruise``, seed 3 (timed messages)."""
+    return simulate(SimConfig(plan="hover-cruise", duration_s=120.0, seed=3)).messages
+
+
+def _change(value: float, reference: float, spec: str) -> str:
+    """``value`` against ``reference`` in %, with the documents' minus sign."""
+    return f"{100 * (value / reference - 1):{spec}} %".replace("-", "\N{MINUS SIGN}")
+
+
+def restart_table(timed: list[tuple[float, mavlink.MAVLink_message]]) -> str:
+    """A restart mid-flight as docs/daemon.md gives it: the flight replayed until
+    :data:`RESTART_AT_S`, its snapshot through JSON, telemetry lost for :data:`DOWN_S`, then a
+    pipeline continued from the snapshot and one from scratch, against the uninterrupted
+    replay: remaining energy (Wh) at the first and last estimate, endurance (s), and when the
+    endurance is valid."""
     _, full = replay(timed)
     reference = {round(e.time_s, 3): e for e in full}
     before, _ = replay([(t, m) for t, m in timed if t <= RESTART_AT_S])
     snapshot = json.loads(json.dumps(before.snapshot()))
     after = [(t, m) for t, m in timed if t >= RESTART_AT_S + DOWN_S]
-    print(f"restart at {RESTART_AT_S:.0f} s, {DOWN_S:.0f} s of telemetry lost:")
-    for name, (_, estimates) in (
-        ("continued", replay(after, snapshot)),
-        ("scratch", replay(after)),
-    ):
+    runs = {
+        "continued from the state file": replay(after, snapshot)[1],
+        "from scratch (no state file)": replay(after)[1],
+    }
+    scratch = runs["from scratch (no state file)"]
+    first_s, last_s = scratch[0].time_s, scratch[-1].time_s
+    ref_first, ref_last = reference[round(first_s, 3)], reference[round(last_s, 3)]
+    lines = [
+        f"| restart at {RESTART_AT_S:.0f} s, {DOWN_S:.0f} s of telemetry lost "
+        f"| first estimate ({first_s:.0f} s) | at {last_s:.0f} s | endurance at {last_s:.0f} s "
+        "| endurance valid |",
+        "|---|---:|---:|---:|---:|",
+        f"| uninterrupted | {ref_first.energy_remaining_wh:.2f} Wh "
+        f"| {ref_last.energy_remaining_wh:.2f} Wh | {ref_last.endurance_s:.0f} s | |",
+    ]
+    for name, estimates in runs.items():
         first, last = estimates[0], estimates[-1]
-        ref_first, ref_last = reference[round(first.time_s, 3)], reference[round(last.time_s, 3)]
-        valid = next(e.time_s for e in estimates if e.endurance_valid)
-        print(
-            f"  {name:9s} first {first.time_s:5.1f} s: {first.energy_remaining_wh:7.2f} Wh "
-            f"({first.energy_remaining_wh / ref_first.energy_remaining_wh - 1:+.2%}), bias "
-            f"{first.bias:.3f} ± {first.bias_sigma:.3f}; at {last.time_s:5.1f} s: "
-            f"{last.energy_remaining_wh:7.2f} Wh "
-            f"({last.energy_remaining_wh / ref_last.energy_remaining_wh - 1:+.2%}), endurance "
-            f"{last.endurance_s:5.0f} s (uninterrupted {ref_last.endurance_s:5.0f} s); "
-            f"endurance valid from {valid:.1f} s"
+        valid_s = next(e.time_s for e in estimates if e.endurance_valid) - first.time_s
+        e_first, e_last = first.energy_remaining_wh, last.energy_remaining_wh
+        lines.append(
+            f"| {name} | {e_first:.2f} Wh "
+            f"({_change(e_first, ref_first.energy_remaining_wh, '+.2f')}), bias "
+            f"{first.bias:.3f} ± {first.bias_sigma:.3f} "
+            f"| {e_last:.2f} Wh ({_change(e_last, ref_last.energy_remaining_wh, '+.2f')}) "
+            f"| {last.endurance_s:.0f} s "
+            f"({_change(last.endurance_s, ref_last.endurance_s, '+.1f')}) "
+            f"| {'at once' if valid_s == 0 else f'{valid_s:.0f} s later'} |"
         )
+    return "\n".join(lines)
 
 
 def main() -> None:
-    timed = simulate(SimConfig(plan="hover-cruise", duration_s=120.0, seed=3)).messages
+    timed = flight()
     messages = [m for _, m in timed]
     plain = mavlink.MAVLink(None, srcSystem=1, srcComponent=1)
     signer = mavlink.MAVLink(None, srcSystem=1, srcComponent=1)
@@ -135,7 +163,7 @@ def main() -> None:
             f"state file: {path.stat().st_size} bytes; atomic write median "
             f"{times_ms[WRITES // 2]:.2f} ms, worst {times_ms[-1]:.2f} ms ({WRITES} writes, {tmp})"
         )
-    restart(timed)
+    print(restart_table(timed))
 
 
 if __name__ == "__main__":

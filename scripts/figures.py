@@ -13,11 +13,17 @@ Each ``<!-- figures:NAME -->`` … ``<!-- /figures:NAME -->`` block of those doc
   replay F --json`` (the built-in vehicle); ``sitl-run1-builtin``: ``../shared``'s recorded
   ArduCopter SITL flight replayed with the built-in vehicle on SITL's pack.
 - ``experiments-*``: ``uav-energy experiments`` (generated flights, seed 0).
+- ``residuals-sim-*``: ``uav-energy residuals`` on simulated flights, each with an effect
+  hidden from the built-in vehicle (``scripts/residual_figures.py``; ``residuals-iris-*``:
+  the IRIS+ logs against the March vehicle file); the slower
+  ``residuals-sim-changing`` (effects that change in flight) is checked by
+  ``tests/test_residual_figures.py``.
 - ``sitl-recordings-table``, ``sitl-effects-*``: the recordings of ``replay/sitl`` replayed,
   and the effects ``uav-energy residuals`` names on them scored against their truth
   (``scripts/sitl_figures.py``; checked by ``tests/test_sitl_recordings.py`` and
   ``tests/test_sitl_effects.py``, which compute the same results anyway, not by
   ``tests/test_figures.py``).
+- ``state-restart-table``: ``python -m bench.trust``'s restart mid-flight (docs/daemon.md).
 - ``tracked-wind-sitl``: ``python scripts/tracked_wind_sitl.py`` (the wind the pipeline uses
   on the ArduCopter SITL recordings of ``replay/sitl``, against their truth; checked by
   ``tests/test_sitl_recordings.py``).
@@ -67,7 +73,8 @@ from estimator.logs import iter_samples
 from estimator.logs.mission_files import load_mission
 from estimator.physics.vehicle import BatterySpec, default_vehicle, load_vehicle
 from estimator.reports.doc_blocks import Block, blocks_in, rewrite
-from estimator.sim.experiments import reproduce
+from estimator.reports.fit_report import circles_markdown
+from estimator.sim.experiments import Experiments, curve_table, reproduce
 
 REPO = Path(__file__).resolve().parent.parent
 DOCUMENTS = (REPO / "README.md", *sorted((REPO / "docs").glob("*.md")))
@@ -81,9 +88,9 @@ PERIODS = {
 }
 
 
-def script_module(name: str) -> ModuleType:
-    """Another script of this folder, loaded as a module."""
-    spec = importlib.util.spec_from_file_location(name, Path(__file__).with_name(f"{name}.py"))
+def script_module(name: str, folder: Path = REPO / "scripts") -> ModuleType:
+    """Another script of this folder (or of ``folder``), loaded as a module."""
+    spec = importlib.util.spec_from_file_location(name, folder / f"{name}.py")
     assert spec is not None and spec.loader is not None
     module = importlib.util.module_from_spec(spec)
     spec.loader.exec_module(module)
@@ -92,6 +99,7 @@ def script_module(name: str) -> ModuleType:
 
 sitl = script_module("sitl_figures")
 fits = script_module("fit_figures")
+residual_figures = script_module("residual_figures")
 MISSIONS = sitl.SITL_RECORDINGS / "missions"
 #: The missions the planner's flight settings were read off (docs/plan.md, "Calibration").
 CALIBRATION = ("climbs_wind6", "outback_wind8", "square_wind5")
@@ -431,10 +439,16 @@ generator("sitl-quad-fit-errors")(lambda: fits.sitl_quad_errors(sitl_quad_fit())
 
 
 @cache
+def experiments_run() -> Experiments:
+    """``uav-energy experiments`` (seed 0)."""
+    with tempfile.TemporaryDirectory() as out:
+        return reproduce(Path(out), seed=0)
+
+
+@cache
 def experiments() -> tuple[str, str]:
     """``uav-energy experiments`` (seed 0): the fit's and the circles' sentences."""
-    with tempfile.TemporaryDirectory() as out:
-        result = reproduce(Path(out), seed=0)
+    result = experiments_run()
     truth, fitted = result.vehicle.model, result.fit.theory.model
     scores = result.fit.scores
     fit = (
@@ -467,6 +481,77 @@ def experiments_fit() -> str:
 @generator("experiments-circles")
 def experiments_circles() -> str:
     return experiments()[1]
+
+
+generator("experiments-curve")(lambda: curve_table(experiments_run()))
+generator("experiments-circles-table")(
+    lambda: circles_markdown(experiments_run().circles, experiments_run().radii_m).rstrip()
+)
+
+
+@generator("experiments-fit-details")
+def experiments_fit_details() -> str:
+    """docs/fit.md's sentence: hover power, V_me and V_mr ± 1σ against the truth, held-out
+    RMSE / MAPE of each model (and the network's worst fold), the residual σ."""
+    result = experiments_run()
+    truth, fit = result.vehicle.model, result.fit.summary()
+    return (
+        f"Hover {fit['hover_power_w']:.1f} W (truth {truth.hover_power_w:.1f}), V_me "
+        f"{fits.pm(fit['v_me_mps'], fit['v_me_stderr_mps'], '.2f')} m/s (truth "
+        f"{truth.max_endurance_speed_mps():.2f}), V_mr "
+        f"{fits.pm(fit['v_mr_mps'], fit['v_mr_stderr_mps'], '.2f')} m/s (truth "
+        f"{truth.max_range_speed_mps():.2f}). Held-out by flight: theory "
+        f"{fits.held_out(fit, 'theory')}, polynomial {fits.held_out(fit, 'polynomial')}, "
+        f"network {fits.held_out(fit, 'dnn')} (its worst fold "
+        f"{max(fit['fold_rmse_w']['dnn']):.1f} W). Residual σ {fit['noise_sigma_w']:.1f} W"
+    )
+
+
+# --- residual analysis of simulated flights with a hidden effect ----------------------------------
+
+
+@cache
+def simulated_residuals() -> tuple[dict[str, Any], dict[str, Any]]:
+    return residual_figures.hidden_runs(_cli)
+
+
+@cache
+def changing_residuals() -> dict[str, Any]:
+    return residual_figures.changing_runs(_cli)
+
+
+@cache
+def iris_residuals() -> dict[str, Any]:
+    return residual_figures.iris_runs(_cli, IRIS)
+
+
+generator("residuals-iris-table", reads=IRIS)(lambda: residual_figures.iris_table(iris_residuals()))
+generator("residuals-iris-summer", reads=IRIS)(
+    lambda: residual_figures.iris_summer(iris_residuals())
+)
+generator("residuals-sim-changing", checked_by="tests/test_residual_figures.py")(
+    lambda: residual_figures.changing_table(changing_residuals())
+)
+generator("residuals-sim-table")(lambda: residual_figures.hidden_table(simulated_residuals()[0]))
+generator("residuals-sim-step")(
+    lambda: residual_figures.step_footnote(simulated_residuals()[0][residual_figures.STEP_ROW])
+)
+generator("residuals-sim-recovered")(lambda: residual_figures.recovered(simulated_residuals()[0]))
+generator("residuals-sim-wind")(lambda: residual_figures.wind_rmse(simulated_residuals()[0]))
+generator("residuals-sim-replay")(lambda: residual_figures.replay_table(simulated_residuals()[1]))
+generator("residuals-sim-tracked")(
+    lambda: residual_figures.tracked_replay(simulated_residuals()[1][residual_figures.WIND_ROW])
+)
+
+
+# --- the daemon ---------------------------------------------------------------------------------
+
+
+@generator("state-restart-table")
+def state_restart_table() -> str:
+    """``python -m bench.trust``'s restart mid-flight (in process; < 1 s of CPU)."""
+    trust = script_module("trust", REPO / "bench")
+    return str(trust.restart_table(trust.flight()))
 
 
 # --- the SITL recordings: replayed, the effects named on them, the wind in use -------------------

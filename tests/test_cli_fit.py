@@ -73,6 +73,14 @@ def test_out_without_mass_exits_2(capsys: pytest.CaptureFixture[str], tmp_path: 
     assert "--mass-kg" in err
 
 
+@pytest.mark.parametrize("fraction", ["0.9", "-0.1", "nan"])
+def test_a_slow_error_fraction_out_of_range_exits_2(
+    capsys: pytest.CaptureFixture[str], fraction: str
+) -> None:
+    err = _fails_with_one_line(capsys, ["fit", str(IRIS[0]), "--slow-error-fraction", fraction])
+    assert "--slow-error-fraction must be between 0 and 0.5" in err
+
+
 def test_json_report_and_vehicle_file(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
     out = tmp_path / "iris.toml"
     report = tmp_path / "report"

@@ -274,4 +274,4 @@ def test_the_autopilot_wind_reaches_the_tracker_and_the_return() -> None:
     run(pipeline, [*flight(2.0), report])
     assert pipeline.counts["autopilot_wind"] == 1
     assert pipeline.returning.autopilot_wind == report
-    assert pipeline.online is not None and pipeline.online._autopilot_wind == report
+    assert pipeline.online is not None and pipeline.online.autopilot.report == report

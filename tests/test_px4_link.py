@@ -69,6 +69,37 @@ def test_px4_unknown_current_is_not_measured(flight: Messages) -> None:
     assert any(s.consumed_mah is not None for s in real)
 
 
+def _battery_ids(
+    messages: list[mavlink.MAVLink_message], ids: tuple[int, ...]
+) -> list[mavlink.MAVLink_message]:
+    """``messages`` with each BATTERY_STATUS sent once per id of ``ids`` (copies)."""
+    out = []
+    for msg in messages:
+        if msg.get_type() != "BATTERY_STATUS":
+            out.append(msg)
+            continue
+        for battery_id in ids:
+            twin = copy.copy(msg)
+            twin.id = battery_id
+            out.append(twin)
+    return out
+
+
+def test_the_only_battery_of_another_id_is_taken_but_not_a_second_one(flight: Messages) -> None:
+    """PX4 republishes a battery fed to it over MAVLink as id 255: an autopilot's only
+    battery is the one decoded, whatever its id, with its charge counter (SYS_STATUS has
+    none); beside a battery 0 another id stays another battery."""
+    px4 = as_px4(flight)
+    decoder = TelemetryDecoder(limits=default_vehicle().input_limits())
+    samples = decoder.decode_all(_battery_ids(px4, (255,)))
+    assert decoder.battery_id == 255 and decoder.counts["battery_id_adopted"] == 1
+    assert any(isinstance(s, BatterySample) and s.consumed_mah is not None for s in samples)
+    both = TelemetryDecoder(limits=default_vehicle().input_limits())
+    both.decode_all(_battery_ids(px4, (0, 1)))
+    assert both.battery_id == 0 and both.counts["battery_id_adopted"] == 0
+    assert both.counts["other_battery"] > 50
+
+
 async def test_daemon_asks_px4_for_message_intervals_only(flight: Messages) -> None:
     """To PX4: SET_MESSAGE_INTERVAL for the messages it uses (and reads), never
     REQUEST_DATA_STREAM; estimates flow model-only on PX4's unknown current; the return

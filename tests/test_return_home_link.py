@@ -121,11 +121,13 @@ def test_position_comes_from_global_position_int_when_velocity_is_local_position
 
 class MissionServer:
     """An autopilot's mission protocol on the test's sender link: answers MISSION_REQUEST_LIST
-    and MISSION_REQUEST_INT with ``items`` waypoints, ignoring the first ``drop`` requests;
-    records everything it receives."""
+    and MISSION_REQUEST_INT with ``items`` waypoints, ignoring the first ``drop`` requests
+    (``silent``: all of them; ``refuse``: answers each with an error MISSION_ACK); records
+    everything it receives."""
 
     def __init__(self, link: MavlinkLink, items: int, drop: int = 0, silent: bool = False) -> None:
         self.link, self.items, self.drop, self.silent = link, items, drop, silent
+        self.refuse = False
         self.received: list[mavlink.MAVLink_message] = []
         self.task = asyncio.create_task(self._serve())
 
@@ -144,7 +146,9 @@ class MissionServer:
                     continue
                 src = (msg.get_srcSystem(), msg.get_srcComponent())
                 mav = self.link.mav
-                if kind == "MISSION_REQUEST_LIST":
+                if self.refuse:
+                    self.link.send(mav.mission_ack_encode(*src, mavlink.MAV_MISSION_DENIED, 0))
+                elif kind == "MISSION_REQUEST_LIST":
                     self.link.send(mav.mission_count_encode(*src, self.items, 0))
                 else:
                     lat, lon = HOME[0] + 0.001 * msg.seq, HOME[1]
@@ -198,12 +202,16 @@ async def test_mission_is_read_with_retries_and_read_again_when_it_changes(
         server.task.cancel()
 
 
-async def test_a_mission_download_that_gets_no_answer_is_a_counted_failure_and_one_line(
+async def test_failed_mission_downloads_are_counted_and_warned_once_per_cause(
     flight: Messages, caplog: pytest.LogCaptureFixture, monkeypatch: pytest.MonkeyPatch
 ) -> None:
+    """A silent autopilot (as ``uav-energy sim``), then one that refuses: each cause is one
+    warning however often the download is retried; the repeats are one line at the stop."""
     from estimator.mavlink import mission_download
 
     monkeypatch.setattr(mission_download, "ITEM_TIMEOUT_S", 0.2)
+    monkeypatch.setattr(mission_download, "RETRIES", 1)
+    monkeypatch.setattr(mission_download, "RETRY_AFTER_S", 0.0)
     caplog.set_level(logging.INFO, logger="uav_energy")
     messages = [m for _, m in flight]
     async with running(ServiceConfig(stale_after_s=30.0)) as (service, sender):
@@ -211,14 +219,31 @@ async def test_a_mission_download_that_gets_no_answer_is_a_counted_failure_and_o
         for msg in messages[:200]:
             sender.send(msg)
             await asyncio.sleep(0.002)
-        await wait_for(
-            lambda: service.mission is not None and service.mission.counts["downloads_failed"], 15
-        )
-        assert len(server.kinds("MISSION_REQUEST_LIST")) == 1 + mission_download.RETRIES
+
+        def failed() -> int:
+            return 0 if service.mission is None else service.mission.counts["downloads_failed"]
+
+        await wait_for(lambda: failed() == 2, 15)
+        assert len(server.kinds("MISSION_REQUEST_LIST")) == 2 * (1 + mission_download.RETRIES)
         assert service.latest is not None and service.latest.rth_flags & 4  # no mission
+        server.silent, server.refuse = False, True
+        await wait_for(lambda: failed() == 5, 15)
         server.task.cancel()
-    failures = [r for r in caplog.records if "mission download failed" in r.message]
-    assert len(failures) == 1
+    warned = [r.message for r in caplog.records if r.levelno == logging.WARNING]
+    assert [w for w in warned if "mission download failed" in w] == [
+        "mission download failed (no answer): retrying every 0 s; further failures are "
+        "counted (mission_downloads_failed)",
+        "mission download failed (refused: MAV_MISSION_DENIED): retrying every 0 s; further "
+        "failures are counted (mission_downloads_failed)",
+    ]
+    assert (
+        "the mission download (no answer) warning above holds for 1 more download attempts too"
+        in warned
+    )
+    assert (
+        "the mission download (refused: MAV_MISSION_DENIED) warning above holds for 2 more "
+        "download attempts too"
+    ) in warned
 
 
 async def test_home_is_requested_when_positions_come_without_it_then_followed(

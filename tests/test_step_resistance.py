@@ -9,6 +9,8 @@ import pytest
 from estimator.estimation.step_resistance import STEP_MIN_A, StepResistance
 
 R_OHM = 0.03
+#: The resting voltage's change per Ah drawn (V/Ah).
+DRIFT_V_PER_AH = -0.5
 
 
 def _readings(
@@ -16,11 +18,12 @@ def _readings(
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """2 Hz readings of a pack at 30 A moving smoothly by ±1 A, with a 3 A step every 20 s;
     1 mV of voltage noise, ``current_noise_a`` of white current noise (1σ); resting voltage
-    falling 2 mV a reading."""
+    falling :data:`DRIFT_V_PER_AH` (about 2 mV a reading)."""
     rng = np.random.default_rng(seed)
     t = np.arange(0.0, seconds, 0.5)
     true_a = 30.0 + np.sin(t / 15.0) + 3.0 * (np.floor(t / 20.0) % 2)
-    ocv_v = 11.5 - 0.004 * t
+    drawn_ah = np.concatenate([[0.0], np.cumsum(0.5 * (true_a[1:] + true_a[:-1]) * 0.5 / 3600)])
+    ocv_v = 11.5 + DRIFT_V_PER_AH * drawn_ah
     volts = ocv_v - true_a * R_OHM + rng.normal(0.0, 0.001, len(t))
     return t, volts, true_a + rng.normal(0.0, current_noise_a, len(t))
 
@@ -30,7 +33,7 @@ def _run(current_noise_a: float) -> tuple[StepResistance, list, list[bool]]:
     steps = StepResistance(0.05)
     found, flags = [], []
     for k in range(len(t)):
-        step = steps.take(float(t[k]), float(volts[k]), float(amps[k]), -0.002, R_OHM)
+        step = steps.take(float(t[k]), float(volts[k]), float(amps[k]), DRIFT_V_PER_AH, R_OHM)
         if step is not None:
             found.append(step)
         flags.append(steps.within_noise)

@@ -27,7 +27,7 @@ from estimator.analysis.theory_fit import Priors
 from estimator.errors import UserError
 from estimator.logs import FORMATS, FlightSeries, load_flights
 from estimator.logs.sanity import flight_warnings
-from estimator.physics.vehicle import CHEMISTRIES, BatterySpec, Vehicle
+from estimator.physics.vehicle import CHEMISTRIES, SLOW_ERROR_RANGE, BatterySpec, Vehicle
 
 #: Highest per-cell voltage of a charged LiPo under light load, V (for inferring the cell count).
 MAX_CELL_VOLTAGE_V = 4.25
@@ -74,6 +74,12 @@ def register(subparsers: argparse._SubParsersAction[argparse.ArgumentParser]) ->
     )
     v.add_argument("--cells", type=int, help="series cells (default: from the peak voltage)")
     v.add_argument("--reserve-fraction", type=float, default=0.2)
+    v.add_argument(
+        "--slow-error-fraction",
+        type=float,
+        help="1σ of the model's error that stays correlated over tens of seconds, as a "
+        "fraction of its hover power (the online tracker's; default: not stated)",
+    )
     v.add_argument(
         "--note", action="append", default=[], help="comment line at the top of the file"
     )
@@ -166,6 +172,10 @@ def _check_args(args: argparse.Namespace) -> None:
         raise UserError("--folds must be at least 2")
     if args.jobs < 1:
         raise UserError("--jobs must be at least 1")
+    slow = args.slow_error_fraction
+    low, high = SLOW_ERROR_RANGE
+    if slow is not None and not (math.isfinite(slow) and low <= slow <= high):
+        raise UserError(f"--slow-error-fraction must be between {low:g} and {high:g}")
     if not 0.0 <= args.reserve_fraction < 1.0:
         raise UserError("--reserve-fraction must be in [0, 1)")
     if args.out is not None and (args.mass_kg is None or args.capacity_ah is None):
@@ -227,6 +237,7 @@ def _vehicle(
         model=report.theory.model,
         battery=battery,
         model_stderr=dict(report.theory.coeff_stderr),
+        slow_error_fraction=args.slow_error_fraction,
     )
 
 

@@ -22,7 +22,8 @@ from rich.console import Console
 from estimator.analysis.residual_samples import ResidualOptions
 from estimator.analysis.residuals import ResidualResult, analyze
 from estimator.errors import UserError
-from estimator.estimation.online_effects import OnlineEffects, track_series
+from estimator.estimation.online_effects import OnlineEffects
+from estimator.estimation.track_runner import track_series
 from estimator.logs import FORMATS, FlightSeries, load_flights
 from estimator.logs.sanity import flight_warnings
 from estimator.physics.effects import EFFECT_TYPES, Climb, effects_to_tables

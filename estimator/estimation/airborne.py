@@ -9,7 +9,7 @@ effect, and the climb term, the least certain part of the model, at its largest)
 information on the model's error in level flight, the figure the endurance is built on.
 The fusion's bias and the online wind/mass tracker learn only from ``flying`` readings
 (:class:`~estimator.estimation.pipeline.Pipeline`,
-:func:`~estimator.estimation.online_effects.track_samples`);
+:func:`~estimator.estimation.track_runner.track_samples`);
 before, the pipeline draws the measured power from the energy state, untied to the bias.
 """
 

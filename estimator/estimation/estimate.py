@@ -18,6 +18,8 @@ class Estimate:
     range_vmr_m: distance over ground (no wind) at V_mr until the reserve.
     bias: measured over modelled power (1 = the model is right).
     model_only: no measured current fused (uncertainty is wider).
+    voltage_follows_load: False once the pack voltage is found not to move with the load
+    (:mod:`estimator.estimation.load_response`): nothing is learnt from it.
     pack_soc, capacity_ah, pack_resistance_ohm: the pack as learned in flight from its voltage,
     current and charge (:mod:`estimator.estimation.pack_state`; NaN without a current):
     state of charge (fraction of the real pack), real capacity (Ah), resistance (Ω).
@@ -85,6 +87,7 @@ class Estimate:
     mission_sigma_wh: float = math.nan
     mission_feasible: bool | None = None
     rth_flags: int = 0
+    voltage_follows_load: bool = True
 
     def as_dict(self) -> dict[str, float | bool | None]:
         return {name: getattr(self, name) for name in _ESTIMATE_FIELDS}

@@ -15,7 +15,10 @@ times:
   grows, and :attr:`EnergyFilter.model_only` says so.
 - :class:`ResistanceFilter`, state ``[R]``: the pack's internal resistance (Ω) from terminal
   voltage and current, V = OCV(SoC) − I·R, the SoC from the energy state. It supplies k and
-  the voltage sag that endurance predictions integrate.
+  the voltage sag that endurance predictions integrate. A voltage that does not follow the
+  load (:mod:`estimator.estimation.load_response`: a simulator's battery) teaches it nothing:
+  R goes back to its prior and stays there, and
+  :attr:`EnergyFilter.voltage_follows_load` says so.
 
 Endurance integrates the pack forward at constant terminal power: as the voltage sags the
 current, and with it the I²R loss, rises — what a current-based "charge / average current"
@@ -33,6 +36,7 @@ import numpy as np
 from numpy.typing import ArrayLike
 
 from estimator.estimation.kalman import LinearKalman, state_from_json
+from estimator.estimation.load_response import LoadResponse
 from estimator.estimation.pack_state import PackEstimate
 from estimator.physics.battery import PackModel
 from estimator.physics.model import FloatArray
@@ -100,15 +104,21 @@ class ResistanceFilter:
         self.pack = pack
         self.settings = settings
         cells = pack.spec.cells
-        fixed = settings.internal_resistance_ohm
-        prior = settings.resistance_prior_ohm_per_cell * cells
-        self._kf = LinearKalman(
+        self._kf = self._prior()
+        ocv_sigma_v = settings.ocv_curve_sigma_v_per_cell * cells
+        self._voltage_var_v2 = settings.voltage_noise_v**2 + ocv_sigma_v**2
+        self._fixed = settings.internal_resistance_ohm is not None
+        #: Whether the voltage follows the load at all.
+        self.load = LoadResponse(cells)
+
+    def _prior(self) -> LinearKalman:
+        """R at its start: the fixed value, else the per-cell prior with its variance."""
+        fixed = self.settings.internal_resistance_ohm
+        prior = self.settings.resistance_prior_ohm_per_cell * self.pack.spec.cells
+        return LinearKalman(
             np.array([prior if fixed is None else fixed]),
             np.array([[0.0 if fixed is not None else prior**2]]),
         )
-        ocv_sigma_v = settings.ocv_curve_sigma_v_per_cell * cells
-        self._voltage_var_v2 = settings.voltage_noise_v**2 + ocv_sigma_v**2
-        self._fixed = fixed is not None
 
     @property
     def resistance_ohm(self) -> float:
@@ -125,8 +135,12 @@ class ResistanceFilter:
             self._kf.P = np.array([[_finite(state["var_ohm2"], 0.0, 1.0, "resistance variance")]])
 
     def update(self, dt_s: float, soc: float, voltage_v: float, current_a: float) -> None:
-        """Fold in a terminal voltage (V) at ``current_a`` (A) and state of charge ``soc``."""
-        if self._fixed:
+        """Fold in a terminal voltage (V) at ``current_a`` (A, measured or modelled) and state
+        of charge ``soc``, ``dt_s`` (s) after the last; once the voltage is found not to follow
+        the load, R is its prior again and learns no more."""
+        if self.load.take(dt_s, voltage_v, current_a):
+            self._kf = self._prior()
+        if self._fixed or self.load.unresponsive:
             return
         kf = self._kf
         if dt_s > 0:
@@ -192,6 +206,7 @@ class EnergyFilter:
         self._kf: LinearKalman | None = None
         self._time_s: float | None = None
         self._soc_ref = 1.0  # SoC when the consumed-charge counter read 0
+        self._charge_rebase = False  # the counter's next reading is its new zero (rebase)
         self._offset_sigma_wh = 0.0
         self._initial_wh = 0.0
         self._anchor_power_w: float | None = None
@@ -213,6 +228,12 @@ class EnergyFilter:
     def model_only(self) -> bool:
         """True while no measured current has been fused (the estimate is the model's)."""
         return not self.has_current
+
+    @property
+    def voltage_follows_load(self) -> bool:
+        """False once the pack voltage is found not to follow the load
+        (:mod:`estimator.estimation.load_response`): nothing is learnt from it."""
+        return self.voltage is None or not self.voltage.load.unresponsive
 
     @property
     def time_s(self) -> float:
@@ -319,7 +340,8 @@ class EnergyFilter:
         anchor = state["anchor_power_w"]
         self._kf, self.voltage = LinearKalman(x, p), voltage
         self._time_s = _finite(state["time_s"], 0.0, _MAX_CLOCK_S, "time (s)")
-        self._soc_ref = _finite(state["soc_ref"], 0.0, 1.0, "soc_ref")
+        # the counter's zero lies above full after a reboot the counter did not follow
+        self._soc_ref = _finite(state["soc_ref"], 0.0, 2.0, "soc_ref")
         self._offset_sigma_wh = _finite(state["offset_sigma_wh"], 0.0, most_wh, "offset (Wh)")
         self._initial_wh = _finite(state["initial_wh"], 0.0, most_wh, "initial energy (Wh)")
         if anchor is not None:
@@ -329,11 +351,14 @@ class EnergyFilter:
         self.has_charge = _flag(state["has_charge"])
 
     def rebase(self, time_s: float) -> None:
-        """The autopilot rebooted: its clock restarts at ``time_s`` and its consumed-charge
-        counter at 0. Keep the energy state; re-reference both."""
+        """The autopilot rebooted: its clock restarts at ``time_s``. Keep the energy state;
+        re-reference the clock now and the consumed-charge counter at its first reading
+        after the reboot (a real reboot restarts it at 0; a forged one, five frames of an
+        earlier clock, does not, and taking it for 0 counted the charge drawn twice)."""
         self._require()
         self._time_s = time_s
         self._soc_ref = self.soc
+        self._charge_rebase = True
 
     # -- predict / update -------------------------------------------------------------------
 
@@ -443,6 +468,9 @@ class EnergyFilter:
         kf = self._require()
         self.has_charge = True
         pack = self.pack
+        if self._charge_rebase:  # the counter's first reading since a reboot: its new zero
+            self._charge_rebase = False
+            self._soc_ref = self.soc + consumed_mah / 1000.0 / pack.spec.capacity_ah
         soc_now = self._soc_ref - consumed_mah / 1000.0 / pack.spec.capacity_ah
         energy_wh = float(pack.usable_energy_wh(soc_now))
         used_wh = float(pack.energy_wh(self._soc_ref) - pack.energy_wh(soc_now))

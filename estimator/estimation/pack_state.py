@@ -240,13 +240,12 @@ class PackFilter:
         else:
             last_s = time_s if self.last_time_s is None else self.last_time_s
             dt_s = max(time_s - last_s, 0.0)
-            charge_before_ah = self.charge_ah
             if consumed_mah is not None:
                 self.count(consumed_mah)
             else:
                 self.draw(current_a, dt_s)
-            drift_v = self._resting_drift_v(self.charge_ah - charge_before_ah)
-            step = self.steps.take(time_s, voltage_v, current_a, drift_v, float(self.x[2]))
+            drift_v_per_ah = self._resting_drift_v(1.0)
+            step = self.steps.take(time_s, voltage_v, current_a, drift_v_per_ah, float(self.x[2]))
             if step is not None and self.settings.internal_resistance_ohm is None:
                 self._update_resistance(step)
             self.update(dt_s, voltage_v, current_a, learn_resistance=not self.steps.within_noise)
@@ -254,7 +253,7 @@ class PackFilter:
 
     def _resting_drift_v(self, drawn_ah: float) -> float:
         """Change of the resting pack voltage (V) as ``drawn_ah`` (Ah) is drawn now."""
-        slope_v = self.cells * self.pack.cell_ocv_slope_v(self.soc)[0]
+        slope_v = self.cells * self.pack.cell_ocv_slope_v(self.soc)[1]
         return -slope_v * self.x[1] * drawn_ah / self.label_ah
 
     def _update_resistance(self, step: Step) -> None:

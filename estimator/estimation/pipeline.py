@@ -180,7 +180,12 @@ class Pipeline:
         #: The effects in use and the model power with them.
         self.power = FlightPower(vehicle, tuple(effects))
         self.online = (
-            OnlineEffects(vehicle.model, vehicle.mass_kg, self.power.effects)
+            OnlineEffects(
+                vehicle.model,
+                vehicle.mass_kg,
+                self.power.effects,
+                slow_error_fraction=vehicle.slow_error_fraction,
+            )
             if self.settings.track_effects
             else None
         )
@@ -442,7 +447,10 @@ class Pipeline:
                 self._pack_estimate = resume.pack.estimate()
             if self.online is not None:
                 self.online = OnlineEffects(
-                    self.vehicle.model, self.vehicle.mass_kg, self.power.effects
+                    self.vehicle.model,
+                    self.vehicle.mass_kg,
+                    self.power.effects,
+                    slow_error_fraction=self.vehicle.slow_error_fraction,
                 )
             self._refresh_speeds()
         self._battery = sample
@@ -624,7 +632,11 @@ class Pipeline:
 
     def _learn_pack(self, latest: BatterySample, consumed_mah: float | None) -> None:
         """The period's latest reading, when it has a current, into the pack filter (with the
-        counter's last value of the period); the fusion's energy rests on the pack's."""
+        counter's last value of the period); the fusion's energy rests on the pack's. A
+        voltage that does not follow the load teaches it nothing: no pack is learnt."""
+        if not self.energy.voltage_follows_load:
+            self.pack_state = self._pack_estimate = None
+            return
         if latest.current_a is not None:
             if self.pack_state is None:
                 self.pack_state = PackBank(self.pack, self.settings.pack, self.pack_prior)
@@ -726,6 +738,7 @@ class Pipeline:
             bias=est.bias,
             bias_sigma=est.bias_sigma,
             model_only=self.energy.model_only,
+            voltage_follows_load=self.energy.voltage_follows_load,
             stale=stale,
             soc=self.energy.soc,
             voltage_v=math.nan if battery is None else battery.voltage_v,

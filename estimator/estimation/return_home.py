@@ -301,7 +301,10 @@ class ReturnHome:
         margin_wh = inputs.energy_wh - energy_wh * inputs.loss_factor
         margin_sigma_wh = math.hypot(inputs.energy_sigma_wh, sigma_wh * inputs.loss_factor)
         pnr_s = self._point_of_no_return(time_s, energy_wh, margin_wh, inputs)
-        figures = ReturnFigures(
+        mission_wh, mission_sigma_wh, feasible, mission_flags = self._mission_figures_now(
+            time_s, position, conditions, inputs
+        )
+        return ReturnFigures(
             home_distance_m=distance_m,
             energy_wh=energy_wh,
             sigma_wh=sigma_wh,
@@ -312,13 +315,6 @@ class ReturnHome:
             margin_wh=margin_wh,
             margin_sigma_wh=margin_sigma_wh,
             pnr_s=pnr_s,
-            flags=flags,
-        )
-        mission_wh, mission_sigma_wh, feasible, mission_flags = self._mission_figures_now(
-            time_s, position, conditions, inputs
-        )
-        return replace(
-            figures,
             mission_energy_wh=mission_wh,
             mission_sigma_wh=mission_sigma_wh,
             mission_feasible=feasible,

@@ -2,6 +2,12 @@
 readings: ΔV = −ΔI·R + (the resting voltage's drift), where the slow errors of the absolute
 model (the curve, the charge) cancel.
 
+The drift is the resting voltage's change per Ah drawn (the caller's) times the charge drawn
+between the two readings, from their own currents (trapezoid over the gap), not from the
+autopilot's consumed-charge counter: that counter moves in steps of 1 mAh, as much as a second
+at 4 A draws, and a transport may not carry it (PX4's ULog has it, the SYS_STATUS it sends over
+MAVLink not): the same readings then give the same steps by either.
+
 The pack filter (:mod:`estimator.estimation.pack_state`) reads each terminal voltage against
 its whole model, with a reading noise learnt from its residuals: while the charge is
 uncertain (a daemon started in flight), that noise stays near its configured tens of mV, and
@@ -79,18 +85,19 @@ class StepResistance:
         time_s: float,
         voltage_v: float,
         current_a: float,
-        drift_v: float,
+        drift_v_per_ah: float,
         resistance_ohm: float,
     ) -> Step | None:
-        """One reading (s, V, A), the resting voltage's change since the last one (V) and
-        the resistance believed now (Ω, for the small current moves of a steady pair): the
-        resistance where the current stepped, else None."""
+        """One reading (s, V, A), the resting voltage's change per Ah drawn now (V/Ah, ≤ 0)
+        and the resistance believed now (Ω, for the small current moves of a steady pair):
+        the resistance where the current stepped, else None."""
         last, self._last = self._last, (time_s, voltage_v, current_a)
         self.within_noise = False
         if last is None or not 0.0 < time_s - last[0] <= PAIR_MAX_S:
             return None
         step_a = current_a - last[2]
-        change_v = voltage_v - last[1] - drift_v
+        drawn_ah = 0.5 * (current_a + last[2]) * (time_s - last[0]) / 3600.0
+        change_v = voltage_v - last[1] - drift_v_per_ah * drawn_ah
         current_var_a2 = 2.0 * max(self._current_noise_a2, 0.0)  # of a difference
         known = self._current_pairs >= _KNOWN_NOISE_PAIRS
         self.within_noise = known and step_a**2 <= 9.0 * current_var_a2

@@ -78,11 +78,14 @@ def iter_samples(path: Path) -> SampleStream:
     """
     flights = load_flights([path])
     stream = SampleStream(path, "cmu-csv", iter(()))
-    stream._it = _samples(flights)
+    stream._it = flight_samples(flights)
     return stream
 
 
-def _samples(flights: list[FlightSeries]) -> Iterator[Sample]:
+def flight_samples(flights: list[FlightSeries]) -> Iterator[Sample]:
+    """The samples of ``flights`` as the daemon would receive them: velocity, then power at
+    the nominal voltage, row by row; a :class:`RebootSample` between flights (each flight's
+    clock starts again)."""
     for i, f in enumerate(flights):
         if i > 0:
             yield RebootSample(float(f.time_s[0]))

@@ -138,10 +138,11 @@ class RunWarnings:
         self.counts[cause] += 1
         return self.counts[cause] == 1
 
-    def repeats(self) -> list[str]:
-        """One line per cause warned about more than once: how many more times it held."""
+    def repeats(self, what: str = "logs") -> list[str]:
+        """One line per cause warned about more than once: for how many more ``what`` (logs,
+        attempts) it held."""
         return [
-            f"the {cause} warning above holds for {n - 1} more logs too"
+            f"the {cause} warning above holds for {n - 1} more {what} too"
             for cause, n in self.counts.items()
             if n > 1
         ]

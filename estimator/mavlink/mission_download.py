@@ -5,9 +5,11 @@ MISSION_ACK, as our own system/component (191), so a ground station's transfers 
 links are not disturbed: we never upload, clear or set anything. Each request waits
 :data:`ITEM_TIMEOUT_S` (wall clock) and is resent up to :data:`RETRIES` times; a failed
 download (no answer, an error MISSION_ACK to us) is counted and retried after
-:data:`RETRY_AFTER_S`. The mission is read again when it changes: MISSION_CURRENT's item
-count changes or disagrees with the mission read (ArduPilot's count leaves out its home
-item 0), or the autopilot acknowledges a transfer to someone else (an upload finished).
+:data:`RETRY_AFTER_S`; the first failure of each cause is a warning, the later ones are
+counted (:attr:`MissionDownload.warned`: the daemon sums them up when it stops). The
+mission is read again when it changes: MISSION_CURRENT's item count changes or disagrees
+with the mission read (ArduPilot's count leaves out its home item 0), or the autopilot
+acknowledges a transfer to someone else (an upload finished).
 
 Event-driven, no task of its own: the daemon hands it the autopilot's messages
 (:meth:`MissionDownload.on_message`) and calls :meth:`MissionDownload.tick` once a second.
@@ -23,6 +25,7 @@ from collections.abc import Callable
 from pymavlink.dialects.v20 import common as mavlink
 
 from estimator.logs.mission_files import MissionItem
+from estimator.logs.sanity import RunWarnings
 
 log = logging.getLogger("uav_energy.mission")
 
@@ -56,6 +59,7 @@ class MissionDownload:
     ) -> None:
         self._send, self._mav, self._own, self._target, self._done = send, mav, own, target, done
         self.counts: Counter[str] = Counter()
+        self.warned = RunWarnings()  # failures by cause: the first of each is a warning
         self._count: int | None = None  # items announced by MISSION_COUNT (None: listing)
         self._items: dict[int, MissionItem] = {}
         self._active = False
@@ -124,7 +128,7 @@ class MissionDownload:
             return
         if kind == "MISSION_ACK":
             if msg.type != mavlink.MAV_MISSION_ACCEPTED:
-                self._fail(now_s, f"MISSION_ACK {msg.type}")
+                self._fail(now_s, f"refused: {_result_name(msg.type)}")
         elif kind == "MISSION_COUNT" and self._count is None:
             self._count, self._tries = int(msg.count), 0
             self._ask(now_s) if self._count else self._finish()
@@ -163,7 +167,11 @@ class MissionDownload:
         self.counts["downloads"] += 1
         shown = "; ".join(item_text(item) for item in self.items[:LOGGED_ITEMS])
         more = " …" if len(self.items) > LOGGED_ITEMS else ""
-        log.info("mission read from the autopilot: %d items: %s%s", len(self.items), shown, more)
+        failed = self.counts["downloads_failed"]
+        after = f" (after {failed} failed download(s))" if failed else ""
+        log.info(
+            "mission read from the autopilot%s: %d items: %s%s", after, len(self.items), shown, more
+        )
         self._done(self.items)
 
     def _fail(self, now_s: float, why: str) -> None:
@@ -171,12 +179,13 @@ class MissionDownload:
         self._next_start_s = now_s + RETRY_AFTER_S
         self.items = None
         self.counts["downloads_failed"] += 1
-        log.warning(
-            "mission download failed (%s; %d failure(s) so far): retrying in %.0f s",
-            why,
-            self.counts["downloads_failed"],
-            RETRY_AFTER_S,
-        )
+        if self.warned.first(f"mission download ({why})"):
+            log.warning(
+                "mission download failed (%s): retrying every %.0f s; further failures are "
+                "counted (mission_downloads_failed)",
+                why,
+                RETRY_AFTER_S,
+            )
 
     def _changed(self, now_s: float, why: str) -> None:
         self.counts["mission_changes"] += 1
@@ -200,6 +209,12 @@ def _item(msg: mavlink.MAVLink_message) -> MissionItem:
         alt_m=float(msg.z),
         where=f"item {msg.seq}",
     )
+
+
+def _result_name(result: int) -> str:
+    """A MISSION_ACK's MAV_MISSION_RESULT by name (its number when the dialect has none)."""
+    entry = mavlink.enums["MAV_MISSION_RESULT"].get(result)
+    return entry.name if entry is not None else f"MAV_MISSION_RESULT {result}"
 
 
 def item_text(item: MissionItem) -> str:

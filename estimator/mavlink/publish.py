@@ -55,8 +55,14 @@ NAMED_VALUES: dict[str, tuple[str, Callable[[Estimate], float]]] = {
     "BIAS": ("measured / model power", lambda e: e.bias),
     "BIAS_SIG": ("1σ of BIAS", lambda e: e.bias_sigma),
     "FLAGS": (
-        "bit 0 model_only, bit 1 stale, bit 2 endurance not yet valid",
-        lambda e: float(e.model_only + 2 * e.stale + 4 * (not e.endurance_valid)),
+        "bit 0 model_only, bit 1 stale, bit 2 endurance not yet valid, bit 3 the pack voltage "
+        "does not follow the load",
+        lambda e: float(
+            e.model_only
+            + 2 * e.stale
+            + 4 * (not e.endurance_valid)
+            + 8 * (not e.voltage_follows_load)
+        ),
     ),
     "HOME_M": ("m to home over ground", lambda e: e.home_distance_m),
     "RTH_WH": ("Wh to return home and land", lambda e: e.rth_energy_wh),

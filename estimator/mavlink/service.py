@@ -28,9 +28,11 @@ whose memory starts the pack filter and receives what it learns (every
 :data:`PACK_MEMORY_PERIOD_S` and at the end).
 One log line per event: autopilot found, streams requested, energy initialized (with a
 warning when the pack voltage does not fit the vehicle file's cell count), model-only mode,
+a pack voltage that does not follow the load (a warning),
 reboot or clock jump, link silent (stale) / resumed, bad frames, floods and input skipped as
 implausible (at most one line per 10 s each), a pack voltage no reading of which is believed
-(the cell counts it fits against the vehicle file's; also as STATUSTEXT). Reboots are
+(the cell counts it fits against the vehicle file's; also as STATUSTEXT), a failed mission
+download (once per cause; the repeats counted in one line when the daemon stops). Reboots are
 throttled: stream requests go out at most once per :data:`REQUEST_RETRY_S`, however often the
 clock is re-referenced. A PX4 autopilot (its HEARTBEAT says so) is asked for its message
 rates with MAV_CMD_SET_MESSAGE_INTERVAL only (:mod:`estimator.mavlink.px4_streams`).
@@ -153,6 +155,7 @@ class Service:
         self._last_request_s = -1e9
         self._streams_ok = False
         self._model_only_said: bool | None = None  # the estimating mode last logged
+        self._dead_voltage_said = False  # a voltage that does not follow the load, logged
         self._logged: dict[str, tuple[int, float]] = {}  # counter → (value, wall s) logged
         self._event_logged_s: dict[str, float] = {}
         self.state: StateKeeper | None = None
@@ -256,6 +259,9 @@ class Service:
                 self._json_pipe.close()
             for sig in installed:
                 loop.remove_signal_handler(sig)
+        if self.mission is not None:
+            for line in self.mission.warned.repeats("download attempts"):
+                log.warning(line)
         log.info("stopped: %s", _format_counts(self.counters()))
         return 0
 
@@ -415,6 +421,10 @@ class Service:
         if latest is not None and self._model_only_said not in (None, latest.model_only):
             self._model_only_said = latest.model_only  # said once per change
             log.info("estimating, %s", _mode(latest.model_only))
+        voltage = self.pipeline.energy.voltage
+        if voltage is not None and voltage.load.unresponsive and not self._dead_voltage_said:
+            self._dead_voltage_said = True  # said once
+            log.warning("%s", voltage.load.describe())
 
     def _follow_rtl(self, autopilot: str) -> None:
         """Return figures modelled on ``autopilot``'s RTL (said once per change)."""

@@ -31,7 +31,8 @@ from __future__ import annotations
 
 import math
 from collections.abc import Iterable, Sequence
-from dataclasses import dataclass, replace
+from dataclasses import dataclass, field, replace
+from functools import cached_property, lru_cache
 from typing import NamedTuple
 
 import numpy as np
@@ -77,6 +78,10 @@ _STEP_SIGMAS = 0.05
 _J_PER_WH = 3600.0
 #: Energy per metre (J/m) standing for "beyond the airspeed limit" in the speed search.
 _OUT_OF_RANGE = 1e12
+#: Phase states whose powers a :class:`RouteVehicle` keeps per set of hypotheses, and sets of
+#: hypotheses it keeps (each starts over when full).
+_PHASE_POWERS_SIZE = 4096
+_HYPOTHESES_KEPT = 8
 
 
 class InfeasibleTrack(ValueError):
@@ -114,6 +119,10 @@ class Conditions:
 
     def wind_ne_mps(self) -> tuple[float, float]:
         """Air-mass velocity over ground (north, east), m/s: where the wind blows TO."""
+        return self._wind_ne_mps
+
+    @cached_property
+    def _wind_ne_mps(self) -> tuple[float, float]:
         return self.wind.vector_ne_mps()
 
 
@@ -123,12 +132,18 @@ class RouteVehicle:
 
     model: eq. (1)/(2) coefficients at ``mass_kg`` (kg). model_stderr: 1σ of c1..c5 (0 where
     the file has none). effects: the file's effects without its wind, with a climb term.
+    phase_powers_w: the electrical power (W) of each phase state already predicted, per
+    hypothesis, by set of hypotheses (:func:`_energies_wh`): a live return repeats the same
+    hovers, climbs and landings at every estimate, so only its leg is predicted anew.
     """
 
     model: PowerModel
     mass_kg: float
     model_stderr: tuple[float, float, float, float, float]
     effects: tuple[Effect, ...]
+    phase_powers_w: dict[tuple[_Hypothesis, ...], dict[_PhaseState, tuple[float, ...]]] = field(
+        default_factory=dict, init=False, repr=False, compare=False
+    )
 
     @classmethod
     def from_vehicle(cls, vehicle: Vehicle) -> RouteVehicle:
@@ -190,10 +205,9 @@ class RouteEnergy:
 # -- steady power --------------------------------------------------------------------------------
 
 
-def _velocity_ne(track_deg: float, ground_speed_mps: FloatArray | float) -> tuple[FloatArray, ...]:
+def _velocity_ne(track_deg: float, ground_speed_mps: FloatArray) -> tuple[FloatArray, ...]:
     rad = math.radians(track_deg)
-    v = np.asarray(ground_speed_mps, dtype=float)
-    return v * math.cos(rad), v * math.sin(rad)
+    return ground_speed_mps * math.cos(rad), ground_speed_mps * math.sin(rad)
 
 
 def _steady_state(
@@ -262,9 +276,10 @@ class _Hypothesis(NamedTuple):
     payload_kg: float
 
 
-def _condition_hypotheses(conditions: Conditions) -> list[_Hypothesis]:
+@lru_cache(maxsize=64)
+def _condition_hypotheses(conditions: Conditions) -> tuple[_Hypothesis, ...]:
     """The nominal conditions first, then central-difference steps of the wind components and
-    the payload (those with a σ)."""
+    the payload (those with a σ); kept for recent conditions (every segment of a route asks)."""
     wn, we = conditions.wind_ne_mps()
     payload = conditions.payload_kg
     out = [_Hypothesis(-1, 0.0, wn, we, payload)]
@@ -279,7 +294,17 @@ def _condition_hypotheses(conditions: Conditions) -> list[_Hypothesis]:
         for sign in (1.0, -1.0):
             step = sign * _STEP_SIGMAS * conditions.payload_sigma_kg
             out.append(_Hypothesis(7, sign * _STEP_SIGMAS, wn, we, payload + step))
-    return out
+    return tuple(out)
+
+
+class _PhaseState(NamedTuple):
+    """A phase's mean state: velocity NED (m/s) and horizontal acceleration NED (m/s²)."""
+
+    vn_mps: float
+    ve_mps: float
+    vd_mps: float
+    an_mps2: float
+    ae_mps2: float
 
 
 @dataclass(frozen=True)
@@ -294,30 +319,44 @@ class _Phase:
     an_mps2: float = 0.0
     ae_mps2: float = 0.0
 
+    @property
+    def state(self) -> _PhaseState:
+        return _PhaseState(self.vn_mps, self.ve_mps, self.vd_mps, self.an_mps2, self.ae_mps2)
+
 
 def _energies_wh(
     vehicle: RouteVehicle, phases: Sequence[_Phase], hypotheses: Sequence[_Hypothesis]
-) -> FloatArray:
-    """Energy (Wh) of ``phases`` under each hypothesis, from one prediction over phases ×
-    hypotheses: the wind taken out of the ground velocity (what :class:`Wind` does), the
-    payload as a per-row :class:`SampleMass` (what :class:`Mass` does)."""
-    m, n = len(hypotheses), len(phases)
-    h = np.array([hyp[2:] for hyp in hypotheses], dtype=float)  # m × (wind n, wind e, payload)
-
-    def tiled(name: str) -> FloatArray:
-        return np.tile(np.array([getattr(ph, name) for ph in phases], dtype=float), m)
-
-    state = _steady_state(
-        tiled("vn_mps") - np.repeat(h[:, 0], n),
-        tiled("ve_mps") - np.repeat(h[:, 1], n),
-        tiled("vd_mps"),
-        tiled("an_mps2"),
-        tiled("ae_mps2"),
-    )
-    effects = (*vehicle.effects, SampleMass(np.repeat(h[:, 2], n)))
-    power_w = predict_power_w(vehicle.model, vehicle.mass_kg, state, effects).reshape(m, n)
-    duration_s = np.array([ph.duration_s for ph in phases], dtype=float)
-    return np.asarray(power_w @ duration_s / _J_PER_WH, dtype=float)
+) -> list[float]:
+    """Energy (Wh) of ``phases`` under each hypothesis. The powers of phase states not yet in
+    the vehicle's :attr:`~RouteVehicle.phase_powers_w` come from one prediction over those
+    states × hypotheses: the wind taken out of the ground velocity (what :class:`Wind` does),
+    the payload as a per-row :class:`SampleMass` (what :class:`Mass` does)."""
+    tables = vehicle.phase_powers_w
+    key = tuple(hypotheses)
+    table = tables.get(key)
+    if table is None or len(table) >= _PHASE_POWERS_SIZE:
+        if len(tables) >= _HYPOTHESES_KEPT:
+            tables.clear()
+        table = tables[key] = {}
+    states = [ph.state for ph in phases]
+    missing = list(dict.fromkeys(s for s in states if s not in table))
+    if missing:
+        m, n = len(hypotheses), len(missing)
+        h = np.array([hyp[2:] for hyp in hypotheses], dtype=float)  # m × (wind n, e, payload)
+        columns = np.tile(np.array(missing, dtype=float).T, m)  # 5 × (m·n), hypothesis-major
+        state = _steady_state(
+            columns[0] - np.repeat(h[:, 0], n),
+            columns[1] - np.repeat(h[:, 1], n),
+            columns[2],
+            columns[3],
+            columns[4],
+        )
+        effects = (*vehicle.effects, SampleMass(np.repeat(h[:, 2], n)))
+        power_w = predict_power_w(vehicle.model, vehicle.mass_kg, state, effects).reshape(m, n)
+        for s, powers in zip(missing, power_w.T.tolist(), strict=True):
+            table[s] = tuple(powers)
+    rows = [(table[s], ph.duration_s) for s, ph in zip(states, phases, strict=True)]
+    return [sum(p[i] * d for p, d in rows) / _J_PER_WH for i in range(len(hypotheses))]
 
 
 def _energy_with_sensitivity(
@@ -327,19 +366,16 @@ def _energy_with_sensitivity(
     wind and payload steps in one prediction with the nominal, each model step in its own."""
     hypotheses = _condition_hypotheses(conditions)
     energies = _energies_wh(vehicle, phases, hypotheses)
-    nominal = float(energies[0])
-    slopes = np.zeros(len(UNCERTAINTY_SOURCES))
-    steps = np.zeros(len(UNCERTAINTY_SOURCES))
-    stepped = [
-        (h.source, h.step, float(e)) for h, e in zip(hypotheses[1:], energies[1:], strict=True)
-    ]
+    nominal = energies[0]
+    slopes = [0.0] * len(UNCERTAINTY_SOURCES)
+    steps = [0.0] * len(UNCERTAINTY_SOURCES)
+    stepped = [(h.source, h.step, e) for h, e in zip(hypotheses[1:], energies[1:], strict=True)]
     for k, step, v in _model_perturbations(vehicle):
-        stepped.append((k, step, float(_energies_wh(v, phases, hypotheses[:1])[0])))
+        stepped.append((k, step, _energies_wh(v, phases, hypotheses[:1])[0]))
     for k, step, energy_wh in stepped:
         slopes[k] += math.copysign(1.0, step) * (energy_wh - nominal)
         steps[k] += abs(step)
-    sens = np.divide(slopes, steps, out=np.zeros_like(slopes), where=steps > 0)
-    return nominal, tuple(float(s) for s in sens)
+    return nominal, tuple(s / w if w > 0 else 0.0 for s, w in zip(slopes, steps, strict=True))
 
 
 # -- speeds --------------------------------------------------------------------------------------
@@ -351,7 +387,7 @@ def energy_per_metre_j(
     """Energy per metre over ground (J/m) along ``track_deg`` at ``ground_speed_mps`` (> 0)."""
     if ground_speed_mps <= 0:
         raise ValueError("ground speed must be > 0")
-    vn, ve = _velocity_ne(track_deg, ground_speed_mps)
+    vn, ve = _velocity_ne(track_deg, np.array([ground_speed_mps]))
     return float(steady_power_w(vehicle, conditions, vn, ve)[0] / ground_speed_mps)
 
 
@@ -504,9 +540,10 @@ def leg_energy(
         vertical_s += kinematics.ramp_s(rate_mps, vertical=True)
     ends = (min(start_speed_mps, ground_speed_mps), min(end_speed_mps, ground_speed_mps))
     cruise = ground_speed_mps
-    if _profile_s(distance_m, cruise, ends, kinematics) < vertical_s:  # the climb sets the pace
-        cruise = _speed_for_time(distance_m, vertical_s, ends, kinematics)
     pieces = _profile(distance_m, cruise, ends, kinematics)
+    if sum(d for _, _, d in pieces) < vertical_s:  # the climb sets the pace
+        cruise = _speed_for_time(distance_m, vertical_s, ends, kinematics)
+        pieces = _profile(distance_m, cruise, ends, kinematics)
     time_s = max(sum(d for _, _, d in pieces), vertical_s)
     if time_s <= 0:
         return _result(vehicle, conditions, "leg", [], 0.0, 0.0, 0.0)
@@ -699,7 +736,7 @@ def _result(
         energy_wh, sens = _energy_with_sensitivity(vehicle, conditions, phases)
     else:
         energy_wh, sens = 0.0, (0.0,) * len(UNCERTAINTY_SOURCES)
-    vn, ve = _velocity_ne(track_deg, ground_speed_mps)
+    rad = math.radians(track_deg)
     wn, we = conditions.wind_ne_mps()
     return RouteEnergy(
         kind=kind,
@@ -707,7 +744,9 @@ def _result(
         climb_m=climb_m,
         time_s=time_s,
         ground_speed_mps=ground_speed_mps,
-        airspeed_mps=float(math.hypot(float(vn) - wn, float(ve) - we)),
+        airspeed_mps=math.hypot(
+            ground_speed_mps * math.cos(rad) - wn, ground_speed_mps * math.sin(rad) - we
+        ),
         power_w=energy_wh * _J_PER_WH / time_s if time_s > 0 else 0.0,
         energy_wh=energy_wh,
         sensitivity_wh=sens,
@@ -720,7 +759,8 @@ def sum_energies(segments: Iterable[RouteEnergy]) -> RouteEnergy:
     items = list(segments)
     time_s = sum(s.time_s for s in items)
     energy_wh = sum(s.energy_wh for s in items)
-    sens = np.sum([s.sensitivity_wh for s in items], axis=0) if items else None
+    # per source, in segment order (as numpy's sum over the first axis adds)
+    sens = tuple(map(sum, zip(*(s.sensitivity_wh for s in items), strict=True)))
     return RouteEnergy(
         kind="sum",
         distance_m=sum(s.distance_m for s in items),
@@ -730,7 +770,5 @@ def sum_energies(segments: Iterable[RouteEnergy]) -> RouteEnergy:
         airspeed_mps=0.0,
         power_w=energy_wh * _J_PER_WH / time_s if time_s > 0 else 0.0,
         energy_wh=energy_wh,
-        sensitivity_wh=(
-            tuple(float(s) for s in sens) if sens is not None else (0.0,) * len(UNCERTAINTY_SOURCES)
-        ),
+        sensitivity_wh=sens if items else (0.0,) * len(UNCERTAINTY_SOURCES),
     )

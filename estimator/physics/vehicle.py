@@ -5,6 +5,10 @@ Layout (all sections but ``[effects]`` required)::
     [vehicle]        name, mass_kg, max_airspeed_mps (optional: the fastest it flies, m/s)
     [model]          c1, c2, c3, c4, c5        (electrical power at the battery, W)
     [model.stderr]   c1, c2, c3, c4, c5        (1σ, same units; optional)
+    [model]          slow_error_fraction       (optional: 1σ of the model's error that stays
+                                               correlated over tens of seconds, a fraction of
+                                               its hover power; the online tracker's default
+                                               when absent)
     [battery]        capacity_ah, cells, reserve_fraction, chemistry (optional: lipo, lihv,
                      liion), cell_ocv_v (optional: the pack's own curve), cell_ocv_sigma_v
                      (optional: its 1σ error), internal_resistance_ohm (optional: measured)
@@ -54,6 +58,7 @@ COEFFICIENT_RANGES = {
     "c5": (0.0, 100.0),
 }
 STDERR_RANGE = (1e-9, 1e5)
+SLOW_ERROR_RANGE = (0.0, 0.5)
 CAPACITY_RANGE_AH = (0.05, 1000.0)
 CELLS_RANGE = (1, 24)
 #: Chemistries with a built-in resting curve (estimator.physics.battery.CHEMISTRY_OCV_V).
@@ -95,6 +100,9 @@ class Vehicle:
     effects: dict[str, dict[str, Any]] = field(default_factory=dict)
     #: The highest airspeed the vehicle reaches (m/s; None: not known), e.g. at its tilt limit.
     max_airspeed_mps: float | None = None
+    #: 1σ of the model's slow error as a fraction of its hover power (None: not stated; see
+    #: :mod:`estimator.estimation.online_effects`).
+    slow_error_fraction: float | None = None
 
     def input_limits(self) -> InputLimits:
         """Plausibility limits of telemetry for this vehicle (:meth:`InputLimits.for_pack`):
@@ -119,6 +127,8 @@ class Vehicle:
 
     def to_toml(self) -> dict[str, Any]:
         model: dict[str, Any] = self.model.as_dict()
+        if self.slow_error_fraction is not None:
+            model["slow_error_fraction"] = self.slow_error_fraction
         if self.model_stderr:
             model["stderr"] = dict(self.model_stderr)
         doc: dict[str, Any] = {
@@ -197,6 +207,11 @@ def vehicle_from_toml(doc: dict[str, Any], where: str = "vehicle file") -> Vehic
         n: number_in_range(stderr_doc, n, f"{where} [model.stderr]", STDERR_RANGE)
         for n in stderr_doc
     }
+    slow_error = (
+        number_in_range(model, "slow_error_fraction", f"{where} [model]", SLOW_ERROR_RANGE)
+        if "slow_error_fraction" in model
+        else None
+    )
     mass_kg = number_in_range(vehicle, "mass_kg", f"{where} [vehicle]", MASS_RANGE_KG, "kg")
     max_airspeed = (
         number_in_range(
@@ -228,6 +243,7 @@ def vehicle_from_toml(doc: dict[str, Any], where: str = "vehicle file") -> Vehic
         model_stderr=stderr,
         effects=effects,
         max_airspeed_mps=max_airspeed,
+        slow_error_fraction=slow_error,
     )
 
 

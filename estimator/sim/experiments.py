@@ -58,7 +58,8 @@ def reproduce(
     return result
 
 
-def summary_markdown(result: Experiments) -> str:
+def curve_table(result: Experiments) -> str:
+    """Experiment 1's fitted power curve against the truth, with its 1σ (W), every 2 m/s."""
     truth, fitted = result.vehicle.model, result.fit.theory.model
     v = np.arange(0.0, 15.0, 2.0)
     rows = {
@@ -70,11 +71,16 @@ def summary_markdown(result: Experiments) -> str:
         "| V (m/s) | " + " | ".join(f"{x:.0f}" for x in v) + " |",
         "|---" * (len(v) + 1) + "|",
     ] + [f"| {name} | " + " | ".join(f"{x:.1f}" for x in r) + " |" for name, r in rows.items()]
+    return "\n".join(table)
+
+
+def summary_markdown(result: Experiments) -> str:
+    truth = result.vehicle.model
     return (
         "# The seed paper's experiments on generated flights\n\n"
         f"Truth: `{truth}` ({result.vehicle.name}, {result.vehicle.mass_kg} kg).\n\n"
         "## Experiment 1: fit\n\nSee [experiment1/summary.md](experiment1/summary.md).\n\n"
-        + "\n".join(table)
+        + curve_table(result)
         + "\n\n## Experiment 2: circles predicted with eq. (2)\n\n"
         + circles_markdown(result.circles, result.radii_m)
         + "\n![experiment 2](experiment2.png)\n"

@@ -17,7 +17,10 @@ MAVLink 1 frames parse too). Messages become :mod:`estimator.telemetry.samples` 
   :attr:`TelemetryDecoder.implausible_voltage`, so a vehicle file for another pack is named);
 - the battery comes from BATTERY_STATUS (our ``battery_id``) once :data:`BATTERY_STATUS_CONFIRM`
   of them arrived, each within :data:`BATTERY_STATUS_TIMEOUT_S` of the last, else from
-  SYS_STATUS — also again when BATTERY_STATUS stops for that long;
+  SYS_STATUS — also again when BATTERY_STATUS stops for that long; an autopilot that numbers
+  its only battery otherwise (PX4 republishes a battery fed to it over MAVLink as id 255)
+  has that id taken as ours once :data:`BATTERY_STATUS_CONFIRM` of its frames came in a row
+  and none of ours ever did (counted as ``battery_id_adopted``);
 - a velocity that no multirotor reaches from the one before (a single 190 m/s frame) is an
   outlier, counted and skipped, until several agree
   (:class:`~estimator.telemetry.plausibility.VelocityJumps`, on the believed clock);
@@ -248,6 +251,9 @@ class TelemetryDecoder:
         self.target = target
         self.own = own
         self.battery_id = battery_id
+        # BATTERY_STATUS of one other id in a row while none of ours has come (see above)
+        self._own_battery_seen = False
+        self._other_battery: tuple[int, int] | None = None  # (id, frames in a row)
         self.limits = limits or InputLimits()
         self.counts: Counter[str] = Counter()
         self._time = ClockFilter(self.counts, clock)
@@ -490,8 +496,25 @@ class TelemetryDecoder:
         )
         return [] if sample is None else self._time.clocked(sample)
 
+    def _adopt_battery(self, battery_id: int) -> bool:
+        """Whether ``battery_id`` (not ours) is the autopilot's only battery: none of ours
+        came, and :data:`BATTERY_STATUS_CONFIRM` frames of this one did in a row; it is ours
+        from then on."""
+        if self._own_battery_seen:
+            return False
+        last_id, frames = self._other_battery or (battery_id, 0)
+        frames = frames + 1 if last_id == battery_id else 1
+        self._other_battery = (battery_id, frames)
+        if frames < BATTERY_STATUS_CONFIRM:
+            return False
+        self.battery_id = battery_id
+        self.counts["battery_id_adopted"] += 1
+        return True
+
     def _battery_status(self, msg: mavlink.MAVLink_message) -> list[Sample]:
-        if msg.id != self.battery_id:
+        if msg.id == self.battery_id:
+            self._own_battery_seen = True
+        elif not self._adopt_battery(msg.id):
             self.counts["other_battery"] += 1
             return []
         cells_mv = list(msg.voltages) + list(getattr(msg, "voltages_ext", []) or [])

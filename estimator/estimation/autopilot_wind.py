@@ -1,0 +1,111 @@
+"""The autopilot's own wind estimate as a measurement for the online tracker
+(:mod:`estimator.estimation.online_effects`).
+
+The autopilot's wind (ArduPilot WIND from its EKF's drag or airspeed fusion, PX4 WIND_COV;
+:meth:`~estimator.estimation.online_effects.OnlineEffects.take_autopilot_wind`) is a second
+channel: before each step the latest report, when at most ``autopilot_wind_max_age_s`` old, is
+a linear measurement of the wind states (H = [I₂ 0]). Its errors are slow (the EKF's), not
+white: each step takes it with the variance σ² · ``autopilot_wind_correlation_s`` / Δt, so a
+minute of reports weighs as one measurement of 1σ ``autopilot_wind_sigma_mps``. Through the
+covariance it also moves the mass: where power alone sees only a combination (at a constant
+power on one leg, a lower airspeed and a heavier vehicle look alike), the report separates
+them. An autopilot that does not estimate the wind (ArduCopter without drag fusion or an
+airspeed sensor) reports exactly zero: reports count only once one above
+``autopilot_wind_active_mps`` has come since boot. A report far from the estimate on several
+steps in a row is a wind change the autopilot saw (:meth:`AutopilotWind.saw_a_change`).
+
+States: the tracker's [w_n, w_e, …] (NED m/s first, then its other states); times in s of
+the autopilot's clock.
+"""
+
+from __future__ import annotations
+
+import math
+from typing import TYPE_CHECKING
+
+import numpy as np
+
+from estimator.telemetry.samples import WindSample
+
+if TYPE_CHECKING:
+    from estimator.estimation.online_effects import OnlineSettings
+
+
+def mahalanobis2(d: np.ndarray, cov: np.ndarray) -> float:
+    """dᵀ cov⁻¹ d: the squared Mahalanobis distance of ``d`` under ``cov``."""
+    return float(d @ np.linalg.solve(cov, d))
+
+
+class AutopilotWind:
+    """The latest wind report of the autopilot and how it enters the tracker's state."""
+
+    def __init__(self, settings: OnlineSettings) -> None:
+        self.settings = settings
+        self.report: WindSample | None = None
+        self._active = False  # it has reported a wind since boot
+        self._apart = 0  # steps in a row its report was far from the estimate
+
+    def take(self, sample: WindSample) -> None:
+        """Keep ``sample`` for the next steps (non-finite values are ignored)."""
+        wind = (sample.wind_n_mps, sample.wind_e_mps)
+        if not all(math.isfinite(v) for v in (sample.time_s, *wind)):
+            return
+        self.report = sample
+        self._active |= math.hypot(*wind) > self.settings.autopilot_wind_active_mps
+
+    def restart(self) -> None:
+        """The autopilot rebooted: its reports count again once they are not zero."""
+        self.report, self._active = None, False
+
+    def variance(self, time_s: float, dt: float) -> float | None:
+        """The variance (m²/s², per component) the report takes in a step of ``dt`` s ending
+        at ``time_s``; None when there is no fresh report from an autopilot that estimates
+        the wind."""
+        s, wind = self.settings, self.report
+        if (
+            wind is None
+            or not self._active
+            or dt <= 0.0
+            or not 0.0 <= time_s - wind.time_s <= s.autopilot_wind_max_age_s
+        ):
+            return None
+        return s.autopilot_wind_sigma_mps**2 * max(s.autopilot_wind_correlation_s / dt, 1.0)
+
+    def _innovation(
+        self, x: np.ndarray, p: np.ndarray, var: float
+    ) -> tuple[np.ndarray, np.ndarray, float]:
+        """The report against the wind of state ``x`` (covariance ``p``): innovation (m/s,
+        north and east), its covariance with the report's variance ``var`` (m²/s²) per
+        component, and its squared Mahalanobis distance."""
+        assert self.report is not None
+        wind = self.report
+        innovation = np.array([wind.wind_n_mps, wind.wind_e_mps]) - x[:2]
+        s_mat = p[:2, :2] + var * np.eye(2)
+        return innovation, s_mat, mahalanobis2(innovation, s_mat)
+
+    def saw_a_change(self, x: np.ndarray, p: np.ndarray) -> bool:
+        """Whether the report has been beyond ``autopilot_wind_change_chi2`` of the wind of
+        ``x`` (with the report's own variance) for ``autopilot_wind_change_steps`` steps in a
+        row (then the count starts over)."""
+        s = self.settings
+        _, _, distance2 = self._innovation(x, p, s.autopilot_wind_sigma_mps**2)
+        apart = distance2 > s.autopilot_wind_change_chi2
+        self._apart = self._apart + 1 if apart else 0
+        if self._apart < s.autopilot_wind_change_steps:
+            return False
+        self._apart = 0
+        return True
+
+    def update(
+        self, x: np.ndarray, p: np.ndarray, var: float
+    ) -> tuple[np.ndarray, np.ndarray] | None:
+        """State ``x`` and covariance ``p`` after the report as a linear measurement of the
+        wind states with variance ``var`` (m²/s²): a Kalman update with H = [I₂ 0], which
+        moves the other states through their covariance with the wind. None when the report
+        is beyond ``gate_sigma`` of the estimate."""
+        innovation, s_mat, distance2 = self._innovation(x, p, var)
+        if distance2 > self.settings.gate_sigma**2:
+            return None
+        gain = np.linalg.solve(s_mat, p[:2, :]).T  # n × 2: P Hᵀ S⁻¹
+        posterior = p - gain @ p[:2, :]
+        return x + gain @ innovation, 0.5 * (posterior + posterior.T)

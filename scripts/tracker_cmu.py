@@ -1,0 +1,96 @@
+"""The daemon's online tracker on the CMU M100 flights, against their payload and anemometer:
+the running mass and wind over each whole airborne flight, with the vehicle file's slow model
+error (``[model] slow_error_fraction``) and without it (the model's errors taken as white).
+
+Prints the table of docs/residuals.md ("The running value, step by step");
+``tests/test_tracker_cmu.py`` checks that the docs give what this prints.
+
+Run: ``python scripts/tracker_cmu.py [DATA_DIR]`` (default ../shared/data/cmu_m100_subset).
+"""
+
+from __future__ import annotations
+
+import sys
+from dataclasses import replace
+from pathlib import Path
+
+import numpy as np
+
+from estimator.analysis.tracker_truth import TrackerRun, cmu_truth, track_flight
+from estimator.logs import cmu
+from estimator.physics.vehicle import Vehicle, load_vehicle
+
+ROOT = Path(__file__).resolve().parent.parent
+VEHICLE = ROOT / "config" / "vehicles" / "dji_m100_cmu.toml"
+DATA = ROOT.parent / "shared" / "data" / "cmu_m100_subset"
+
+
+def runs(vehicle: Vehicle, data: Path = DATA) -> list[TrackerRun]:
+    """Every CMU flight of ``data`` through the pipeline with ``vehicle``."""
+    flights = cmu.load_flights(sorted(data.glob("*.csv")))
+    return [track_flight(f, vehicle, cmu_truth(f)) for f in flights]
+
+
+def both(data: Path = DATA) -> tuple[list[TrackerRun], list[TrackerRun]]:
+    """The runs with the vehicle file as committed, and with its slow error set to 0."""
+    vehicle = load_vehicle(VEHICLE)
+    return runs(vehicle, data), runs(replace(vehicle, slow_error_fraction=0.0), data)
+
+
+def _cells(run: TrackerRun) -> str:
+    mass_2, wind_2 = run.within(2.0)
+    mass_3, wind_3 = run.within(3.0)
+    z = run.z()
+    return (
+        f"{100 * mass_2:.0f} / {100 * mass_3:.0f} % | {z[:, 2].max():.1f} | "
+        f"{100 * wind_2:.0f} / {100 * wind_3:.0f} % | {z[:, :2].max():.1f}"
+    )
+
+
+def table_lines(with_error: list[TrackerRun], white: list[TrackerRun]) -> list[str]:
+    """One row per flight: the truth, the end value, then within 2σ / 3σ and the most
+    |error|/σ of mass and wind, with the slow error and without it."""
+    lines = [
+        "| flight | payload kg | wind m/s | end mass kg | mass within 2σ / 3σ | most \\|z\\| "
+        "| wind within 2σ / 3σ | most \\|z\\| | without the slow error: mass | most \\|z\\| "
+        "| wind | most \\|z\\| |",
+        "|---|---:|---:|---|---:|---:|---:|---:|---:|---:|---:|---:|",
+    ]
+    for run, before in zip(with_error, white, strict=True):
+        truth = run.truth
+        end = f"{run.estimate[-1, 2]:+.2f} ± {run.sigma[-1, 2]:.2f}"
+        lines.append(
+            f"| {run.name} | {truth.mass_delta_kg:.2f} | {np.hypot(*truth.wind_ne_mps):.1f} "
+            f"| {end} | {_cells(run)} | {_cells(before)} |"
+        )
+    return lines
+
+
+def pooled(runs_: list[TrackerRun], sigmas: float) -> tuple[float, float]:
+    """Share of all steps within ``sigmas`` σ: mass, wind."""
+    z = np.vstack([r.z() for r in runs_])
+    return float(np.mean(z[:, 2] <= sigmas)), float(np.mean(z[:, :2].max(axis=1) <= sigmas))
+
+
+def summary_lines(with_error: list[TrackerRun], white: list[TrackerRun]) -> list[str]:
+    """Pooled over the flights' steps, with and without the slow error."""
+    out = []
+    for label, group in (("with the slow error", with_error), ("without", white)):
+        m2, w2 = pooled(group, 2.0)
+        m3, w3 = pooled(group, 3.0)
+        out.append(
+            f"{label}: mass {100 * m2:.0f} % within 2σ, {100 * m3:.0f} % within 3σ; "
+            f"wind {100 * w2:.0f} %, {100 * w3:.0f} % ({sum(len(r.time_s) for r in group)} steps)"
+        )
+    return out
+
+
+def main(argv: list[str]) -> int:
+    data = Path(argv[0]) if argv else DATA
+    with_error, white = both(data)
+    print("\n".join([*table_lines(with_error, white), "", *summary_lines(with_error, white)]))
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main(sys.argv[1:]))

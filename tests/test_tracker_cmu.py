@@ -1,0 +1,102 @@
+"""The daemon's online tracker on the CMU M100 flights (payload and anemometer known), step by
+step over each whole airborne flight (:mod:`estimator.analysis.tracker_truth`,
+``scripts/tracker_cmu.py``): with the vehicle file's slow model error it is not confidently
+wrong where, with the model's errors taken as white, it was."""
+
+from __future__ import annotations
+
+import importlib.util
+import re
+from pathlib import Path
+from types import ModuleType
+
+import numpy as np
+import pytest
+
+from estimator.analysis.tracker_truth import TrackerRun
+
+ROOT = Path(__file__).resolve().parent.parent
+DATA = ROOT.parent / "shared" / "data" / "cmu_m100_subset"
+pytestmark = pytest.mark.needs(DATA.is_dir(), "the CMU M100 flights (../shared/data)")
+
+
+def _script() -> ModuleType:
+    spec = importlib.util.spec_from_file_location(
+        "tracker_cmu", ROOT / "scripts" / "tracker_cmu.py"
+    )
+    assert spec is not None and spec.loader is not None
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    return module
+
+
+SCRIPT = _script()
+
+
+@pytest.fixture(scope="module")
+def runs() -> tuple[list[TrackerRun], list[TrackerRun]]:
+    return SCRIPT.both(DATA)
+
+
+def test_the_docs_give_the_table_as_measured(
+    runs: tuple[list[TrackerRun], list[TrackerRun]],
+) -> None:
+    doc = (ROOT / "docs" / "residuals.md").read_text()
+    block = re.search(r"<!-- tracker-cmu -->\n(.*?)\n<!-- /tracker-cmu -->", doc, re.S)
+    assert block is not None
+    lines = [*SCRIPT.table_lines(*runs), "", *SCRIPT.summary_lines(*runs)]
+    assert block.group(1) == "\n".join(lines), "run `python scripts/tracker_cmu.py`"
+
+
+def test_with_the_slow_error_the_mass_is_within_2_sigma_for_90_percent_of_the_steps(
+    runs: tuple[list[TrackerRun], list[TrackerRun]],
+) -> None:
+    with_error, white = runs
+    mass_2, _ = SCRIPT.pooled(with_error, 2.0)
+    mass_3, wind_3 = SCRIPT.pooled(with_error, 3.0)
+    assert mass_2 >= 0.90 and mass_3 >= 0.97 and wind_3 >= 0.97
+    # the same filter taking the model's errors as white is confidently wrong
+    assert SCRIPT.pooled(white, 3.0)[0] < 0.85
+
+
+def test_with_the_slow_error_every_flight_ends_with_its_payload_within_2_sigma(
+    runs: tuple[list[TrackerRun], list[TrackerRun]],
+) -> None:
+    for run in runs[0]:
+        assert run.z()[-1, 2] <= 2.0, run.name
+
+
+def test_no_flight_is_more_than_6_sigma_off_at_any_step(
+    runs: tuple[list[TrackerRun], list[TrackerRun]],
+) -> None:
+    worst = max(float(run.z().max()) for run in runs[0])
+    assert worst <= 6.0
+    assert max(float(run.z().max()) for run in runs[1]) > 2 * worst
+
+
+#: Flights short of the aim for the live tracker (≥ 90 % of the steps within 2σ, none beyond
+#: 3σ, for the mass and for the wind), and why.
+SHORT = {
+    "cmu-269": "mass 89 % within 2σ, one step at 3.4σ (the model's slow error on this flight)",
+    "cmu-270": "mass 72 % within 2σ, 5.2σ at worst: 0.25 kg read as +0.10-0.15 kg for most of it",
+    "cmu-272": "wind 21 % within 2σ: the anemometer's cruise median, itself in the rotor wash",
+    "cmu-273": "mass 87 % within 2σ, wind 79 %",
+    "cmu-276": "one step of the mass beyond 3σ (3.8σ)",
+    "cmu-277": "mass 84 % within 2σ",
+}
+FLIGHTS = [f"cmu-{n}" for n in (268, 269, 270, 271, 272, 273, 276, 277)]
+
+
+@pytest.mark.parametrize(
+    "name",
+    [
+        pytest.param(n, marks=pytest.mark.xfail(strict=True, reason=SHORT[n])) if n in SHORT else n
+        for n in FLIGHTS
+    ],
+)
+def test_the_running_mass_and_wind_hold_90_percent_within_2_sigma_and_3_sigma_always(
+    runs: tuple[list[TrackerRun], list[TrackerRun]], name: str
+) -> None:
+    run = next(r for r in runs[0] if r.name == name)
+    assert min(run.within(2.0)) >= 0.90
+    assert float(np.max(run.z())) <= 3.0
