@@ -24,6 +24,8 @@ Each ``<!-- figures:NAME -->`` … ``<!-- /figures:NAME -->`` block of those doc
   ``tests/test_sitl_effects.py``, which compute the same results anyway, not by
   ``tests/test_figures.py``).
 - ``state-restart-table``: ``python -m bench.trust``'s restart mid-flight (docs/daemon.md).
+- ``tracker-cmu``: ``python scripts/tracker_cmu.py`` (the online tracker on the CMU M100
+  flights against their payload and anemometer).
 - ``tracked-wind-sitl``: ``python scripts/tracked_wind_sitl.py`` (the wind the pipeline uses
   on the ArduCopter SITL recordings of ``replay/sitl``, against their truth; checked by
   ``tests/test_sitl_recordings.py``).
@@ -100,6 +102,7 @@ def script_module(name: str, folder: Path = REPO / "scripts") -> ModuleType:
 sitl = script_module("sitl_figures")
 fits = script_module("fit_figures")
 residual_figures = script_module("residual_figures")
+tracker_cmu = script_module("tracker_cmu")
 MISSIONS = sitl.SITL_RECORDINGS / "missions"
 #: The missions the planner's flight settings were read off (docs/plan.md, "Calibration").
 CALIBRATION = ("climbs_wind6", "outback_wind8", "square_wind5")
@@ -588,6 +591,12 @@ def tracked_wind_sitl() -> str:
     """``python scripts/tracked_wind_sitl.py``'s table (20 s of CPU; its check shares the
     replays with WIND of ``tests/test_sitl_recordings.py``)."""
     return "\n".join(script_module("tracked_wind_sitl").table_lines())
+
+
+@generator("tracker-cmu", reads=tracker_cmu.DATA)
+def tracker_on_cmu() -> str:
+    """``python scripts/tracker_cmu.py``'s table: the online tracker on the CMU flights."""
+    return tracker_cmu.report(*tracker_cmu.both())
 
 
 # --- the documents ----------------------------------------------------------------------------

@@ -2,8 +2,8 @@
 the running mass and wind over each whole airborne flight, with the vehicle file's slow model
 error (``[model] slow_error_fraction``) and without it (the model's errors taken as white).
 
-Prints the table of docs/residuals.md ("The running value, step by step");
-``tests/test_tracker_cmu.py`` checks that the docs give what this prints.
+Prints the block ``tracker-cmu`` of docs/residuals.md ("The running value, step by step"),
+which ``make figures`` writes and ``tests/test_figures.py`` checks.
 
 Run: ``python scripts/tracker_cmu.py [DATA_DIR]`` (default ../shared/data/cmu_m100_subset).
 """
@@ -85,10 +85,13 @@ def summary_lines(with_error: list[TrackerRun], white: list[TrackerRun]) -> list
     return out
 
 
+def report(with_error: list[TrackerRun], white: list[TrackerRun]) -> str:
+    """The table and the pooled lines, as docs/residuals.md gives them."""
+    return "\n".join([*table_lines(with_error, white), "", *summary_lines(with_error, white)])
+
+
 def main(argv: list[str]) -> int:
-    data = Path(argv[0]) if argv else DATA
-    with_error, white = both(data)
-    print("\n".join([*table_lines(with_error, white), "", *summary_lines(with_error, white)]))
+    print(report(*both(Path(argv[0]) if argv else DATA)))
     return 0
 
 

@@ -6,7 +6,6 @@ wrong where, with the model's errors taken as white, it was."""
 from __future__ import annotations
 
 import importlib.util
-import re
 from pathlib import Path
 from types import ModuleType
 
@@ -36,16 +35,6 @@ SCRIPT = _script()
 @pytest.fixture(scope="module")
 def runs() -> tuple[list[TrackerRun], list[TrackerRun]]:
     return SCRIPT.both(DATA)
-
-
-def test_the_docs_give_the_table_as_measured(
-    runs: tuple[list[TrackerRun], list[TrackerRun]],
-) -> None:
-    doc = (ROOT / "docs" / "residuals.md").read_text()
-    block = re.search(r"<!-- tracker-cmu -->\n(.*?)\n<!-- /tracker-cmu -->", doc, re.S)
-    assert block is not None
-    lines = [*SCRIPT.table_lines(*runs), "", *SCRIPT.summary_lines(*runs)]
-    assert block.group(1) == "\n".join(lines), "run `python scripts/tracker_cmu.py`"
 
 
 def test_with_the_slow_error_the_mass_is_within_2_sigma_for_90_percent_of_the_steps(
