@@ -31,8 +31,8 @@ def register(subparsers: argparse._SubParsersAction[argparse.ArgumentParser]) ->
         nargs="*",
         metavar="SCENARIO",
         help="scenario names (the effects of replay/sitl, pack_* packs of replay/sitl_packs), "
-        "or all (every effect scenario), or packs / packs2 (the first / second set of pack_* "
-        "scenarios)",
+        "or all (every effect scenario), or packs / packs2 / packs3 (the first / second / "
+        "third set of pack_* scenarios)",
     )
     p.add_argument("--mission", metavar="FILE", help="fly this mission file in AUTO instead")
     p.add_argument(
@@ -52,6 +52,7 @@ def run(args: argparse.Namespace) -> int:
     from estimator.sitl.scenarios import (
         PACK_SCENARIOS,
         PACK_SCENARIOS_2,
+        PACK_SCENARIOS_3,
         SCENARIOS,
         Scenario,
         mission_scenario,
@@ -75,13 +76,16 @@ def run(args: argparse.Namespace) -> int:
             "all": list(SCENARIOS),
             "packs": list(PACK_SCENARIOS),
             "packs2": list(PACK_SCENARIOS_2),
+            "packs3": list(PACK_SCENARIOS_3),
         }
-        known = SCENARIOS | PACK_SCENARIOS | PACK_SCENARIOS_2
+        known = SCENARIOS | PACK_SCENARIOS | PACK_SCENARIOS_2 | PACK_SCENARIOS_3
         names = [n for name in args.scenarios for n in groups.get(name, [name])]
         unknown = [n for n in names if n not in known]
         if unknown:
             listed = ", ".join(known)
-            raise UserError(f"unknown scenario {unknown[0]!r}; known: all, packs, packs2, {listed}")
+            raise UserError(
+                f"unknown scenario {unknown[0]!r}; known: all, packs, packs2, packs3, {listed}"
+            )
         scenarios = [known[n] for n in names]
     try:
         speedup = float(args.speedup)
