@@ -2,12 +2,13 @@
 
 Replays each ``replay/sitl_packs/`` flight through the daemon's pipeline with the LABELLED
 capacity (5.0 Ah; vehicle ``config/vehicles/ardupilot_sitl_quad.toml``) and prints per
-flight, with its half of the split (``split.json``): the charge at power-up and the capacity
-once half the pack's charge is used (each with its 1σ, the truth in brackets), and the
-endurance's median and worst |error| from 60 s after take-off until 60 s before the true
-reserve — ours, a PX4-style estimate and ArduPilot's own ``battery_remaining`` over the same
-readings (:mod:`estimator.analysis.peer_endurance`) — with our 1σ coverage; then the pooled
-figures of each half. Run: ``python scripts/pack_state_sitl.py``.
+flight, with its set in ``split.json`` (tuning, then the held-out sets): the charge at
+power-up and the capacity once half the pack's charge is used (each with its 1σ, the truth
+in brackets), and the endurance's median and worst |error| from 60 s after take-off until 60
+s before the true reserve — ours, a PX4-style estimate and ArduPilot's own
+``battery_remaining`` over the same readings (:mod:`estimator.analysis.peer_endurance`) —
+with our 1σ coverage; then the pooled figures of each set. Run: ``python
+scripts/pack_state_sitl.py``.
 """
 
 from __future__ import annotations
@@ -29,9 +30,6 @@ from estimator.physics.vehicle import load_vehicle
 REPO = Path(__file__).resolve().parent.parent
 FLIGHTS = REPO / "replay" / "sitl_packs"
 VEHICLE = REPO / "config" / "vehicles" / "ardupilot_sitl_quad.toml"
-
-#: The split's halves: tuned on, held out, and held out after the rules were frozen.
-HALVES = ("tuning", "held_out", "held_out_2")
 
 
 def _pct(errors: np.ndarray) -> str:
@@ -73,7 +71,7 @@ def main() -> None:
     )
     print("|---|---|---|---|---|---:|---|---|")
     pooled: dict[str, list[PackFlight]] = {}
-    for half in HALVES:
+    for half in split:
         for name in split[half]:
             flight = replay_pack_flight(FLIGHTS / name, vehicle)
             pooled.setdefault(half, []).append(flight)
@@ -91,7 +89,7 @@ def main() -> None:
         )
     print("\n| restarted flight | half | endurance error 60 s after | most \\|z\\| after |")
     print("|---|---|---:|---:|")
-    for half in HALVES:
+    for half in split:
         for name in split[half]:
             restart = replay_restarted(FLIGHTS / name, vehicle)
             if restart is not None:

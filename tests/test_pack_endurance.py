@@ -3,8 +3,9 @@ replay/sitl_packs (a 5.0 Ah label; the real pack 65–100 % of it, 10 or 30 mΩ,
 charged at power-up, some with wind and payload) replayed with the LABELLED capacity
 (:mod:`estimator.analysis.pack_flights`): scored from 60 s after take-off until 60 s before
 the true reserve. Six flights were the tuning half, seven held out (split.json, fixed before
-any run), and seven more held out were recorded after the rules were frozen
-(``held_out_2``); ``python scripts/pack_state_sitl.py`` prints the table of docs/pack.md."""
+any run), and two more sets of seven held out were recorded after the rules were frozen
+(``held_out_2`` at commit 2190ac9, ``held_out_3`` at a8aa701); ``python
+scripts/pack_state_sitl.py`` prints the table of docs/pack.md."""
 
 from __future__ import annotations
 
@@ -31,7 +32,7 @@ VEHICLE = load_vehicle(ROOT / "config" / "vehicles" / "ardupilot_sitl_quad.toml"
 SCRIPT = ROOT / "scripts" / "pack_state_sitl.py"
 #: Flights too short to score: the pack reaches its reserve within 120 s of take-off.
 UNSCORED = {"pack_c80_r3_soc50"}
-HALVES = ("tuning", "held_out", "held_out_2")
+HALVES = tuple(SPLIT)
 NAMES = [n for half in HALVES for n in SPLIT[half]]
 SCORED = [n for n in NAMES if n not in UNSCORED]
 
@@ -42,6 +43,8 @@ MISSES = {
     "resistance from steps of current): in the 7 m/s wind the endurance for the present leg "
     "swings ±5-7 % about the flight as flown, and the capacity learnt mid-flight is 1-2 % "
     "lower (3.93-3.97 ± 0.1 Ah against 4.00)",
+    "pack_c75_r2_wind": "median 3.3 % (held-out 3, as first scored): the same cause in a 6 m/s "
+    "wind; the endurance for the present leg swings about the flight as flown, 12 % within 1σ",
 }
 
 
@@ -129,6 +132,7 @@ HELD_OUT_1SIGMA_MISS = (
         "tuning",
         pytest.param("held_out", marks=pytest.mark.xfail(strict=True, reason=HELD_OUT_1SIGMA_MISS)),
         "held_out_2",
+        "held_out_3",
     ],
 )
 def test_one_sigma_pooled_over_each_half_holds_55_to_80_percent(
@@ -170,12 +174,13 @@ def test_the_table_of_docs_pack_md_is_what_the_script_prints(
         return float(100 * np.median(pooled[np.isfinite(pooled)]))
 
     readme = (ROOT / "README.md").read_text()
-    held_out = [flights[n] for half in ("held_out", "held_out_2") for n in SPLIT[half]]
+    held_out = [flights[n] for half in HALVES[1:] for n in SPLIT[half]]
     ours = median_pct([f.errors for f in held_out])
     px4 = median_pct([f.px4_errors for f in held_out])
     ardupilot = median_pct([f.ardupilot_errors for f in held_out])
     line = (
-        f"{ours:.1f} % on 14 held-out flights (PX4-style {px4:.0f} %, ArduPilot {ardupilot:.0f} %)"
+        f"{ours:.1f} % on {len(held_out)} held-out flights (PX4-style {px4:.0f} %, "
+        f"ArduPilot {ardupilot:.0f} %)"
     )
     assert line in readme
 
@@ -216,7 +221,32 @@ def test_a_daemon_started_mid_flight_without_state_converges_within_60_s(
     assert abs(restart.error_at) <= 0.08 and abs(restart.z_at) <= 3.0
 
 
-@pytest.mark.parametrize("name", RESTARTED)
+#: Every flight restarted (those whose reserve comes more than 130 s after the restart).
+RESTARTED_ALL = (
+    *RESTARTED,
+    "pack_c100_r1_soc75", "pack_c80_r1_wind", "pack_c80_r1", "pack_c100_r3", "pack_c65_r3",
+    "pack_c90_r2", "pack_c70_r1_soc85", "pack_c90_r3_wind", "pack_c100_r2_payload",
+    "pack_c80_r2_soc85_wind", "pack_c75_r4", "pack_c85_r1_soc90", "pack_c75_r2_wind",
+    "pack_c60_r1",
+)  # fmt: skip
+#: Restarted flights surer than right, and why.
+OVERCONFIDENT_RESTARTS = {
+    "pack_c60_r1": "held-out 3, as first scored: 80 s after the restart (the first 10 m/s "
+    "leg) the resistance falls from 10 to 4.3 mΩ (truth 10) while the charge's σ collapses "
+    "from 0.04 to 0.009; the capacity 3.30 ± 0.09 Ah (truth 3.00) and the endurance −15 % at "
+    "up to 6.2σ until the reserve",
+}
+
+
+@pytest.mark.parametrize(
+    "name",
+    [
+        pytest.param(n, marks=pytest.mark.xfail(strict=True, reason=OVERCONFIDENT_RESTARTS[n]))
+        if n in OVERCONFIDENT_RESTARTS
+        else n
+        for n in RESTARTED_ALL
+    ],
+)
 def test_a_daemon_started_mid_flight_is_never_surer_than_it_is_right(
     restarts: dict[str, Restart | None], name: str
 ) -> None:
@@ -225,6 +255,12 @@ def test_a_daemon_started_mid_flight_is_never_surer_than_it_is_right(
     restart = restarts[name]
     assert restart is not None and restart.scored > 30
     assert restart.worst_abs_z <= 3.0
+
+
+def test_every_flight_long_enough_after_a_restart_is_judged(
+    restarts: dict[str, Restart | None],
+) -> None:
+    assert sorted(n for n, r in restarts.items() if r is not None) == sorted(RESTARTED_ALL)
 
 
 def test_the_restart_table_of_docs_pack_md_is_what_the_script_prints(
