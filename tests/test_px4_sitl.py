@@ -116,6 +116,9 @@ OFF_GROUND_S = 2.0
 #: neighbouring reading moves its capacity by up to 2 % (0.09–1.99 % measured over six runs;
 #: docs/daemon.md).
 ULOG_ENERGY_PCT = 3.0
+#: The same, in the live estimate's energy σ: the aim of 1 % is finer than the energy is
+#: known this early in the pack (σ 8-13 %); 0.01-0.15σ measured over six runs.
+ULOG_ENERGY_SIGMAS = 0.25
 
 
 @dataclass
@@ -300,6 +303,14 @@ def test_px4_with_a_measured_pack(tmp_path: Path) -> None:
     )
     assert energy_pct <= ULOG_ENERGY_PCT
     doc_figure("ULog replay against the live energy, largest difference", energy_pct)
+    # the same difference against the live estimate's own 1σ: the two transports' readings
+    # differ, and this early in the pack the energy is known to 8-13 %
+    energy_sigmas = max(
+        abs(r.energy_remaining_wh - e["energy_remaining_wh"]) / e["energy_remaining_sigma_wh"]
+        for r, e in matched
+    )
+    assert energy_sigmas <= ULOG_ENERGY_SIGMAS
+    doc_figure("ULog replay against the live energy, in the live σ", energy_sigmas)
     # the pack's voltage follows its load: never flagged, its response well above the floor
     assert all(e["voltage_follows_load"] for e in flown.estimates)
     assert "does not follow the load" not in flown.log
