@@ -47,7 +47,8 @@ from estimator.estimation.pipeline import Pipeline
 from estimator.mavlink.config import build_config
 from estimator.mavlink.publish import json_line
 from estimator.physics.vehicle import load_vehicle
-from estimator.telemetry.decode import USED_MESSAGE_IDS, FrameParser, TelemetryDecoder
+from estimator.telemetry.decode import USED_MESSAGE_IDS, TelemetryDecoder
+from estimator.telemetry.frames import FrameParser
 
 REPO = Path(__file__).resolve().parent.parent
 TLOG = REPO / "replay/sitl/wind_onset/flight.tlog"

@@ -31,7 +31,8 @@ from estimator.mavlink.state_file import SavedState, vehicle_identity, write_sta
 from estimator.physics.vehicle import default_vehicle
 from estimator.sim.run import SimConfig
 from estimator.sim.simulator import simulate
-from estimator.telemetry.decode import FrameParser, TelemetryDecoder
+from estimator.telemetry.decode import TelemetryDecoder
+from estimator.telemetry.frames import FrameParser
 
 KEY = bytes(range(32))
 RESTART_AT_S, DOWN_S = 60.0, 3.0

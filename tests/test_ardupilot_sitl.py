@@ -64,7 +64,8 @@ from estimator.sitl.scenarios import (
     out_and_back,
     pack_scenario,
 )
-from estimator.telemetry.decode import BATTERY_STATUS_CONFIRM, FrameParser, TelemetryDecoder
+from estimator.telemetry.decode import BATTERY_STATUS_CONFIRM, TelemetryDecoder
+from estimator.telemetry.frames import FrameParser
 from estimator.telemetry.samples import ArmedSample, BatterySample, RebootSample, VelocitySample
 
 REPO = Path(__file__).resolve().parent.parent

@@ -24,7 +24,8 @@ from estimator.estimation.pipeline import Pipeline
 from estimator.mavlink.config import build_config
 from estimator.mavlink.publish import json_line
 from estimator.physics.vehicle import default_vehicle
-from estimator.telemetry.decode import USED_MESSAGE_IDS, FrameParser, TelemetryDecoder
+from estimator.telemetry.decode import USED_MESSAGE_IDS, TelemetryDecoder
+from estimator.telemetry.frames import FrameParser
 
 started = sorted(sys.modules)
 data = open(sys.argv[1], "rb").read()

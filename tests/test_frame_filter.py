@@ -8,7 +8,8 @@ import random
 from pymavlink.dialects.v20 import ardupilotmega
 from pymavlink.dialects.v20 import common as mavlink
 
-from estimator.telemetry.decode import USED_MESSAGE_IDS, FrameParser, TelemetryDecoder
+from estimator.telemetry.decode import USED_MESSAGE_IDS, TelemetryDecoder
+from estimator.telemetry.frames import FrameParser
 from estimator.telemetry.samples import WindSample
 
 

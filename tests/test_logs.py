@@ -18,7 +18,8 @@ from estimator.errors import UserError
 from estimator.logs import detect_format, iter_samples, load_flights
 from estimator.logs.cmu import REQUIRED_COLUMNS, rotate
 from estimator.logs.sanity import flight_warnings
-from estimator.telemetry.decode import FrameParser, TelemetryDecoder
+from estimator.telemetry.decode import TelemetryDecoder
+from estimator.telemetry.frames import FrameParser
 from estimator.telemetry.plausibility import InputLimits
 from estimator.telemetry.samples import BatterySample, GripperSample, VelocitySample
 

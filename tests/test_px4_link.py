@@ -22,11 +22,12 @@ from test_service import Messages, listen, play, running, wait_for
 from estimator.estimation.airborne import AirborneGate, Phase
 from estimator.estimation.rtl_profiles import px4_rtl
 from estimator.mavlink.config import ServiceConfig
-from estimator.mavlink.px4_streams import MESSAGES as PX4_MESSAGES
+from estimator.mavlink.streams import PX4_MESSAGES
 from estimator.physics.vehicle import default_vehicle
 from estimator.sim.run import SimConfig
 from estimator.sim.simulator import simulate
-from estimator.telemetry.decode import FrameParser, TelemetryDecoder
+from estimator.telemetry.decode import TelemetryDecoder
+from estimator.telemetry.frames import FrameParser
 from estimator.telemetry.samples import BatterySample, LandedSample
 
 #: PX4's battery current of a pack without a current sensor (cA): −1 A.

@@ -32,7 +32,8 @@ from estimator.physics.vehicle import default_vehicle, load_vehicle
 from estimator.sim.files import tlog_records, write_tlog
 from estimator.sim.run import SimConfig, SimRun
 from estimator.sim.simulator import simulate
-from estimator.telemetry.decode import FrameParser, TelemetryDecoder
+from estimator.telemetry.decode import TelemetryDecoder
+from estimator.telemetry.frames import FrameParser
 from estimator.telemetry.samples import Sample
 
 REPO = Path(__file__).resolve().parent.parent

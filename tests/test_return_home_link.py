@@ -461,7 +461,7 @@ async def test_the_simulator_answers_a_home_request_and_logs_the_home_in_its_tlo
 
     from estimator.mavlink.link import open_link
     from estimator.sim.link import SimPlayer
-    from estimator.telemetry.decode import FrameParser
+    from estimator.telemetry.frames import FrameParser
 
     run = simulate(SimConfig(plan="hover-cruise", duration_s=20.0, seed=3))
     port = free_udp_port()

@@ -30,7 +30,8 @@ from estimator.mavlink.service import Service
 from estimator.physics.vehicle import Vehicle, default_vehicle
 from estimator.sim.run import SimConfig
 from estimator.sim.simulator import simulate
-from estimator.telemetry.decode import FrameParser, TelemetryDecoder
+from estimator.telemetry.decode import TelemetryDecoder
+from estimator.telemetry.frames import FrameParser
 from estimator.telemetry.samples import BatterySample
 
 Messages = list[tuple[float, mavlink.MAVLink_message]]

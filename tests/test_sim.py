@@ -24,7 +24,8 @@ from estimator.sim.link import SimPlayer
 from estimator.sim.plans import load_plan
 from estimator.sim.run import DEFAULT_RATES_HZ, SimConfig, SimRun
 from estimator.sim.simulator import simulate
-from estimator.telemetry.decode import FrameParser, TelemetryDecoder
+from estimator.telemetry.decode import TelemetryDecoder
+from estimator.telemetry.frames import FrameParser
 from estimator.telemetry.samples import ArmedSample, BatterySample, VelocitySample
 
 

@@ -32,7 +32,7 @@ from estimator.mavlink import autopilot_lock
 from estimator.mavlink.autopilot_lock import AutopilotLock
 from estimator.mavlink.config import ServiceConfig
 from estimator.mavlink.service import Service
-from estimator.telemetry.decode import FrameParser
+from estimator.telemetry.frames import FrameParser
 
 #: The flight is sent this many times faster than it was recorded (SITL ran at 5×).
 SPEEDUP = 10.0

@@ -28,7 +28,8 @@ from estimator.logs import iter_samples
 from estimator.logs.tlog import STAMP_BYTES, frame_length
 from estimator.mavlink.config import ServiceConfig
 from estimator.physics.vehicle import load_vehicle
-from estimator.telemetry.decode import FrameParser, TelemetryDecoder
+from estimator.telemetry.decode import TelemetryDecoder
+from estimator.telemetry.frames import FrameParser
 from estimator.telemetry.plausibility import SampleGuard
 from estimator.telemetry.samples import BatterySample, Sample, VelocitySample, WindSample
 

@@ -22,7 +22,8 @@ from pymavlink.dialects.v20.common import MAVLink_message, mavlink_map
 
 from estimator.errors import UserError
 from estimator.logs import SampleStream
-from estimator.telemetry.decode import USED_MESSAGE_IDS, FrameParser, TelemetryDecoder
+from estimator.telemetry.decode import USED_MESSAGE_IDS, TelemetryDecoder
+from estimator.telemetry.frames import FrameParser
 from estimator.telemetry.plausibility import InputLimits
 from estimator.telemetry.samples import Sample
 

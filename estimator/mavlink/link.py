@@ -49,7 +49,7 @@ from pymavlink.dialects.v20 import common as mavlink
 from estimator.errors import Unavailable, UserError
 from estimator.mavlink.serial_device import BAUD_RATES, REOPEN_S, SerialTransport
 from estimator.mavlink.signing import LinkSigning, SigningCodec
-from estimator.telemetry.decode import FrameParser
+from estimator.telemetry.frames import FrameParser
 
 log = logging.getLogger(__name__)
 

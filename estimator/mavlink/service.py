@@ -35,7 +35,7 @@ implausible (at most one line per 10 s each), a pack voltage no reading of which
 download (once per cause; the repeats counted in one line when the daemon stops). Reboots are
 throttled: stream requests go out at most once per :data:`REQUEST_RETRY_S`, however often the
 clock is re-referenced. A PX4 autopilot (its HEARTBEAT says so) is asked for its message
-rates with MAV_CMD_SET_MESSAGE_INTERVAL only (:mod:`estimator.mavlink.px4_streams`).
+rates with MAV_CMD_SET_MESSAGE_INTERVAL only (:mod:`estimator.mavlink.streams`).
 """
 
 from __future__ import annotations
@@ -45,7 +45,6 @@ import contextlib
 import gc
 import logging
 import signal
-import sys
 import time
 from dataclasses import replace
 from pathlib import Path
@@ -61,24 +60,29 @@ from estimator.logs.mission_files import MissionItem
 from estimator.mavlink import publish
 from estimator.mavlink.autopilot_lock import AutopilotLock
 from estimator.mavlink.config import ServiceConfig
-from estimator.mavlink.link import MavlinkLink, open_link, parse_url
+from estimator.mavlink.daemon_warnings import (
+    ThrottledLog,
+    format_counts,
+    pack_mismatch_text,
+    warn_input_counts,
+)
+from estimator.mavlink.json_output import JsonOutput
+from estimator.mavlink.link import MavlinkLink, open_link
 from estimator.mavlink.margin_alerts import MarginAlerts
 from estimator.mavlink.mission_download import MESSAGE_IDS as MISSION_MESSAGE_IDS
 from estimator.mavlink.mission_download import MESSAGE_TYPES as MISSION_MESSAGES
 from estimator.mavlink.mission_download import MissionDownload
 from estimator.mavlink.pack_alerts import PackLabelAlert
-from estimator.mavlink.px4_streams import interval_requests as px4_interval_requests
 from estimator.mavlink.signing import LinkSigning, load_key
 from estimator.mavlink.state_file import StateKeeper
+from estimator.mavlink.streams import ardupilot_requests, px4_requests
 from estimator.physics.vehicle import Vehicle
 from estimator.telemetry.decode import (
-    ARDUPILOT_WIND_ID,
-    SKIP_COUNTERS,
     USED_MESSAGE_IDS,
     TelemetryDecoder,
     message_source,
 )
-from estimator.telemetry.plausibility import fitting_cells, pack_voltage_problem
+from estimator.telemetry.plausibility import pack_voltage_problem
 from estimator.telemetry.samples import BatterySample, LandedSample
 
 log = logging.getLogger("uav_energy.service")
@@ -91,8 +95,6 @@ COUNTER_LOG_S = 10.0
 #: Seconds between repeats of the line naming a pack voltage that fits no reading of the
 #: vehicle file's cells (the first comes at once).
 PACK_MISMATCH_LOG_S = 60.0
-#: JSON lines waiting for a slow stdout reader beyond this are dropped (counted).
-JSON_BUFFER_LIMIT_BYTES = 1 << 20
 #: Wall seconds after the first position without HOME_POSITION before it is requested, and
 #: between requests.
 HOME_REQUEST_AFTER_S = 3.0
@@ -101,14 +103,6 @@ PACK_MEMORY_PERIOD_S = 30.0
 HOME_REQUEST_RETRY_S = 10.0
 #: SMART_BATTERY_INFO: its serial number names the pack when none is configured.
 PACK_INFO_ID = mavlink.MAVLINK_MSG_ID_SMART_BATTERY_INFO
-_STREAMS = (
-    (mavlink.MAVLINK_MSG_ID_GLOBAL_POSITION_INT, "velocity"),
-    (mavlink.MAVLINK_MSG_ID_LOCAL_POSITION_NED, "velocity"),
-    (mavlink.MAVLINK_MSG_ID_SYS_STATUS, "battery"),
-    (mavlink.MAVLINK_MSG_ID_BATTERY_STATUS, "battery"),
-    (ARDUPILOT_WIND_ID, "battery"),  # the autopilot's wind, for the return (WIND, ArduPilot)
-    (mavlink.MAVLINK_MSG_ID_WIND_COV, "battery"),  # (PX4)
-)
 
 
 class Service:
@@ -147,17 +141,14 @@ class Service:
         self.internal_errors = 0
         self.link: MavlinkLink | None = None
         self.outputs: list[MavlinkLink] = []
-        self._json_udp: asyncio.DatagramTransport | None = None
-        self._json_pipe: asyncio.WriteTransport | None = None
-        self.json_dropped = 0
+        self.json = JsonOutput(config.json)
         self._last_rx_s: float | None = None
         self._last_json_s = -1e9
         self._last_request_s = -1e9
         self._streams_ok = False
         self._model_only_said: bool | None = None  # the estimating mode last logged
         self._dead_voltage_said = False  # a voltage that does not follow the load, logged
-        self._logged: dict[str, tuple[int, float]] = {}  # counter → (value, wall s) logged
-        self._event_logged_s: dict[str, float] = {}
+        self._throttled = ThrottledLog(log, COUNTER_LOG_S)
         self.state: StateKeeper | None = None
         if config.state_file:
             self.state = StateKeeper(
@@ -212,13 +203,7 @@ class Service:
                         url, source_system=cfg.system_id, signing=signing(i), listen=False
                     )
                 )
-            if cfg.json.startswith("udp:"):
-                addr = parse_url("udpout:" + cfg.json[4:])
-                self._json_udp, _ = await loop.create_datagram_endpoint(
-                    asyncio.DatagramProtocol, remote_addr=(addr.host, addr.port)
-                )
-            elif cfg.json == "-":
-                self._json_pipe = await _stdout_transport()
+            await self.json.open()
             log.info(
                 "started: autopilot link %s, %d output(s), vehicle %s, signing %s",
                 cfg.connect,
@@ -253,16 +238,13 @@ class Service:
         finally:
             for link in [self.link, *self.outputs]:
                 await link.close()
-            if self._json_udp is not None:
-                self._json_udp.close()
-            if self._json_pipe is not None:
-                self._json_pipe.close()
+            self.json.close()
             for sig in installed:
                 loop.remove_signal_handler(sig)
         if self.mission is not None:
             for line in self.mission.warned.repeats("download attempts"):
                 log.warning(line)
-        log.info("stopped: %s", _format_counts(self.counters()))
+        log.info("stopped: %s", format_counts(self.counters()))
         return 0
 
     def counters(self) -> dict[str, int]:
@@ -277,7 +259,7 @@ class Service:
         out.update({f"pipeline_{k}": v for k, v in self.pipeline.counts.items()})
         if self.mission is not None:
             out.update({f"mission_{k}": v for k, v in self.mission.counts.items()})
-        out.update(internal_errors=self.internal_errors, json_dropped=self.json_dropped)
+        out.update(internal_errors=self.internal_errors, json_dropped=self.json.dropped)
         if self.state is not None:
             out.update(state_writes=self.state.writes, state_write_errors=self.state.write_errors)
         out.update(home_requests=self.home_requests, alerts_sent=self.alerts.sent)
@@ -367,7 +349,7 @@ class Service:
         if msg.get_msgId() == PACK_INFO_ID:
             self._pack_info(msg)
         if counts["reboots"] != reboots:
-            self._log_throttled(
+            self._throttled.event(
                 "reboots",
                 now_s,
                 "autopilot rebooted (clock went back to %.1f s; %d reboot(s) so far)",
@@ -377,7 +359,7 @@ class Service:
             self._streams_ok = False
             self._request_streams(now_s)
         if counts["clock_jumps"] != jumps:
-            self._log_throttled(
+            self._throttled.event(
                 "clock_jumps",
                 now_s,
                 "autopilot clock jumped to %.1f s: re-referenced (%d jump(s) so far)",
@@ -483,8 +465,8 @@ class Service:
         """REQUEST_DATA_STREAM (ArduPilot) and SET_MESSAGE_INTERVAL (both stacks) to the
         locked autopilot — before the lock, on a point-to-point link only, to the configured
         ids or the latest autopilot HEARTBEAT's — at most once per REQUEST_RETRY_S whatever
-        asks (locks, reboots). To PX4 (its HEARTBEAT says so), SET_MESSAGE_INTERVAL only, for
-        the messages :mod:`estimator.mavlink.px4_streams` lists."""
+        asks (locks, reboots). To PX4 (its HEARTBEAT says so), SET_MESSAGE_INTERVAL only
+        (:mod:`estimator.mavlink.streams`)."""
         target = self.lock.locked
         if target is None and self.link is not None and not self.link.shared:
             target = self.lock.configured or self.lock.heard_autopilot
@@ -496,45 +478,14 @@ class Service:
         ):
             return
         self._last_request_s = now_s
-        sysid, compid = target
-        mav, cfg = self.link.mav, self.config
-        if self._px4:
-            for request in px4_interval_requests(
-                mav, target, cfg.velocity_rate_hz, cfg.battery_rate_hz
-            ):
-                self.link.send(request)
-            self._request_pack_info(target)
-            log.info(
-                "message intervals requested (PX4): velocity %.0f Hz, battery %.1f Hz",
-                cfg.velocity_rate_hz,
-                cfg.battery_rate_hz,
-            )
-            return
-        for stream, rate in (
-            (mavlink.MAV_DATA_STREAM_POSITION, cfg.velocity_rate_hz),
-            (mavlink.MAV_DATA_STREAM_EXTENDED_STATUS, cfg.battery_rate_hz),
-        ):
-            self.link.send(mav.request_data_stream_encode(sysid, compid, stream, round(rate), 1))
-        for msg_id, kind in _STREAMS:
-            rate = cfg.velocity_rate_hz if kind == "velocity" else cfg.battery_rate_hz
-            self.link.send(
-                mav.command_long_encode(
-                    sysid,
-                    compid,
-                    mavlink.MAV_CMD_SET_MESSAGE_INTERVAL,
-                    0,
-                    msg_id,
-                    1e6 / rate,
-                    0,
-                    0,
-                    0,
-                    0,
-                    0,
-                )
-            )
+        cfg = self.config
+        build = px4_requests if self._px4 else ardupilot_requests
+        for request in build(self.link.mav, target, cfg.velocity_rate_hz, cfg.battery_rate_hz):
+            self.link.send(request)
         self._request_pack_info(target)
         log.info(
-            "streams requested: velocity %.0f Hz, battery %.1f Hz",
+            "%s requested: velocity %.0f Hz, battery %.1f Hz",
+            "message intervals (PX4)" if self._px4 else "streams",
             cfg.velocity_rate_hz,
             cfg.battery_rate_hz,
         )
@@ -574,7 +525,7 @@ class Service:
             or now_s - self._last_json_s >= 1.0 / self.config.json_rate_hz
         ):
             self._last_json_s = now_s
-            self._write_json(estimate)
+            self.json.write(estimate)
 
     def _ground_links(self, to_autopilot: bool) -> list[MavlinkLink]:
         """The ``--publish`` links, and the autopilot link when ``to_autopilot``."""
@@ -591,21 +542,6 @@ class Service:
                 link.send(
                     publish.battery_status(link, estimate, cfg.battery_id, self._full_usable_wh)
                 )
-
-    def _write_json(self, estimate: Estimate) -> None:
-        """One estimate as a JSON object: a datagram each over UDP, a line on stdout."""
-        line = publish.json_line(estimate)
-        if self._json_udp is not None:
-            self._json_udp.sendto(line.encode())
-        elif self._json_pipe is not None:
-            # never block the loop on a slow reader: drop lines beyond the buffer limit
-            if self._json_pipe.get_write_buffer_size() > JSON_BUFFER_LIMIT_BYTES:
-                self.json_dropped += 1
-                return
-            self._json_pipe.write((line + "\n").encode())
-        else:  # stdout is a regular file: a blocking write, but a file never stalls long
-            sys.stdout.write(line + "\n")
-            sys.stdout.flush()
 
     async def _publish_loop(self) -> None:
         rate = self.config.publish_rate_hz
@@ -642,96 +578,28 @@ class Service:
         self._request_home(now_s)
         if self.mission is not None:
             self.mission.tick(now_s)
-        skipped = {k: self.decoder.counts[k] for k in SKIP_COUNTERS if self.decoder.counts[k]}
-        self._log_count(
-            "implausible",
-            sum(skipped.values()),
-            now_s,
-            f"implausible inputs skipped so far ({_format_counts(skipped)})",
-        )
+        warn_input_counts(self._throttled, now_s, self.decoder, self.link, self.lock)
         self._log_pack_mismatch(now_s)
-        if self.link is None:
-            return
-        for key, what in (
-            ("bad_frames", "bad frames"),
-            ("dropped", "messages dropped (flood)"),
-        ):
-            self._log_count(key, self.link.counts[key], now_s, f"{what} so far (input skipped)")
-        for key, what in (
-            ("foreign_peer", "frames with the autopilot's ids from another address"),
-            ("off_clock_frames", "frames off the autopilot's clock, never proven (forged?)"),
-            ("unsigned_frames", "unsigned frames from a sender that signs"),
-        ):
-            self._log_count(key, self.lock.counts[key], now_s, f"{what} so far (dropped)")
-        if self.link.signing is not None:
-            rejected = self.link.signing.rejected
-            self._log_count(
-                "signing",
-                sum(rejected.values()),
-                now_s,
-                f"frames rejected by signing so far ({_format_counts(dict(rejected))})",
-            )
 
     def _log_pack_mismatch(self, now_s: float) -> None:
         """Say which cell count the skipped pack voltage fits, when no battery reading has been
         believed: at once, then at most once per :data:`PACK_MISMATCH_LOG_S` (in the log, and
         a STATUSTEXT on the ``--publish`` links)."""
-        rejected = self.decoder.implausible_voltage
-        if rejected is None or self.pipeline.energy.initialized:
+        mismatch = pack_mismatch_text(self.decoder, self.pipeline.vehicle.battery.cells)
+        if mismatch is None or self.pipeline.energy.initialized:
             return
-        if now_s - self._event_logged_s.get("pack_mismatch", -1e9) < PACK_MISMATCH_LOG_S:
+        if not self._throttled.due("pack_mismatch", now_s, PACK_MISMATCH_LOG_S):
             return
-        self._event_logged_s["pack_mismatch"] = now_s
-        kind, voltage_v = rejected
-        cells = self.pipeline.vehicle.battery.cells
-        limits = self.decoder.limits
-        log.warning(
-            "%s %.2f V fits %s, the vehicle file says %d (believed %.2f-%.2f V): every battery "
-            "reading is skipped (%d so far) and no estimate is made; is [battery] cells right?",
-            kind,
-            voltage_v,
-            fitting_cells(voltage_v),
-            cells,
-            limits.min_voltage_v,
-            limits.max_voltage_v,
-            self.decoder.counts["voltage_implausible"],
-        )
-        text = f"pack {voltage_v:.1f}V is not {cells}S: no estimate"
+        line, text = mismatch
+        log.warning("%s", line)
         for link in self._ground_links(False):  # never towards the autopilot
             link.send(publish.statustext(link, mavlink.MAV_SEVERITY_WARNING, text))
-
-    def _log_count(self, key: str, value: int, now_s: float, what: str) -> None:
-        """Warn "<value> <what>" when the counter moved, at most once per COUNTER_LOG_S."""
-        logged_value, logged_s = self._logged.get(key, (0, -1e9))
-        if value != logged_value and now_s - logged_s >= COUNTER_LOG_S:
-            log.warning("%d %s", value, what)
-            self._logged[key] = (value, now_s)
-
-    def _log_throttled(self, key: str, now_s: float, fmt: str, *args: object) -> None:
-        """Warn for an event at most once per COUNTER_LOG_S (the counts say how many)."""
-        if now_s - self._event_logged_s.get(key, -1e9) >= COUNTER_LOG_S:
-            log.warning(fmt, *args)
-            self._event_logged_s[key] = now_s
-
-
-async def _stdout_transport() -> asyncio.WriteTransport | None:
-    """A non-blocking transport on stdout (pipe, socket, tty); None for a regular file."""
-    loop = asyncio.get_running_loop()
-    try:
-        transport, _ = await loop.connect_write_pipe(asyncio.Protocol, sys.stdout)
-    except (ValueError, OSError, AttributeError):
-        return None
-    return transport
 
 
 async def _drain(link: MavlinkLink) -> None:
     """Consume what an output link receives (GCS heartbeats), so its queue stays empty."""
     while await link.recv():
         pass
-
-
-def _format_counts(counts: dict[str, int]) -> str:
-    return ", ".join(f"{k}={v}" for k, v in sorted(counts.items()) if v) or "nothing received"
 
 
 def _mode(model_only: bool) -> str:

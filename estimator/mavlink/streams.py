@@ -1,0 +1,98 @@
+"""Telemetry rates the daemon asks the autopilot for, the ArduPilot way and the PX4 way.
+
+ArduPilot (:func:`ardupilot_requests`): REQUEST_DATA_STREAM for the POSITION and
+EXTENDED_STATUS groups, and one MAV_CMD_SET_MESSAGE_INTERVAL per message of
+:data:`ARDUPILOT_MESSAGES` (the velocity and battery messages, and the autopilot's wind for
+the return figures).
+
+PX4 (:func:`px4_requests`) ignores REQUEST_DATA_STREAM; it sets each message's rate on the
+link the command came in on. Its defaults on the onboard link (v1.16, SITL) are enough for
+everything but the battery: BATTERY_STATUS comes at 0.5 Hz. So the daemon asks, of the
+messages :data:`~estimator.telemetry.decode.USED_MESSAGE_IDS` holds, for:
+
+- GLOBAL_POSITION_INT and LOCAL_POSITION_NED at the velocity rate (the position, height over
+  home; the velocity from whichever the decoder believes first; PX4 sends 50 and 30 Hz);
+- BATTERY_STATUS at the battery rate (SYS_STATUS, 5 Hz by default, stays the fallback);
+- WIND_COV at the battery rate (sent only when PX4's estimator has wind);
+- EXTENDED_SYS_STATE at :data:`LANDED_RATE_HZ` (PX4's landed detector: in the air or not);
+- HOME_POSITION at :data:`HOME_RATE_HZ` (the return-home figures).
+
+ATTITUDE (its clock only) and MISSION_CURRENT keep PX4's rates. Nothing else is sent to PX4
+but reads (mission download, MAV_CMD_REQUEST_MESSAGE).
+"""
+
+from __future__ import annotations
+
+from pymavlink.dialects.v20 import common as mavlink
+
+from estimator.telemetry.decode import ARDUPILOT_WIND_ID
+
+#: Hz of HOME_POSITION (PX4's own default on its onboard link: home moves only on arming).
+HOME_RATE_HZ = 0.5
+#: Hz of EXTENDED_SYS_STATE (PX4's own default on its onboard link).
+LANDED_RATE_HZ = 5.0
+#: ArduPilot: message id → the configured rate it takes ("velocity", "battery").
+ARDUPILOT_MESSAGES: tuple[tuple[int, str], ...] = (
+    (mavlink.MAVLINK_MSG_ID_GLOBAL_POSITION_INT, "velocity"),
+    (mavlink.MAVLINK_MSG_ID_LOCAL_POSITION_NED, "velocity"),
+    (mavlink.MAVLINK_MSG_ID_SYS_STATUS, "battery"),
+    (mavlink.MAVLINK_MSG_ID_BATTERY_STATUS, "battery"),
+    (ARDUPILOT_WIND_ID, "battery"),  # the autopilot's wind, for the return (WIND)
+    (mavlink.MAVLINK_MSG_ID_WIND_COV, "battery"),  # PX4's (an autopilot not known as PX4)
+)
+#: PX4: message id → which configured rate it takes ("velocity", "battery") or a fixed rate
+#: (Hz).
+PX4_MESSAGES: tuple[tuple[int, str | float], ...] = (
+    (mavlink.MAVLINK_MSG_ID_GLOBAL_POSITION_INT, "velocity"),
+    (mavlink.MAVLINK_MSG_ID_LOCAL_POSITION_NED, "velocity"),
+    (mavlink.MAVLINK_MSG_ID_BATTERY_STATUS, "battery"),
+    (mavlink.MAVLINK_MSG_ID_WIND_COV, "battery"),
+    (mavlink.MAVLINK_MSG_ID_EXTENDED_SYS_STATE, LANDED_RATE_HZ),
+    (mavlink.MAVLINK_MSG_ID_HOME_POSITION, HOME_RATE_HZ),
+)
+
+
+def ardupilot_requests(
+    mav: mavlink.MAVLink,
+    target: tuple[int, int],
+    velocity_rate_hz: float,
+    battery_rate_hz: float,
+) -> list[mavlink.MAVLink_message]:
+    """REQUEST_DATA_STREAM (POSITION, EXTENDED_STATUS) and a SET_MESSAGE_INTERVAL for each of
+    :data:`ARDUPILOT_MESSAGES` to ``target`` (system, component), encoded with ``mav``; rates
+    in Hz (> 0)."""
+    rates = {"velocity": velocity_rate_hz, "battery": battery_rate_hz}
+    streams = [
+        mav.request_data_stream_encode(*target, stream, round(rate_hz), 1)
+        for stream, rate_hz in (
+            (mavlink.MAV_DATA_STREAM_POSITION, velocity_rate_hz),
+            (mavlink.MAV_DATA_STREAM_EXTENDED_STATUS, battery_rate_hz),
+        )
+    ]
+    return streams + [
+        _interval(mav, target, msg_id, rates[kind]) for msg_id, kind in ARDUPILOT_MESSAGES
+    ]
+
+
+def px4_requests(
+    mav: mavlink.MAVLink,
+    target: tuple[int, int],
+    velocity_rate_hz: float,
+    battery_rate_hz: float,
+) -> list[mavlink.MAVLink_message]:
+    """A SET_MESSAGE_INTERVAL for each of :data:`PX4_MESSAGES` to ``target`` (system,
+    component), encoded with ``mav``; rates in Hz (> 0)."""
+    rates = {"velocity": velocity_rate_hz, "battery": battery_rate_hz}
+    return [
+        _interval(mav, target, msg_id, rates[rate] if isinstance(rate, str) else rate)
+        for msg_id, rate in PX4_MESSAGES
+    ]
+
+
+def _interval(
+    mav: mavlink.MAVLink, target: tuple[int, int], msg_id: int, rate_hz: float
+) -> mavlink.MAVLink_message:
+    """COMMAND_LONG MAV_CMD_SET_MESSAGE_INTERVAL: ``msg_id`` at ``rate_hz`` (interval in µs)."""
+    return mav.command_long_encode(
+        *target, mavlink.MAV_CMD_SET_MESSAGE_INTERVAL, 0, msg_id, 1e6 / rate_hz, 0, 0, 0, 0, 0
+    )
