@@ -134,14 +134,46 @@ async def test_daemon_asks_px4_for_message_intervals_only(flight: Messages) -> N
     assert {m.command for m in commands} <= reads
 
 
-async def test_a_pack_of_other_cells_is_named_in_one_line(
+async def test_a_pack_of_one_other_cell_count_is_taken_in_one_line(
     flight: Messages, caplog: pytest.LogCaptureFixture
 ) -> None:
-    """A 6S pack on a 3S vehicle file: no reading is believed; one log line says which cell
-    counts the voltage fits and what the file says, and a STATUSTEXT says so to the ground."""
+    """A 6S pack on a 3S vehicle file: 25.2 V is a LiPo pack above its reserve at 6 cells and
+    at no other count, so the daemon says so in one warning line and a STATUSTEXT, and
+    estimates with 6 cells."""
     caplog.set_level(logging.INFO, logger="uav_energy.service")
     base = default_vehicle()
     vehicle = replace(base, battery=replace(base.battery, cells=3))
+    client, port, transport = await listen()
+    config = ServiceConfig(publish=(f"udpout:127.0.0.1:{port}",))
+    try:
+        async with running(config, vehicle) as (service, sender):
+            await play(sender, as_px4(flight)[:1500])
+            await wait_for(lambda: service.latest is not None, timeout_s=5.0)
+            await wait_for(lambda: client.of_type("STATUSTEXT"), timeout_s=5.0)
+            assert service.pipeline.vehicle.battery.cells == base.battery.cells == 6
+            assert service.decoder.counts["voltage_implausible"] == 1  # the first, only
+    finally:
+        transport.close()
+    lines = [r.getMessage() for r in caplog.records if " pack above its reserve" in r.getMessage()]
+    assert len(lines) == 1, lines
+    assert re.match(r"(BATTERY_STATUS|SYS_STATUS) 2\d\.\d\d V is a 6S pack above its "
+                    r"reserve, not the vehicle file's 3S", lines[0]), lines[0]  # fmt: skip
+    assert not [r for r in caplog.records if " fits " in r.getMessage()]
+    texts = {m.text for m in client.of_type("STATUSTEXT")}
+    assert any("is 6S, not 3S: using 6S" in t for t in texts), texts
+
+
+async def test_a_pack_of_several_possible_cell_counts_is_named_and_not_used(
+    flight: Messages, caplog: pytest.LogCaptureFixture
+) -> None:
+    """The same pack on a 3S Li-ion vehicle file (a deeper usable range: 25.2 V is a Li-ion
+    pack above its reserve at 6 or 7 cells): no count is taken, no reading is believed, one
+    log line says which cell counts the voltage fits and what the file says, and a
+    STATUSTEXT says so to the ground."""
+    caplog.set_level(logging.INFO, logger="uav_energy.service")
+    base = default_vehicle()
+    liion = replace(base.battery, cells=3, chemistry="liion", cell_ocv_v=None)
+    vehicle = replace(base, battery=liion)
     client, port, transport = await listen()
     config = ServiceConfig(publish=(f"udpout:127.0.0.1:{port}",))
     try:
@@ -151,6 +183,7 @@ async def test_a_pack_of_other_cells_is_named_in_one_line(
             await play(sender, as_px4(flight)[1500:])
             await wait_for(lambda: client.of_type("STATUSTEXT"), timeout_s=5.0)
             assert service.latest is None
+            assert service.pipeline.vehicle.battery.cells == 3
             assert service.decoder.counts["voltage_implausible"] > 10
     finally:
         transport.close()

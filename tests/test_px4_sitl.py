@@ -391,9 +391,11 @@ def test_px4_own_pack_mission_rtl_and_take_off(tmp_path: Path) -> None:
     doc_figure("the daemon off the ground after PX4's detector", daemon_up_s - up_s)
 
 
-def test_px4_pack_against_a_3s_vehicle_file_is_named(tmp_path: Path) -> None:
-    """The vehicle file says 3 cells, PX4's pack has 4: one log line says so within
-    :data:`MISMATCH_WALL_S` of the lock, and a STATUSTEXT reaches the ground station."""
+def test_px4_pack_against_a_3s_vehicle_file_is_named_and_taken(tmp_path: Path) -> None:
+    """The vehicle file says 3 cells, PX4's pack has 4 (16.2 V at rest is a pack above its
+    reserve at 4 cells and at no other count): one log line says so within
+    :data:`MISMATCH_WALL_S` of the lock, a STATUSTEXT reaches the ground station, and the
+    daemon estimates with 4 cells."""
     assert ROOT is not None
     vehicle = tmp_path / "px4_sih_quad_3s.toml"
     vehicle.write_text(VEHICLE.read_text().replace("cells = 4", "cells = 3"))
@@ -405,6 +407,9 @@ def test_px4_pack_against_a_3s_vehicle_file_is_named(tmp_path: Path) -> None:
     def texts() -> list[str]:
         return [m.text for m in gcs.messages if m.get_type() == "STATUSTEXT"]
 
+    def estimated() -> bool:
+        return bool(_estimates(tmp_path / "daemon.jsonl"))
+
     try:
         with daemon(onboard_port(instance), gcs.port, tmp_path, vehicle):
             opts = Px4Options(ROOT, tmp_path / "px4", instance, SPEED, PARAMS)
@@ -412,21 +417,25 @@ def test_px4_pack_against_a_3s_vehicle_file_is_named(tmp_path: Path) -> None:
                 pilot = Px4Pilot(gcs_port(instance), system_id(instance))
                 try:
                     pilot.connect()
-                    pilot.wait_for(lambda: " fits " in log_path.read_text(), 60.0, "log line")
+                    pilot.wait_for(lambda: " reserve" in log_path.read_text(), 60.0, "log line")
                     pilot.wait_for(lambda: bool(texts()), 60.0, "STATUSTEXT")
+                    pilot.wait_for(estimated, 60.0, "an estimate")
                 finally:
                     pilot.close()
     finally:
         gcs.close()
     log = log_path.read_text().splitlines()
-    lines = [line for line in log if " fits " in line]
+    lines = [line for line in log if " pack above its reserve" in line]
     print(lines[0])
     assert len(lines) == 1
-    assert re.search(r"(BATTERY_STATUS|SYS_STATUS) 16\.\d\d V fits 4 or 5 cells, the vehicle "
-                     r"file says 3 ", lines[0])  # fmt: skip
+    assert re.search(r"(BATTERY_STATUS|SYS_STATUS) 1[56]\.\d\d V is a 4S pack above its "
+                     r"reserve, not the vehicle file's 3S", lines[0])  # fmt: skip
+    assert not [line for line in log if " fits " in line]
     locked = next(line for line in log if "locked" in line)
     assert _log_time_s(lines[0]) - _log_time_s(locked) <= MISMATCH_WALL_S
-    assert "is not 3S" in texts()[0]
+    assert "is 4S, not 3S: using 4S" in texts()[0]
+    estimates = _estimates(tmp_path / "daemon.jsonl")
+    assert 14.0 < estimates[-1]["voltage_v"] < 17.0 and estimates[-1]["energy_remaining_wh"] > 0
 
 
 def _log_time_s(line: str) -> float:

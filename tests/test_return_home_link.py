@@ -16,7 +16,7 @@ from test_service import Messages, first_mavsdk_system, running, wait_for
 
 from estimator.estimation.estimate import Estimate
 from estimator.logs.mission_files import M_PER_DEG
-from estimator.mavlink import service as service_module
+from estimator.mavlink import streams as streams_module
 from estimator.mavlink.config import ServiceConfig
 from estimator.mavlink.link import MavlinkLink
 from estimator.mavlink.margin_alerts import MarginAlerts
@@ -249,7 +249,7 @@ async def test_failed_mission_downloads_are_counted_and_warned_once_per_cause(
 async def test_home_is_requested_when_positions_come_without_it_then_followed(
     flight: Messages, monkeypatch: pytest.MonkeyPatch
 ) -> None:
-    monkeypatch.setattr(service_module, "HOME_REQUEST_AFTER_S", 0.5)
+    monkeypatch.setattr(streams_module, "HOME_REQUEST_AFTER_S", 0.5)
     messages = [m for _, m in flight]
     config = ServiceConfig(stale_after_s=30.0, download_mission=False)
     async with running(config) as (service, sender):
@@ -304,7 +304,7 @@ async def test_home_is_requested_when_positions_come_without_it_then_followed(
         assert len(home_requests()) == sent  # home known: no more requests
         player.cancel()
         server.task.cancel()
-    assert service.home_requests == sent == 1
+    assert service.home_request.sent == sent == 1
 
 
 # -- margin warnings -----------------------------------------------------------------------------

@@ -217,3 +217,23 @@ def test_the_committed_flights_give_no_value_skips() -> None:
         for _ in stream:
             pass
         assert set(stream.checks) <= {"time_jump"}, (path, stream.checks)
+
+
+@pytest.mark.parametrize(
+    ("voltage_v", "counts"),
+    [
+        (12.6, [3]),  # full
+        (16.2, [4]),  # 4.05 V a cell; 3.24 V at 5 cells is below any flyable pack's reserve
+        (25.2, [6, 7]),  # 4.2 or 3.6 V a cell: a 6S full or a 7S near its reserve
+        (0.001, []),
+        (-12.0, []),
+        (math.nan, []),
+        (math.inf, []),
+        (1e30, []),
+    ],
+)
+def test_the_cell_counts_a_resting_pack_voltage_allows(voltage_v: float, counts: list[int]) -> None:
+    """On PX4 SIH's curve (3.69 V a cell at its 20 % reserve, 4.05 V full): one count, several
+    or none; nonsense is none."""
+    vehicle = load_vehicle(Path(__file__).parent.parent / "config/vehicles/px4_sih_quad.toml")
+    assert vehicle.flyable_cells(voltage_v) == counts

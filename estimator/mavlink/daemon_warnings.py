@@ -1,7 +1,6 @@
 """The daemon's warnings that could repeat, each at most once per period (s, the event loop's
 clock), so a flood of bad frames or reboots gives a line every few seconds, not one per
-frame: counters of bad input (:func:`warn_input_counts`), repeated events, and a pack whose
-voltage fits another cell count than the vehicle file's (:func:`pack_mismatch_text`)."""
+frame: counters of bad input (:func:`warn_input_counts`) and repeated events."""
 
 from __future__ import annotations
 
@@ -12,7 +11,6 @@ from collections.abc import Mapping
 from estimator.mavlink.autopilot_lock import AutopilotLock
 from estimator.mavlink.link import MavlinkLink
 from estimator.telemetry.decode import SKIP_COUNTERS, TelemetryDecoder
-from estimator.telemetry.plausibility import fitting_cells
 
 
 class ThrottledLog:
@@ -90,21 +88,3 @@ def warn_input_counts(
             now_s,
             f"frames rejected by signing so far ({format_counts(dict(rejected))})",
         )
-
-
-def pack_mismatch_text(decoder: TelemetryDecoder, cells: int) -> tuple[str, str] | None:
-    """When the decoder skipped a pack voltage as implausible for the vehicle file's ``cells``:
-    the log line saying which cell counts it fits, and a STATUSTEXT for the ground station;
-    else None."""
-    rejected = decoder.implausible_voltage
-    if rejected is None:
-        return None
-    kind, voltage_v = rejected
-    limits = decoder.limits
-    line = (
-        f"{kind} {voltage_v:.2f} V fits {fitting_cells(voltage_v)}, the vehicle file says "
-        f"{cells} (believed {limits.min_voltage_v:.2f}-{limits.max_voltage_v:.2f} V): every "
-        f"battery reading is skipped ({decoder.counts['voltage_implausible']} so far) and no "
-        "estimate is made; is [battery] cells right?"
-    )
-    return line, f"pack {voltage_v:.1f}V is not {cells}S: no estimate"

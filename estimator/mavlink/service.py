@@ -16,11 +16,15 @@ the flight state is written every ``state_period_s`` and on exit, and a restarte
 continues from it when it fits the autopilot's boot.
 
 Return home and mission (:mod:`estimator.estimation.return_home` computes them in the pipeline):
-HOME_POSITION is requested (MAV_CMD_REQUEST_MESSAGE) when none has arrived
-:data:`HOME_REQUEST_AFTER_S` after the first position, at most once per
-:data:`HOME_REQUEST_RETRY_S`; the mission is read (:mod:`estimator.mavlink.mission_download`)
-and handed to the pipeline as a :class:`MissionSample`; margin crossings become STATUSTEXT
+HOME_POSITION is requested (MAV_CMD_REQUEST_MESSAGE) while positions come without it
+(:class:`~estimator.mavlink.streams.HomeRequest`); the mission is read
+(:mod:`estimator.mavlink.mission_download`) and handed to the pipeline as a
+:class:`MissionSample`; margin crossings become STATUSTEXT
 (:mod:`estimator.mavlink.margin_alerts`) on the ``--publish`` links.
+A pack voltage the vehicle file's cell count cannot be, before any estimate, that is a pack
+above its reserve for exactly one other count: the daemon takes that count, once a run
+(:meth:`Service._infer_cells`); otherwise no reading is believed and one line says which
+counts the voltage fits.
 The pack flown (:mod:`estimator.estimation.pack_identity`): with ``[pack] dir``, the configured
 ``[pack] id``, else the serial number of the autopilot's SMART_BATTERY_INFO for the decoded
 battery (asked for once with each stream request, MAV_CMD_REQUEST_MESSAGE), names the pack
@@ -60,12 +64,7 @@ from estimator.logs.mission_files import MissionItem
 from estimator.mavlink import publish
 from estimator.mavlink.autopilot_lock import AutopilotLock
 from estimator.mavlink.config import ServiceConfig
-from estimator.mavlink.daemon_warnings import (
-    ThrottledLog,
-    format_counts,
-    pack_mismatch_text,
-    warn_input_counts,
-)
+from estimator.mavlink.daemon_warnings import ThrottledLog, format_counts, warn_input_counts
 from estimator.mavlink.json_output import JsonOutput
 from estimator.mavlink.link import MavlinkLink, open_link
 from estimator.mavlink.margin_alerts import MarginAlerts
@@ -73,9 +72,15 @@ from estimator.mavlink.mission_download import MESSAGE_IDS as MISSION_MESSAGE_ID
 from estimator.mavlink.mission_download import MESSAGE_TYPES as MISSION_MESSAGES
 from estimator.mavlink.mission_download import MissionDownload
 from estimator.mavlink.pack_alerts import PackLabelAlert
+from estimator.mavlink.pack_cells import inferred_cells, pack_mismatch_text
 from estimator.mavlink.signing import LinkSigning, load_key
 from estimator.mavlink.state_file import StateKeeper
-from estimator.mavlink.streams import ardupilot_requests, px4_requests
+from estimator.mavlink.streams import (
+    HomeRequest,
+    ardupilot_requests,
+    px4_requests,
+    request_message,
+)
 from estimator.physics.vehicle import Vehicle
 from estimator.telemetry.decode import (
     USED_MESSAGE_IDS,
@@ -95,12 +100,8 @@ COUNTER_LOG_S = 10.0
 #: Seconds between repeats of the line naming a pack voltage that fits no reading of the
 #: vehicle file's cells (the first comes at once).
 PACK_MISMATCH_LOG_S = 60.0
-#: Wall seconds after the first position without HOME_POSITION before it is requested, and
-#: between requests.
-HOME_REQUEST_AFTER_S = 3.0
 #: Seconds (event loop) between writes of the pack's memory (and one at the end).
 PACK_MEMORY_PERIOD_S = 30.0
-HOME_REQUEST_RETRY_S = 10.0
 #: SMART_BATTERY_INFO: its serial number names the pack when none is configured.
 PACK_INFO_ID = mavlink.MAVLINK_MSG_ID_SMART_BATTERY_INFO
 
@@ -116,25 +117,17 @@ class Service:
         mission_energy: MissionEnergyFn | None = None,
     ) -> None:
         self.config = config
-        if settings is None:
-            settings = config.pipeline_settings()
-        self.pipeline = Pipeline(vehicle, settings, mission_energy)
-        self._rtl = "ardupilot"  # whose RTL the return figures follow
-        if config.return_autopilot != "auto":
-            self._follow_rtl(config.return_autopilot)
-        pack_dir = Path(config.pack_dir) if config.pack_dir else None
-        # this run is one flight: its row of the pack's history starts now
-        self.flight_pack = FlightPack(self.pipeline, pack_dir, config.pack_id or None, time.time())
-        if (prior := self.pipeline.pack_prior) is not None:
-            log.info("pack %s: its memory says %.2f Ah", config.pack_id, prior.capacity_ah)
         target = None
         if config.target_system:
             target = (config.target_system, config.target_component or 1)
-        self.decoder = TelemetryDecoder(
-            target=target,
-            own=(config.system_id, OWN_COMPONENT),
-            limits=vehicle.input_limits(),
-        )
+        self.decoder = TelemetryDecoder(target=target, own=(config.system_id, OWN_COMPONENT))
+        self._rtl = "ardupilot"  # whose RTL the return figures follow
+        self.state: StateKeeper | None = None
+        self._mission_energy = mission_energy
+        self._use_vehicle(vehicle, settings or config.pipeline_settings())
+        if config.return_autopilot != "auto":
+            self._follow_rtl(config.return_autopilot)
+        self._cells_checked = False  # a pack voltage of other cells looked at (once a run)
         self.lock = AutopilotLock(target, (config.system_id, OWN_COMPONENT))
         self.latest: Estimate | None = None
         self.stale = False
@@ -149,26 +142,58 @@ class Service:
         self._model_only_said: bool | None = None  # the estimating mode last logged
         self._dead_voltage_said = False  # a voltage that does not follow the load, logged
         self._throttled = ThrottledLog(log, COUNTER_LOG_S)
-        self.state: StateKeeper | None = None
-        if config.state_file:
+        self.mission: MissionDownload | None = None
+        self._home_first = True  # ArduPilot's mission item 0 is home; PX4's is not
+        self._px4 = False  # the locked autopilot's HEARTBEAT says PX4: intervals, no streams
+        self.home_request = HomeRequest()
+
+    def _use_vehicle(self, vehicle: Vehicle, settings: PipelineSettings) -> None:
+        """The pipeline for ``vehicle`` and what rests on it: the RTL followed, the pack's
+        memory (this run is one flight: its row of the pack's history starts now), the
+        decoder's limits, the state file, the full pack's usable energy and the alerts."""
+        cfg = self.config
+        self.pipeline = Pipeline(vehicle, settings, self._mission_energy)
+        self.pipeline.returning.settings = rtl_settings(self._rtl, settings.return_home)
+        pack_dir = Path(cfg.pack_dir) if cfg.pack_dir else None
+        self.flight_pack = FlightPack(self.pipeline, pack_dir, cfg.pack_id or None, time.time())
+        if (prior := self.pipeline.pack_prior) is not None:
+            log.info("pack %s: its memory says %.2f Ah", cfg.pack_id, prior.capacity_ah)
+        self.decoder.limits = vehicle.input_limits()
+        if self.state is not None:
+            self.state.attach(self.pipeline)
+        elif cfg.state_file:
             self.state = StateKeeper(
-                config.state_file, config.state_max_age_s, config.state_period_s, self.pipeline
+                cfg.state_file, cfg.state_max_age_s, cfg.state_period_s, self.pipeline
             )
         # BATTERY_STATUS.battery_remaining is a share of a full pack's usable energy.
         self._full_usable_wh = float(self.pipeline.pack.usable_energy_wh(1.0))
         per_pct_wh = self._full_usable_wh / 100.0
         self.alerts = MarginAlerts(
-            config.warning_margin_pct * per_pct_wh,
-            config.critical_margin_pct * per_pct_wh,
-            config.hysteresis_pct * per_pct_wh,
+            cfg.warning_margin_pct * per_pct_wh,
+            cfg.critical_margin_pct * per_pct_wh,
+            cfg.hysteresis_pct * per_pct_wh,
         )
         self.pack_alert = PackLabelAlert(self.pipeline.pack.spec.capacity_ah)
-        self.mission: MissionDownload | None = None
-        self._home_first = True  # ArduPilot's mission item 0 is home; PX4's is not
-        self._px4 = False  # the locked autopilot's HEARTBEAT says PX4: intervals, no streams
-        self._first_position_s: float | None = None
-        self._home_requested_s = -1e9
-        self.home_requests = 0
+
+    def _infer_cells(self) -> None:
+        """Before any estimate, the first pack voltage the vehicle file's cell count cannot
+        be: when it is a pack above its reserve for exactly one other count
+        (:meth:`Vehicle.flyable_cells`), the daemon takes that count (one warning, and a
+        STATUSTEXT on the ``--publish`` links); otherwise every reading stays skipped and the
+        mismatch line says which counts it fits. Once a run: a later reading, forged or not,
+        never changes the pack again."""
+        if self._cells_checked or self.decoder.implausible_voltage is None:
+            return
+        self._cells_checked = True
+        inferred = inferred_cells(self.decoder, self.pipeline.vehicle)
+        if inferred is None or self.pipeline.energy.initialized:
+            return
+        vehicle, line, text = inferred
+        log.warning("%s", line)
+        self._use_vehicle(vehicle, self.pipeline.settings)
+        self.decoder.implausible_voltage = None
+        for link in self._ground_links(False):  # never towards the autopilot
+            link.send(publish.statustext(link, mavlink.MAV_SEVERITY_WARNING, text))
 
     # -- lifecycle --------------------------------------------------------------------------
 
@@ -262,7 +287,7 @@ class Service:
         out.update(internal_errors=self.internal_errors, json_dropped=self.json.dropped)
         if self.state is not None:
             out.update(state_writes=self.state.writes, state_write_errors=self.state.write_errors)
-        out.update(home_requests=self.home_requests, alerts_sent=self.alerts.sent)
+        out.update(home_requests=self.home_request.sent, alerts_sent=self.alerts.sent)
         out.update(pack_alerts_sent=self.pack_alert.sent)
         if self.flight_pack.directory is not None:
             out.update(pack_memory_errors=self.flight_pack.errors)
@@ -339,6 +364,7 @@ class Service:
         counts = self.decoder.counts
         reboots, jumps = counts["reboots"], counts["clock_jumps"]
         samples = self.decoder.decode(msg)
+        self._infer_cells()
         if msg.get_type() == "HEARTBEAT" and message_source(msg) == self.decoder.target:
             self._home_first = msg.autopilot == mavlink.MAV_AUTOPILOT_ARDUPILOTMEGA
             self._px4 = msg.autopilot == mavlink.MAV_AUTOPILOT_PX4
@@ -438,27 +464,14 @@ class Service:
         self.pipeline.process(MissionSample(self.decoder.clock_s or 0.0, items))
 
     def _request_home(self, now_s: float) -> None:
-        """MAV_CMD_REQUEST_MESSAGE(HOME_POSITION) while positions come and no home does."""
+        """HOME_POSITION asked for while positions come and no home does (:class:`HomeRequest`)."""
         returning = self.pipeline.returning
-        if returning.position is None or returning.home is not None:
+        has_position, has_home = returning.position is not None, returning.home is not None
+        waited_s = self.home_request.due(now_s, has_position, has_home)
+        if waited_s is None or self.link is None or self.decoder.target is None:
             return
-        if self._first_position_s is None:
-            self._first_position_s = now_s
-        waited_s = now_s - self._first_position_s
-        if waited_s < HOME_REQUEST_AFTER_S or now_s - self._home_requested_s < HOME_REQUEST_RETRY_S:
-            return
-        if self.link is None or self.decoder.target is None:
-            return
-        self._home_requested_s = now_s
-        self.home_requests += 1
-        msg_id = mavlink.MAVLINK_MSG_ID_HOME_POSITION
-        sysid, compid = self.decoder.target
-        self.link.send(
-            self.link.mav.command_long_encode(
-                sysid, compid, mavlink.MAV_CMD_REQUEST_MESSAGE, 0, msg_id, 0, 0, 0, 0, 0, 0
-            )
-        )
-        if self.home_requests == 1:
+        self.link.send(self.home_request.message(self.link.mav, self.decoder.target, now_s))
+        if self.home_request.sent == 1:
             log.info("no HOME_POSITION %.0f s after the first position: requested", waited_s)
 
     def _request_streams(self, now_s: float) -> None:
@@ -493,12 +506,7 @@ class Service:
     def _request_pack_info(self, target: tuple[int, int]) -> None:
         """Once with the streams: the pack's serial number (MAV_CMD_REQUEST_MESSAGE)."""
         if self.flight_pack.wants_serial and self.link is not None:
-            request = mavlink.MAV_CMD_REQUEST_MESSAGE
-            self.link.send(
-                self.link.mav.command_long_encode(
-                    *target, request, 0, PACK_INFO_ID, 0, 0, 0, 0, 0, 0
-                )
-            )
+            self.link.send(request_message(self.link.mav, target, PACK_INFO_ID))
 
     # -- publish ----------------------------------------------------------------------------
 

@@ -220,6 +220,15 @@ class StateKeeper:
         self.write_errors = 0
         self._error_logged_s = -math.inf
 
+    def attach(self, pipeline: Pipeline) -> None:
+        """Keep the flight state of ``pipeline`` from now on (the daemon's vehicle changed
+        before its first estimate: a pack of other cells); a state loaded for the old vehicle
+        no longer fits and is dropped."""
+        self.pipeline = pipeline
+        identity = vehicle_identity(pipeline.vehicle)
+        if identity != self._vehicle:
+            self._vehicle, self.saved = identity, None
+
     def load(self) -> None:
         """Read the file at start (one line either way): used only when it was written under
         this vehicle file and every value lies in its range."""

@@ -1,4 +1,6 @@
-"""Telemetry rates the daemon asks the autopilot for, the ArduPilot way and the PX4 way.
+"""What the daemon asks the autopilot for: telemetry rates, the ArduPilot way and the PX4
+way, and single messages (:func:`request_message`; HOME_POSITION while positions come
+without it, :class:`HomeRequest`).
 
 ArduPilot (:func:`ardupilot_requests`): REQUEST_DATA_STREAM for the POSITION and
 EXTENDED_STATUS groups, and one MAV_CMD_SET_MESSAGE_INTERVAL per message of
@@ -23,10 +25,16 @@ but reads (mission download, MAV_CMD_REQUEST_MESSAGE).
 
 from __future__ import annotations
 
+import math
+
 from pymavlink.dialects.v20 import common as mavlink
 
 from estimator.telemetry.decode import ARDUPILOT_WIND_ID
 
+#: Wall seconds after the first position without HOME_POSITION before it is requested, and
+#: between requests.
+HOME_REQUEST_AFTER_S = 3.0
+HOME_REQUEST_RETRY_S = 10.0
 #: Hz of HOME_POSITION (PX4's own default on its onboard link: home moves only on arming).
 HOME_RATE_HZ = 0.5
 #: Hz of EXTENDED_SYS_STATE (PX4's own default on its onboard link).
@@ -96,3 +104,42 @@ def _interval(
     return mav.command_long_encode(
         *target, mavlink.MAV_CMD_SET_MESSAGE_INTERVAL, 0, msg_id, 1e6 / rate_hz, 0, 0, 0, 0, 0
     )
+
+
+def request_message(
+    mav: mavlink.MAVLink, target: tuple[int, int], msg_id: int
+) -> mavlink.MAVLink_message:
+    """COMMAND_LONG MAV_CMD_REQUEST_MESSAGE: one ``msg_id`` from ``target``, now."""
+    return mav.command_long_encode(
+        *target, mavlink.MAV_CMD_REQUEST_MESSAGE, 0, msg_id, 0, 0, 0, 0, 0, 0
+    )
+
+
+class HomeRequest:
+    """When to ask for HOME_POSITION: while positions come and no home does,
+    :data:`HOME_REQUEST_AFTER_S` after the first position, then at most once per
+    :data:`HOME_REQUEST_RETRY_S` (wall s)."""
+
+    def __init__(self) -> None:
+        self._first_position_s: float | None = None
+        self._sent_s = -math.inf
+        self.sent = 0
+
+    def due(self, now_s: float, has_position: bool, has_home: bool) -> float | None:
+        """Seconds waited since the first position when a request should go now, else None."""
+        if not has_position or has_home:
+            return None
+        if self._first_position_s is None:
+            self._first_position_s = now_s
+        waited_s = now_s - self._first_position_s
+        if waited_s < HOME_REQUEST_AFTER_S or now_s - self._sent_s < HOME_REQUEST_RETRY_S:
+            return None
+        return waited_s
+
+    def message(
+        self, mav: mavlink.MAVLink, target: tuple[int, int], now_s: float
+    ) -> mavlink.MAVLink_message:
+        """The request, sent now (counted)."""
+        self._sent_s = now_s
+        self.sent += 1
+        return request_message(mav, target, mavlink.MAVLINK_MSG_ID_HOME_POSITION)

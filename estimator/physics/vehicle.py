@@ -68,6 +68,9 @@ CHEMISTRIES = ("lipo", "lihv", "liion")
 #: plus this (a charger's or a sensor's overshoot).
 CELL_SAG_ALLOWANCE_V = 1.0
 CELL_CHARGE_ALLOWANCE_V = 0.15
+#: A pack one would power a vehicle up with rests above its reserve's voltage less this (V a
+#: cell: a light load's sag).
+CELL_LIGHT_SAG_V = 0.1
 #: Airspeeds (m/s) on which the model's power-limited speed is searched.
 _AIRSPEED_GRID_MPS = np.linspace(0.0, 200.0, 801)
 
@@ -103,6 +106,21 @@ class Vehicle:
     #: 1σ of the model's slow error as a fraction of its hover power (None: not stated; see
     #: :mod:`estimator.estimation.online_effects`).
     slow_error_fraction: float | None = None
+
+    def flyable_cells(self, voltage_v: float) -> list[int]:
+        """The cell counts at which a pack reading ``voltage_v`` (V, at rest or light load)
+        holds more than its reserve: each cell on this pack's resting curve between the
+        reserve (less :data:`CELL_LIGHT_SAG_V`) and full (plus
+        :data:`CELL_CHARGE_ALLOWANCE_V`). One count: the voltage says how many cells the pack
+        has; two or more (large packs near full), or none: it does not."""
+        from estimator.physics.battery import PackModel  # battery imports this module
+
+        pack = PackModel(self.battery)
+        low_v = pack.cell_ocv_slope_v(self.battery.reserve_fraction)[0] - CELL_LIGHT_SAG_V
+        high_v = float(max(pack.cell_ocv_v)) + CELL_CHARGE_ALLOWANCE_V
+        if not 0 < voltage_v <= InputLimits().max_voltage_v:  # NaN too: no pack reads it
+            return []
+        return list(range(max(1, math.ceil(voltage_v / high_v)), math.floor(voltage_v / low_v) + 1))
 
     def input_limits(self) -> InputLimits:
         """Plausibility limits of telemetry for this vehicle (:meth:`InputLimits.for_pack`):
