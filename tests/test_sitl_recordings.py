@@ -8,12 +8,16 @@ import importlib.util
 import json
 from functools import cache
 from pathlib import Path
+from types import SimpleNamespace
 
 import pytest
+from pymavlink.dialects.v20 import common as mavlink
 
 from estimator.analysis.replay import FlightReplay, replay_log, summarize
 from estimator.cli import main
 from estimator.physics.vehicle import load_vehicle
+from estimator.sitl.pilot import State
+from estimator.sitl.recorder import Flight, Truth
 from estimator.sitl.scenarios import SCENARIOS, Grip, SetWind
 
 REPO = Path(__file__).resolve().parent.parent
@@ -114,3 +118,21 @@ def test_sitl_record_answers_user_mistakes_in_one_line(
         assert main(["sitl-record", *argv, "--out", str(tmp_path)]) == 2
         err = capsys.readouterr().err
         assert says in err and err.count("\n") == 1
+
+
+def test_the_recorder_sees_a_release_the_mission_commands() -> None:
+    """The gripper load stops weighing when the autopilot says it released it, also when the
+    mission's own DO_GRIPPER released it (no Grip step: release_wind2's truth, recorded
+    before, keeps the 1 kg until landing)."""
+    pilot = SimpleNamespace(listeners=[], state=State(boot_s=10.0, armed=True, alt_m=5.0))
+    truth = Truth("release", "", "quad", None, {}, 10.0)
+    flight = Flight(pilot, SCENARIOS["clean_legs"], truth)  # type: ignore[arg-type]
+    flight.gripped = True
+    position = mavlink.MAVLink_global_position_int_message(0, 0, 0, 0, 5000, 0, 0, 0, 0)
+    released = mavlink.MAVLink_statustext_message(6, b"Gripper load released", 0, 0)
+    watch = pilot.listeners[0]
+    watch(position)
+    pilot.state.boot_s = 20.0
+    watch(released)
+    watch(position)
+    assert truth.effects == [{"effect": "payload", "mass_kg": 1.0, "start_s": 10.0, "end_s": 20.0}]

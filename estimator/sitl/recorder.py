@@ -57,6 +57,7 @@ from estimator.sitl.scenarios import (
     Step,
     Takeoff,
 )
+from estimator.telemetry.decode import gripper_released
 
 #: Above this height (m) the vehicle counts as airborne for take-off and landing times.
 AIRBORNE_M = 1.0
@@ -112,10 +113,13 @@ class Flight:
         return self.pilot.state.boot_s
 
     def _watch(self, msg: Any) -> None:
-        """Take-off, landing and the gripper load's weight follow the height."""
+        """Take-off, landing and the gripper load's weight follow the height; the gripper is
+        open or closed as the autopilot says it finished (a mission's own DO_GRIPPER too)."""
         s, t = self.pilot.state, self.pilot.state.boot_s
         if msg.get_type() == "HEARTBEAT" and s.armed:
             self.truth.event("armed_s", t)
+        if msg.get_type() == "STATUSTEXT" and (released := gripper_released(msg.text)) is not None:
+            self.gripped = not released
         if msg.get_type() != "GLOBAL_POSITION_INT":
             return
         if s.armed and s.alt_m > AIRBORNE_M:
