@@ -29,6 +29,13 @@ Each ``<!-- figures:NAME -->`` … ``<!-- /figures:NAME -->`` block of those doc
 - ``tracked-wind-sitl``: ``python scripts/tracked_wind_sitl.py`` (the wind the pipeline uses
   on the ArduCopter SITL recordings of ``replay/sitl``, against their truth; checked by
   ``tests/test_sitl_recordings.py``).
+- ``pack-sitl-*``: the summary of docs/pack.md's ArduCopter SITL pack flights, pooled from
+  the flights ``python scripts/pack_state_sitl.py`` tabulates (``scripts/pack_figures.py``).
+- ``fleet-iris-*``: ``uav-energy fleet fit`` of the IRIS+ logs and ``fleet trends`` of its
+  rows (docs/fleet.md; ``scripts/fleet_figures.py``).
+- ``tracker-sitl``: ``python scripts/tracker_sitl.py`` (the online tracker on the
+  ArduCopter SITL recordings of ``replay/sitl``, against their wind and payload; checked by
+  ``tests/test_tracker_sitl.py``).
 
 Run: ``python scripts/figures.py`` rewrites the blocks (``make figures``);
 ``python scripts/figures.py --check`` prints the stale ones and exits 1 (``make
@@ -103,6 +110,7 @@ sitl = script_module("sitl_figures")
 fits = script_module("fit_figures")
 residual_figures = script_module("residual_figures")
 tracker_cmu = script_module("tracker_cmu")
+pack_table = script_module("pack_state_sitl")
 MISSIONS = sitl.SITL_RECORDINGS / "missions"
 #: The missions the planner's flight settings were read off (docs/plan.md, "Calibration").
 CALIBRATION = ("climbs_wind6", "outback_wind8", "square_wind5")
@@ -597,6 +605,30 @@ def tracked_wind_sitl() -> str:
 def tracker_on_cmu() -> str:
     """``python scripts/tracker_cmu.py``'s table: the online tracker on the CMU flights."""
     return tracker_cmu.report(*tracker_cmu.both())
+
+
+@generator("tracker-sitl", checked_by="tests/test_tracker_sitl.py")
+def tracker_on_sitl() -> str:
+    """``python scripts/tracker_sitl.py``'s table (10 s of CPU; its check shares the runs of
+    ``tests/test_tracker_sitl.py``)."""
+    script = script_module("tracker_sitl")
+    return str(script.report(script.runs()))
+
+
+for _name, _print in script_module("pack_figures").generators(pack_table).items():
+    generator(_name)(_print)
+
+
+def _iris_pooled_hover_w() -> list[float]:
+    """The hover power (W) of each IRIS+ period's pooled fit."""
+    return [fit["hover_power_w"] for title, fit in real_fits().items() if "IRIS+" in title]
+
+
+_fleet_blocks = script_module("fleet_figures").generators(
+    IRIS, {title: pattern for title, (pattern, _) in PERIODS.items()}, _iris_pooled_hover_w
+)
+for _name, _print in _fleet_blocks.items():
+    generator(_name, reads=SHARED_DATA)(_print)
 
 
 # --- the documents ----------------------------------------------------------------------------

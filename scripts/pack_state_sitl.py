@@ -14,6 +14,7 @@ scripts/pack_state_sitl.py``.
 from __future__ import annotations
 
 import json
+from collections.abc import Sequence
 from pathlib import Path
 
 import numpy as np
@@ -54,6 +55,20 @@ def table_row(flight: PackFlight, half: str) -> str:
     )
 
 
+def pooled_line(half: str, flights: Sequence[PackFlight]) -> str:
+    """The pooled figures of one set of ``split.json`` (docs/pack.md, under the table)."""
+    z = np.concatenate([f.z for f in flights])
+    z = z[np.isfinite(z)]
+    worst_above = float(np.max(z)) if len(z) else float("nan")
+    return (
+        f"{half}: {len(z)} estimates, {np.mean(np.abs(z) <= 1):.0%} within 1σ, "
+        f"{np.mean(np.abs(z) <= 3):.0%} within 3σ, highest above the truth "
+        f"{worst_above:+.2f}σ; |error| ours {_pct(np.concatenate([f.errors for f in flights]))}"
+        f" %, PX4-style {_pct(np.concatenate([f.px4_errors for f in flights]))} %, "
+        f"ArduPilot {_pct(np.concatenate([f.ardupilot_errors for f in flights]))} %"
+    )
+
+
 def restart_row(restart: Restart, half: str) -> str:
     """One flight's row of the restart table (docs/pack.md)."""
     return (
@@ -77,16 +92,7 @@ def main() -> None:
             pooled.setdefault(half, []).append(flight)
             print(table_row(flight, half.replace("_", "-")))
     for half, flights in pooled.items():
-        z = np.concatenate([f.z for f in flights])
-        z = z[np.isfinite(z)]
-        worst_above = float(np.max(z)) if len(z) else float("nan")
-        print(
-            f"\n{half}: {len(z)} estimates, {np.mean(np.abs(z) <= 1):.0%} within 1σ, "
-            f"{np.mean(np.abs(z) <= 3):.0%} within 3σ, highest above the truth "
-            f"{worst_above:+.2f}σ; |error| ours {_pct(np.concatenate([f.errors for f in flights]))}"
-            f" %, PX4-style {_pct(np.concatenate([f.px4_errors for f in flights]))} %, "
-            f"ArduPilot {_pct(np.concatenate([f.ardupilot_errors for f in flights]))} %"
-        )
+        print(f"\n{pooled_line(half, flights)}")
     print("\n| restarted flight | half | endurance error 60 s after | most \\|z\\| after |")
     print("|---|---|---:|---:|")
     for half in split:

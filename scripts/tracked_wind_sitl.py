@@ -9,16 +9,15 @@ the landing. Run: ``python scripts/tracked_wind_sitl.py``.
 
 from __future__ import annotations
 
-import json
 from collections.abc import Iterable, Mapping
 from pathlib import Path
 
 import numpy as np
 
 from estimator.analysis.replay import replay_stream
+from estimator.analysis.sitl_truth import RecordingTruth, air_velocity_ne, load_truth
 from estimator.estimation.estimate import Estimate
 from estimator.logs import iter_samples
-from estimator.physics.effects import Wind
 from estimator.physics.vehicle import Vehicle, load_vehicle
 from estimator.telemetry.samples import Sample, WindSample
 
@@ -29,27 +28,13 @@ VEHICLE = REPO / "config" / "vehicles" / "ardupilot_sitl_quad.toml"
 SETTLE_S = 30.0
 
 
-def air_velocity_ne(speed_mps: float, from_deg: float) -> np.ndarray:
-    """The air mass's velocity over ground (north, east), m/s, of a wind from ``from_deg``."""
-    return np.array(Wind(speed_mps, from_deg).vector_ne_mps())
-
-
-def truth_wind_ne(winds: list[dict], time_s: float) -> np.ndarray:
-    for w in winds:
-        if w["start_s"] <= time_s < w["end_s"]:
-            return air_velocity_ne(w["speed_mps"], w["from_deg"])
-    return np.zeros(2)
-
-
-def wind_errors_mps(estimates: Iterable[Estimate], truth: dict) -> np.ndarray:
-    winds = [e for e in truth["effects"] if e["effect"] == "wind"]
-    ev = truth["events"]
+def wind_errors_mps(estimates: Iterable[Estimate], truth: RecordingTruth) -> np.ndarray:
     errors = []
     for e in estimates:
-        if not ev["takeoff_s"] + SETTLE_S < e.time_s < ev["landed_s"] or e.rth_wind_mps is None:
+        if not truth.takeoff_s + SETTLE_S < e.time_s < truth.landed_s or e.rth_wind_mps is None:
             continue
         used = air_velocity_ne(e.rth_wind_mps, e.rth_wind_from_deg or 0.0)
-        errors.append(float(np.hypot(*(used - truth_wind_ne(winds, e.time_s)))))
+        errors.append(float(np.hypot(*(used - truth.wind_ne_mps(e.time_s)))))
     return np.array(errors)
 
 
@@ -71,8 +56,8 @@ def table_lines(with_wind: Mapping[str, list[Estimate]] | None = None) -> list[s
         "|---|---:|---:|",
     ]
     for truth_path in sorted(RECORDINGS.glob("*/truth.json")):
-        truth = json.loads(truth_path.read_text())
-        if truth["frame"] != "quad" or truth.get("model_json"):
+        truth = load_truth(truth_path, vehicle.mass_kg)
+        if not truth.stock_quad:
             continue  # another airframe than the vehicle file's
         tlog = truth_path.with_name("flight.tlog")
         given = (with_wind or {}).get(truth_path.parent.name)
@@ -83,7 +68,7 @@ def table_lines(with_wind: Mapping[str, list[Estimate]] | None = None) -> list[s
         ):
             errors = wind_errors_mps(estimates, truth)
             cells.append(f"{np.median(errors):.2f} / {np.percentile(errors, 90):.2f}")
-        lines.append(f"| {truth['scenario']} | {cells[0]} | {cells[1]} |")
+        lines.append(f"| {truth.scenario} | {cells[0]} | {cells[1]} |")
     return lines
 
 

@@ -37,16 +37,6 @@ def both(data: Path = DATA) -> tuple[list[TrackerRun], list[TrackerRun]]:
     return runs(vehicle, data), runs(replace(vehicle, slow_error_fraction=0.0), data)
 
 
-def _cells(run: TrackerRun) -> str:
-    mass_2, wind_2 = run.within(2.0)
-    mass_3, wind_3 = run.within(3.0)
-    z = run.z()
-    return (
-        f"{100 * mass_2:.0f} / {100 * mass_3:.0f} % | {z[:, 2].max():.1f} | "
-        f"{100 * wind_2:.0f} / {100 * wind_3:.0f} % | {z[:, :2].max():.1f}"
-    )
-
-
 def table_lines(with_error: list[TrackerRun], white: list[TrackerRun]) -> list[str]:
     """One row per flight: the truth, the end value, then within 2σ / 3σ and the most
     |error|/σ of mass and wind, with the slow error and without it."""
@@ -57,11 +47,11 @@ def table_lines(with_error: list[TrackerRun], white: list[TrackerRun]) -> list[s
         "|---|---:|---:|---|---:|---:|---:|---:|---:|---:|---:|---:|",
     ]
     for run, before in zip(with_error, white, strict=True):
-        truth = run.truth
+        wind_n, wind_e, payload_kg = run.truth[0]
         end = f"{run.estimate[-1, 2]:+.2f} ± {run.sigma[-1, 2]:.2f}"
         lines.append(
-            f"| {run.name} | {truth.mass_delta_kg:.2f} | {np.hypot(*truth.wind_ne_mps):.1f} "
-            f"| {end} | {_cells(run)} | {_cells(before)} |"
+            f"| {run.name} | {payload_kg:.2f} | {np.hypot(wind_n, wind_e):.1f} "
+            f"| {end} | {run.coverage_cells()} | {before.coverage_cells()} |"
         )
     return lines
 

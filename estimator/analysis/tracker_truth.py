@@ -4,19 +4,25 @@ A flight is fed to the pipeline as the daemon would see it (:class:`Pipeline`), 
 step of its tracker (:mod:`estimator.estimation.online_effects`, one per ``track_period_s`` of
 flying readings) the running wind and mass and their 1σ are compared with the truth: the
 payload carried and the ambient wind. Scored is the running value over the whole airborne
-flight, not a late median: the share of steps within 2σ and 3σ, and the largest |error|/σ.
+flight, not a late median: the share of steps within 2σ and 3σ, and the largest |error|/σ;
+also the share of steps after which the pipeline predicted with the vehicle file's effects,
+the tracked ones not (or not yet) applied.
 
 CMU M100 flights (:mod:`estimator.logs.cmu`) carry their truth: ``payload`` (g) and an
 anemometer on the airframe (the airflow's speed and the direction it comes from). Ambient wind
 = ground velocity − the vehicle's velocity through the air (the airflow's speed towards where
 it comes from), its median over the cruise regime (SOURCE.md: the sensor sits in the rotor
-wash, so it is itself approximate).
+wash, so it is itself approximate). ArduCopter SITL recordings carry theirs in
+``truth.json`` (:mod:`estimator.analysis.sitl_truth`), a wind and a payload that may change
+in flight: each step is compared with the truth at its time.
 
 Units: m/s (NED north/east, the air mass's velocity over ground), kg, s.
 """
 
 from __future__ import annotations
 
+import math
+from collections.abc import Callable, Iterable, Sequence
 from dataclasses import dataclass
 
 import numpy as np
@@ -25,6 +31,7 @@ from estimator.estimation.pipeline import Pipeline
 from estimator.logs import FlightSeries
 from estimator.logs.cmu import flight_samples
 from estimator.physics.vehicle import Vehicle
+from estimator.telemetry.samples import Sample
 
 #: The CMU log's regime code of cruise (take-off 0, cruise 1, landing 2).
 CRUISE_REGIME = 1
@@ -41,25 +48,44 @@ class Truth:
 
 @dataclass(frozen=True)
 class TrackerRun:
-    """One flight's tracker steps: time (s), estimate [w_n, w_e, δm] and its 1σ, one row per
-    step (n × 3 each)."""
+    """One flight's tracker steps, one row per step: time (s), estimate [w_n, w_e, δm], its
+    1σ and the truth then (n × 3 each), and whether the pipeline predicted with the tracked
+    effects after the step (``applied``, n)."""
 
     name: str
-    truth: Truth
     time_s: np.ndarray
     estimate: np.ndarray
     sigma: np.ndarray
+    truth: np.ndarray
+    applied: np.ndarray
+    #: Steps left out: the truth changed between the previous step and this one, while the
+    #: readings it took were queued (a payload released, a wind switched).
+    across_changes: int = 0
 
     def z(self) -> np.ndarray:
         """|error|/σ per step: wind north, wind east, mass (n × 3)."""
-        want = np.array([*self.truth.wind_ne_mps, self.truth.mass_delta_kg])
-        return np.abs(self.estimate - want) / self.sigma
+        return np.abs(self.estimate - self.truth) / self.sigma
 
     def within(self, sigmas: float) -> tuple[float, float]:
         """Share of steps whose mass, and whose wind (both components), lie within
         ``sigmas`` σ of the truth."""
         z = self.z()
         return float(np.mean(z[:, 2] <= sigmas)), float(np.mean(z[:, :2].max(axis=1) <= sigmas))
+
+    def not_applied(self) -> float:
+        """Share of steps after which the vehicle file's effects were in use."""
+        return float(np.mean(~self.applied))
+
+    def coverage_cells(self) -> str:
+        """A table's cells: mass within 2σ / 3σ, its largest |error|/σ, the same of the wind
+        (its larger component)."""
+        mass_2, wind_2 = self.within(2.0)
+        mass_3, wind_3 = self.within(3.0)
+        z = self.z()
+        return (
+            f"{100 * mass_2:.0f} / {100 * mass_3:.0f} % | {z[:, 2].max():.1f} | "
+            f"{100 * wind_2:.0f} / {100 * wind_3:.0f} % | {z[:, :2].max():.1f}"
+        )
 
 
 def cmu_truth(flight: FlightSeries) -> Truth:
@@ -79,16 +105,40 @@ def cmu_truth(flight: FlightSeries) -> Truth:
 def track_flight(flight: FlightSeries, vehicle: Vehicle, truth: Truth) -> TrackerRun:
     """Feed ``flight`` to a fresh pipeline with ``vehicle`` and record its tracker's running
     estimate after each of its steps."""
+    want = (*truth.wind_ne_mps, truth.mass_delta_kg)
+    return track_samples(flight.flight_id, flight_samples([flight]), vehicle, lambda _: want)
+
+
+def track_samples(
+    name: str,
+    samples: Iterable[Sample],
+    vehicle: Vehicle,
+    truth_at: Callable[[float], Sequence[float]],
+    span_s: tuple[float, float] = (-math.inf, math.inf),
+) -> TrackerRun:
+    """Feed ``samples`` to a fresh pipeline with ``vehicle`` and record its tracker's running
+    estimate after each of its steps taken within ``span_s`` (s), with the truth
+    ``truth_at(time_s)`` then: [w_n, w_e, δm] (m/s, kg). A step across a change of the truth
+    (:attr:`TrackerRun.across_changes`) is counted, not scored: its readings saw both."""
     pipeline = Pipeline(vehicle)
     rows: list[tuple[float, ...]] = []
-    steps = 0
-    for sample in flight_samples([flight]):
+    steps = across = 0
+    before: tuple[float, ...] | None = None
+    for sample in samples:
         pipeline.process(sample)
         tracker = pipeline.online
         if tracker is None or tracker.steps == steps:
             continue
         steps = tracker.steps
+        if not span_s[0] <= sample.time_s <= span_s[1]:
+            continue
+        truth = tuple(truth_at(sample.time_s))
+        changed, before = before is not None and truth != before, truth
+        if changed:
+            across += 1
+            continue
         sigma = tracker.sigma
+        applied = pipeline.power.effects != pipeline.power.file_effects
         rows.append(
             (
                 sample.time_s,
@@ -97,7 +147,11 @@ def track_flight(flight: FlightSeries, vehicle: Vehicle, truth: Truth) -> Tracke
                 sigma["wind_n_mps"],
                 sigma["wind_e_mps"],
                 sigma["mass_kg"],
+                *truth,
+                applied,
             )
         )
-    table = np.array(rows, dtype=float).reshape(-1, 7)
-    return TrackerRun(flight.flight_id, truth, table[:, 0], table[:, 1:4], table[:, 4:7])
+    table = np.array(rows, dtype=float).reshape(-1, 11)
+    return TrackerRun(
+        name, table[:, 0], table[:, 1:4], table[:, 4:7], table[:, 7:10], table[:, 10] > 0, across
+    )

@@ -1,0 +1,168 @@
+"""The daemon's online tracker on the ArduCopter SITL recordings, against their truth: the
+running wind and mass and their 1σ after each tracker step, from take-off to landing.
+
+Each recording of SITL's stock quad in ``replay/sitl/`` (the scenarios and the AUTO missions
+of ``replay/sitl/missions/``; vehicle ``config/vehicles/ardupilot_sitl_quad.toml``) goes
+through the pipeline as the daemon runs it (:func:`track_samples`); each step is compared with
+the truth at its time (``truth.json``, :mod:`estimator.analysis.sitl_truth`): SITL's wind as
+the air mass's velocity over ground, the gripper payload while held. Wind as in
+``scripts/tracker_cmu.py``: both components within kσ of their own 1σ.
+
+Prints the block ``tracker-sitl`` of docs/residuals.md, which ``make figures`` writes and
+``tests/test_tracker_sitl.py`` checks. ``--slow-error-fraction F``: the same with the vehicle
+file's ``[model] slow_error_fraction`` (none stated: the model's errors taken as white) set to
+F, what the tracker would do told that the model's error stays correlated.
+
+Run: ``python scripts/tracker_sitl.py [RECORDINGS] [--slow-error-fraction F]`` (default
+replay/sitl).
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+from dataclasses import replace
+from pathlib import Path
+
+import numpy as np
+
+from estimator.analysis.sitl_truth import RecordingTruth, load_truth
+from estimator.analysis.tracker_truth import TrackerRun, track_samples
+from estimator.errors import UserError
+from estimator.logs import iter_samples
+from estimator.physics.vehicle import SLOW_ERROR_RANGE, Vehicle, load_vehicle
+from estimator.telemetry.samples import GripperSample
+
+ROOT = Path(__file__).resolve().parent.parent
+VEHICLE = ROOT / "config" / "vehicles" / "ardupilot_sitl_quad.toml"
+RECORDINGS = ROOT / "replay" / "sitl"
+#: The recordings ``config/vehicles/ardupilot_sitl_quad.toml`` was fitted on (its header).
+FITTED_ON = ("clean_circles", "clean_legs", "clean_mission")
+
+
+def folders(recordings: Path = RECORDINGS) -> list[Path]:
+    """The recordings' folders: the scenarios, then the missions."""
+    return sorted(p.parent for p in recordings.glob("*/truth.json")) + sorted(
+        p.parent for p in recordings.glob("missions/*/truth.json")
+    )
+
+
+def track_recording(
+    folder: Path, vehicle: Vehicle, truth: RecordingTruth
+) -> tuple[RecordingTruth, TrackerRun]:
+    """``folder/flight.tlog`` through the pipeline, its steps from take-off to landing, against
+    ``truth`` with the gripper releases the autopilot reported in the log (that truth, and the
+    steps)."""
+    samples = list(iter_samples(folder / "flight.tlog", "auto", vehicle.input_limits()))
+    releases = [s.time_s for s in samples if isinstance(s, GripperSample) and s.released]
+    truth = truth.released_at(releases)
+
+    def truth_at(time_s: float) -> tuple[float, float, float]:
+        wind_n, wind_e = truth.wind_ne_mps(time_s)
+        return float(wind_n), float(wind_e), truth.mass_delta_kg(time_s)
+
+    span_s = (truth.takeoff_s, truth.landed_s)
+    return truth, track_samples(truth.scenario, samples, vehicle, truth_at, span_s)
+
+
+def runs(
+    recordings: Path = RECORDINGS, slow_error_fraction: float | None = None
+) -> list[tuple[RecordingTruth, TrackerRun]]:
+    """Every stock-quad recording of ``recordings`` with its tracker steps (with the vehicle
+    file's slow model error, or ``slow_error_fraction`` when given)."""
+    vehicle = load_vehicle(VEHICLE)
+    if slow_error_fraction is not None:
+        low, high = SLOW_ERROR_RANGE
+        if not low <= slow_error_fraction <= high:
+            raise UserError(f"--slow-error-fraction must be between {low:g} and {high:g}")
+        vehicle = replace(vehicle, slow_error_fraction=slow_error_fraction)
+    out = []
+    for folder in folders(recordings):
+        truth = load_truth(folder / "truth.json", vehicle.mass_kg)
+        if truth.stock_quad:
+            out.append(track_recording(folder, vehicle, truth))
+    if not out:
+        raise UserError(f"no recording of SITL's stock quad under {recordings}")
+    return out
+
+
+def _truth_cell(truth: RecordingTruth) -> str:
+    """The wind spells (speed from direction) and payloads (kg from–to s), or "still air"."""
+    parts = [f"{w.speed_mps:g} m/s from {w.from_deg:03.0f}°" for w in truth.winds]
+    parts += [
+        f"{p.mass_kg:g} kg {p.start_s - truth.takeoff_s:.0f}–{p.end_s - truth.takeoff_s:.0f} s"
+        for p in truth.payloads
+    ]
+    return "; ".join(parts) or "still air"
+
+
+def table_lines(flights: list[tuple[RecordingTruth, TrackerRun]]) -> list[str]:
+    """One row per flight: the set it belongs to, its truth (times from take-off), the
+    steps, then within 2σ / 3σ and the most |error|/σ of mass and wind, and the share of steps
+    with the vehicle file's effects in use."""
+    lines = [
+        "| flight | set | truth | steps | mass within 2σ / 3σ | most \\|z\\| "
+        "| wind within 2σ / 3σ | most \\|z\\| | not applied |",
+        "|---|---|---|---:|---:|---:|---:|---:|---:|",
+    ]
+    for truth, run in flights:
+        steps = f"{len(run.time_s)}" + (f" (+{run.across_changes})" if run.across_changes else "")
+        lines.append(
+            f"| {run.name} | {flight_set(truth)} | {_truth_cell(truth)} | {steps} "
+            f"| {run.coverage_cells()} | {100 * run.not_applied():.0f} % |"
+        )
+    return lines
+
+
+def flight_set(truth: RecordingTruth) -> str:
+    """ "fit" for a recording the vehicle file was fitted on, else "held out"."""
+    return "fit" if truth.scenario in FITTED_ON else "held out"
+
+
+def pooled(runs_: list[TrackerRun], sigmas: float) -> tuple[float, float]:
+    """Share of all steps within ``sigmas`` σ: mass, wind."""
+    z = np.vstack([r.z() for r in runs_])
+    return float(np.mean(z[:, 2] <= sigmas)), float(np.mean(z[:, :2].max(axis=1) <= sigmas))
+
+
+def summary_lines(flights: list[tuple[RecordingTruth, TrackerRun]]) -> list[str]:
+    """Pooled over the steps of all flights, of the held-out ones, and of those fitted on."""
+    out = []
+    groups = (
+        ("all", [r for _, r in flights]),
+        ("held out", [r for t, r in flights if flight_set(t) == "held out"]),
+        ("fit", [r for t, r in flights if flight_set(t) == "fit"]),
+    )
+    for label, group in groups:
+        m2, w2 = pooled(group, 2.0)
+        m3, w3 = pooled(group, 3.0)
+        steps = sum(len(r.time_s) for r in group)
+        unapplied = sum(int(np.sum(~r.applied)) for r in group) / steps
+        out.append(
+            f"{label} ({len(group)} flights, {steps} steps): mass {100 * m2:.0f} % within 2σ, "
+            f"{100 * m3:.0f} % within 3σ; wind {100 * w2:.0f} %, {100 * w3:.0f} %; "
+            f"not applied {100 * unapplied:.0f} %"
+        )
+    return out
+
+
+def report(flights: list[tuple[RecordingTruth, TrackerRun]]) -> str:
+    """The table and the pooled lines, as docs/residuals.md gives them."""
+    return "\n".join([*table_lines(flights), "", *summary_lines(flights)])
+
+
+def main(argv: list[str]) -> int:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("recordings", nargs="?", type=Path, default=RECORDINGS)
+    parser.add_argument("--slow-error-fraction", type=float, help="of the hover power")
+    args = parser.parse_args(argv)
+    try:
+        print(report(runs(args.recordings, args.slow_error_fraction)))
+    except UserError as exc:
+        print(f"tracker_sitl: {exc}", file=sys.stderr)
+        return 2
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main(sys.argv[1:]))
