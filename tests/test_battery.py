@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import math
 from dataclasses import replace
 from pathlib import Path
 
@@ -111,3 +112,23 @@ def test_a_curve_sigma_comes_with_its_curve(tmp_path: Path) -> None:
     path.write_text("\n".join(ln for ln in doc.splitlines() if not ln.startswith("cell_ocv_v")))
     with pytest.raises(UserError, match="give both"):
         load_vehicle(path)
+
+
+def test_the_scalar_curve_lookups_give_numpy_s_values_to_the_bit() -> None:
+    """The pipeline's per-period lookups (OCV, energy, charge from energy) skip numpy for one
+    value: every figure must stay the float numpy gives, on table points, between them,
+    beyond the ends and for NaN, on the built-in and a pack's own curve."""
+    rng = np.random.default_rng(11)
+    for battery in (default_vehicle().battery, load_vehicle(SITL_VEHICLE).battery):
+        pack = PackModel(battery)
+        full_wh = float(pack.energy_wh(1.0))
+        socs = [*rng.uniform(-0.2, 1.2, 3000), *pack.soc_points, 0.0, -0.0, 1.0, math.nan]
+        energies = [*rng.uniform(-1.0, 1.2 * full_wh, 3000), *(pack.soc_points * full_wh)]
+        for soc in socs:
+            for numpy_v, scalar_v in (
+                (float(pack.ocv_v(soc)), pack.ocv_scalar_v(soc)),
+                (float(pack.energy_wh(soc)), pack.energy_scalar_wh(soc)),
+            ):
+                assert numpy_v == scalar_v or (math.isnan(numpy_v) and math.isnan(scalar_v))
+        for energy_wh in energies:
+            assert float(pack.soc_from_energy(energy_wh)) == pack.soc_from_energy_scalar(energy_wh)

@@ -147,7 +147,7 @@ class ResistanceFilter:
             kf.P += self.settings.resistance_walk_ohm_per_sqrt_s**2 * dt_s
         if abs(current_a) < self.settings.resistance_min_current_a:
             return  # the drop I·R is lost in the voltage noise (a pack at rest)
-        ocv_v = float(self.pack.ocv_v(soc))
+        ocv_v = self.pack.ocv_scalar_v(soc)
         kf.update(ocv_v - voltage_v, np.array([current_a]), self._voltage_var_v2)
         kf.x[0] = min(max(kf.x[0], 0.0), 1.0)
 
@@ -156,6 +156,11 @@ class ResistanceFilter:
         ocv, power = np.asarray(ocv_v, dtype=float), np.asarray(power_w, dtype=float)
         disc = np.maximum(ocv * ocv - 4.0 * power * self.resistance_ohm, 0.0)
         return np.asarray(0.5 * (ocv + np.sqrt(disc)))
+
+    def terminal_voltage_scalar_v(self, ocv_v: float, power_w: float) -> float:
+        """:meth:`terminal_voltage_v` of one OCV (V) and power (W): the same value, scalar."""
+        disc = max(ocv_v * ocv_v - 4.0 * power_w * self.resistance_ohm, 0.0)
+        return 0.5 * (ocv_v + math.sqrt(disc))
 
 
 def _finite(value: Any, low: float, high: float, what: str = "value") -> float:
@@ -246,7 +251,7 @@ class EnergyFilter:
     def soc(self) -> float:
         """State of charge that the energy state implies."""
         kf = self._require()
-        return float(self.real_pack.soc_from_energy(max(kf.x[0], 0.0) + self._reserve_wh))
+        return self.real_pack.soc_from_energy_scalar(max(float(kf.x[0]), 0.0) + self._reserve_wh)
 
     def estimate(self) -> EnergyEstimate:
         kf = self._require()
@@ -457,7 +462,7 @@ class EnergyFilter:
         kf = self._require()
         self.anchored = True
         self.real_pack = self.pack.with_capacity(pack.capacity_ah)
-        self._reserve_wh = float(self.real_pack.energy_wh(self.pack.spec.reserve_fraction))
+        self._reserve_wh = self.real_pack.energy_scalar_wh(self.pack.spec.reserve_fraction)
         kf.x[0] = pack.energy_wh
         kf.P[0, 0] = pack.energy_sigma_wh**2
         kf.P[0, 1] = kf.P[1, 0] = 0.0
@@ -521,6 +526,6 @@ class EnergyFilter:
         """OCV / V at the current state and terminal power (≥ 1)."""
         if self.voltage is None or terminal_power_w <= 0:
             return 1.0
-        ocv_v = float(self.real_pack.ocv_v(self.soc))
-        v = float(self.voltage.terminal_voltage_v(ocv_v, terminal_power_w))
+        ocv_v = self.real_pack.ocv_scalar_v(self.soc)
+        v = self.voltage.terminal_voltage_scalar_v(ocv_v, terminal_power_w)
         return ocv_v / max(v, 1e-3)

@@ -306,8 +306,9 @@ class OnlineEffects:
     @property
     def sigma(self) -> dict[str, float]:
         """1σ of the wind components (m/s) and of the mass difference (kg)."""
-        sd = np.sqrt(np.clip(np.diag(self._p), 0.0, None))
-        return {"wind_n_mps": float(sd[0]), "wind_e_mps": float(sd[1]), "mass_kg": float(sd[2])}
+        p = self._p
+        sd = [math.sqrt(max(float(p[i, i]), 0.0)) for i in range(3)]
+        return {"wind_n_mps": sd[0], "wind_e_mps": sd[1], "mass_kg": sd[2]}
 
     @property
     def effects(self) -> tuple[Effect, ...]:

@@ -90,6 +90,9 @@ class PackBank:
                 ]
         for f in self.filters:
             f.take(time_s, voltage_v, current_a, consumed_mah)
+        if len(self.filters) == 1 and math.isfinite(self.filters[0].log_likelihood):
+            self.weights = np.ones(1)  # one start holds all the weight
+            return
         log_l = np.array([f.log_likelihood for f in self.filters])
         weights = np.exp(log_l - log_l.max())
         self.weights = weights / weights.sum()

@@ -34,7 +34,7 @@ its σ is first order in the state's covariance.
 from __future__ import annotations
 
 import math
-from collections.abc import Mapping
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 from typing import Any
 
@@ -77,6 +77,36 @@ LEARNED_CAPACITY_SIGMA = 0.25
 #: Spread of one pack's resting curve about its chemistry's typical curve (V per cell):
 #: cells of one chemistry from different makers and ages differ by 10–30 mV at rest.
 TYPICAL_CURVE_SIGMA_V = 0.02
+
+
+def _dot(a: Sequence[float], b: Sequence[float]) -> float:
+    """a · b of two 4-vectors (scalar arithmetic: numpy costs more than it saves at this size)."""
+    return a[0] * b[0] + a[1] * b[1] + a[2] * b[2] + a[3] * b[3]
+
+
+def _quadratic(p: Sequence[Sequence[float]], j: Sequence[float]) -> float:
+    """jᵀ P j of a 4-vector ``j`` and a 4 × 4 matrix ``p`` (nested lists)."""
+    return _dot(j, [_dot(row, j) for row in p])
+
+
+def _joseph(
+    p: Sequence[Sequence[float]], gain: Sequence[float], h: Sequence[float], r_var: float
+) -> np.ndarray:
+    """The covariance after a scalar update, Joseph form (I − K h) P (I − K h)ᵀ + K r Kᵀ
+    (symmetric and positive), for the gain ``gain``, the gradient ``h`` and the reading's
+    variance ``r_var``: with A = I − K h, A P = P − K (hᵀP) and (A P) Aᵀ = A P − (A P h) Kᵀ."""
+    hp = [h[0] * p[0][j] + h[1] * p[1][j] + h[2] * p[2][j] + h[3] * p[3][j] for j in range(4)]
+    ap = [
+        [pij - gi * hpj for pij, hpj in zip(row, hp, strict=True)]
+        for row, gi in zip(p, gain, strict=True)
+    ]
+    aph = [_dot(row, h) for row in ap]
+    return np.array(
+        [
+            [apij - aphi * gj + r_var * gi * gj for apij, gj in zip(row, gain, strict=True)]
+            for row, aphi, gi in zip(ap, aph, gain, strict=True)
+        ]
+    )
 
 
 @dataclass(frozen=True, slots=True)
@@ -271,16 +301,16 @@ class PackFilter:
         resistance_ohm = step.resistance_ohm
         if not (math.isfinite(var_ohm2) and math.isfinite(resistance_ohm)):
             return
-        h = np.array([0.0, 0.0, 1.0, 0.0])
+        h = (0.0, 0.0, 1.0, 0.0)
         innovation = resistance_ohm - float(self.x[2])
         s_var = float(self.P[2, 2]) + var_ohm2
         if innovation**2 > self.settings.innovation_gate_sigma**2 * s_var:
             return
         self.log_likelihood -= 0.5 * (innovation**2 / s_var + math.log(2.0 * math.pi * s_var))
-        gain = self.P @ h / s_var
-        self.x = self.x + gain * innovation
-        i_kh = np.eye(4) - np.outer(gain, h)
-        self.P = i_kh @ self.P @ i_kh.T + var_ohm2 * np.outer(gain, gain)
+        p = self.P.tolist()
+        gain = [row[2] / s_var for row in p]
+        self.x = self.x + np.array(gain) * innovation
+        self.P = _joseph(p, gain, h, var_ohm2)
         self.x[2] = min(max(self.x[2], _R_RANGE[0]), _R_RANGE[1])
 
     # -- the charge drawn ---------------------------------------------------------------------
@@ -329,8 +359,8 @@ class PackFilter:
         self._update(voltage_v, current_a, 1, gate=True, learn_resistance=learn_resistance)
 
     def _measurement(
-        self, x: np.ndarray, p: np.ndarray, current_a: float
-    ) -> tuple[float, np.ndarray]:
+        self, x: Sequence[float], p: Sequence[Sequence[float]], current_a: float
+    ) -> tuple[float, list[float]]:
         """Predicted terminal voltage (V) at state ``x`` and its gradient over the state. The
         curve's slope is its mean over ±1σ of the state of charge (covariance ``p``), not the
         slope at the mean: the table's segments are 0.05 of charge wide and differ in slope
@@ -338,13 +368,12 @@ class PackFilter:
         the filter surer than its data (statistical linearisation)."""
         c_rel = self.charge_ah / self.label_ah
         soc = x[0] - x[1] * c_rel
-        j_soc = np.array([1.0, -c_rel])
-        soc_sigma = math.sqrt(max(float(j_soc @ p[:2, :2] @ j_soc), 0.0))
+        soc_sigma = math.sqrt(max(_quadratic(p, (1.0, -c_rel, 0.0, 0.0)), 0.0))
         half = min(max(soc_sigma, _MIN_SLOPE_HALF_WIDTH), _MAX_SLOPE_HALF_WIDTH)
         curve = self.pack.cell_ocv_slope_v
         slope_cell = (curve(soc + half)[0] - curve(soc - half)[0]) / (2.0 * half)
         k = self.cells * slope_cell
-        h = np.array([k, -k * c_rel, -current_a, 1.0])
+        h = [k, -k * c_rel, -current_a, 1.0]
         return self.cells * curve(soc)[0] + x[3] - current_a * x[2], h
 
     def _update(
@@ -355,35 +384,34 @@ class PackFilter:
         gate: bool,
         learn_resistance: bool = True,
     ) -> None:
-        x0, p0 = self.x, self.P
+        x0, p0 = self.x.tolist(), self.P.tolist()
         r_var = self.noise_var_v2
-        x = x0.copy()
+        x = list(x0)
         for _ in range(iterations):
             z_pred, h = self._measurement(x, p0, current_a)
-            pht = p0 @ h
-            s_var = float(h @ pht) + r_var
-            innovation = voltage_v - z_pred - float(h @ (x0 - x))
+            pht = [_dot(row, h) for row in p0]
+            s_var = _dot(h, pht) + r_var
+            innovation = voltage_v - z_pred - _dot(h, [a - b for a, b in zip(x0, x, strict=True)])
             if gate and innovation**2 > self.settings.innovation_gate_sigma**2 * s_var:
                 self.rejected += 1
                 self.log_likelihood -= 0.5 * (
                     self.settings.innovation_gate_sigma**2 + math.log(2.0 * math.pi * s_var)
                 )
                 return
-            gain = pht / s_var
+            gain = [v / s_var for v in pht]
             if not learn_resistance:
                 gain[2] = 0.0  # considered, not learnt (the covariance below stays right)
-            x = x0 + gain * innovation
+            x = [a + g * innovation for a, g in zip(x0, gain, strict=True)]
         self.log_likelihood -= 0.5 * (innovation**2 / s_var + math.log(2.0 * math.pi * s_var))
-        i_kh = np.eye(4) - np.outer(gain, h)
-        self.P = i_kh @ p0 @ i_kh.T + r_var * np.outer(gain, gain)
+        self.P = _joseph(p0, gain, h, r_var)
         if gate:
             # residual after the update, plus what the state's remaining uncertainty explains
-            residual_v = innovation * (1.0 - float(h @ gain))
-            self._learn_noise(residual_v**2 + float(h @ self.P @ h))
+            residual_v = innovation * (1.0 - _dot(h, gain))
+            self._learn_noise(residual_v**2 + _quadratic(self.P.tolist(), h))
         x[0] = min(max(x[0], _S_RANGE[0]), _S_RANGE[1])
         x[1] = min(max(x[1], _Q_RANGE[0]), _Q_RANGE[1])
         x[2] = min(max(x[2], _R_RANGE[0]), _R_RANGE[1])
-        self.x = x
+        self.x = np.array(x)
         self.updates += 1
 
     def _learn_noise(self, sample_v2: float) -> None:
@@ -426,7 +454,7 @@ class PackFilter:
         return float(self.x[2])
 
     def estimate(self) -> PackEstimate:
-        s, q, _, d = (float(v) for v in self.x)
+        s, q, resistance_ohm, d = self.x.tolist()
         label, cells, c = self.label_ah, self.cells, self.charge_ah
         reserve = self.pack.spec.reserve_fraction
         soc = s - q * c / label
@@ -438,22 +466,22 @@ class PackFilter:
             pack.cell_energy_wh_per_ah(soc) - pack.cell_energy_wh_per_ah(reserve)
         ) + d * (soc - reserve)
         d_per_ah = cells * pack.cell_ocv_slope_v(min(max(soc, 0.0), 1.0))[0] + d
-        j_energy = np.array(
-            [capacity * d_per_ah, -capacity / q * per_ah - c / q * d_per_ah, 0.0,
-             capacity * (soc - reserve)]
+        j_energy = (
+            capacity * d_per_ah, -capacity / q * per_ah - c / q * d_per_ah, 0.0,
+            capacity * (soc - reserve),
         )  # fmt: skip
-        j_soc = np.array([1.0, -c / label, 0.0, 0.0])
-        j_capacity = np.array([0.0, -label / (q * q), 0.0, 0.0])
-        p = self.P
+        j_soc = (1.0, -c / label, 0.0, 0.0)
+        j_capacity = (0.0, -label / (q * q), 0.0, 0.0)
+        p = self.P.tolist()
         return PackEstimate(
             soc=min(max(soc, 0.0), 1.0),
-            soc_sigma=math.sqrt(max(float(j_soc @ p @ j_soc), 0.0)),
+            soc_sigma=math.sqrt(max(_quadratic(p, j_soc), 0.0)),
             capacity_ah=capacity,
-            capacity_sigma_ah=math.sqrt(max(float(j_capacity @ p @ j_capacity), 0.0)),
-            resistance_ohm=float(self.x[2]),
-            resistance_sigma_ohm=math.sqrt(max(float(p[2, 2]), 0.0)),
+            capacity_sigma_ah=math.sqrt(max(_quadratic(p, j_capacity), 0.0)),
+            resistance_ohm=resistance_ohm,
+            resistance_sigma_ohm=math.sqrt(max(p[2][2], 0.0)),
             energy_wh=max(capacity * per_ah, 0.0),
-            energy_sigma_wh=math.sqrt(max(float(j_energy @ p @ j_energy), 0.0)),
+            energy_sigma_wh=math.sqrt(max(_quadratic(p, j_energy), 0.0)),
         )
 
     # -- restart --------------------------------------------------------------------------------

@@ -57,8 +57,12 @@ def induced_velocity_ratio(climb_ratio: ArrayLike) -> FloatArray:
     x = np.asarray(climb_ratio, dtype=float)
     half = 0.5 * x
     climb = -half + np.sqrt(half * half + 1.0)
-    windmill = -half - np.sqrt(np.maximum(half * half - 1.0, 0.0))
+    if np.all(x >= 0.0):  # every sample climbs or hovers: the other branches are not used
+        return np.asarray(climb, dtype=float)
     bridge = _vortex_ring_quartic(x) / VORTEX_RING_KAPPA + half * _WINDMILL_EDGE_MISMATCH
+    if not np.any(x <= WINDMILL_CLIMB_RATIO):  # nothing descends into the windmill state
+        return np.asarray(np.where(x >= 0.0, climb, bridge), dtype=float)
+    windmill = -half - np.sqrt(np.maximum(half * half - 1.0, 0.0))
     return np.asarray(
         np.where(x >= 0.0, climb, np.where(x <= WINDMILL_CLIMB_RATIO, windmill, bridge)),
         dtype=float,

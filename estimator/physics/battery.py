@@ -9,7 +9,11 @@ deliver before resistive losses (those are I²R, counted by whoever knows the cu
 
 from __future__ import annotations
 
+import bisect
+import copy
 import dataclasses
+import math
+from collections.abc import Sequence
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
@@ -59,6 +63,28 @@ LIHV_CELL_OCV_V = 3.27 + (CELL_OCV_POINTS_V - 3.27) * (4.35 - 3.27) / (4.20 - 3.
 CHEMISTRY_OCV_V = {"lipo": CELL_OCV_POINTS_V, "lihv": LIHV_CELL_OCV_V, "liion": LIION_CELL_OCV_V}
 
 
+def interp_scalar(x: float, xp: Sequence[float], fp: Sequence[float]) -> float:
+    """``np.interp(x, xp, fp)`` of one value, the same float (the same steps: ends held, a
+    table point's own value, else the slope from the point below), without numpy's cost per
+    call. ``xp`` ascending."""
+    if math.isnan(x):
+        return x
+    j = bisect.bisect_right(xp, x) - 1
+    if j < 0:
+        return fp[0]
+    if j >= len(xp) - 1:  # at or beyond the last point
+        return fp[-1]
+    if xp[j] == x:
+        return fp[j]
+    slope = (fp[j + 1] - fp[j]) / (xp[j + 1] - xp[j])
+    value = slope * (x - xp[j]) + fp[j]
+    if math.isnan(value):
+        value = slope * (x - xp[j + 1]) + fp[j + 1]
+        if math.isnan(value) and fp[j] == fp[j + 1]:
+            value = fp[j]
+    return value
+
+
 class PackModel:
     """A pack of ``spec.cells`` lithium cells in series with ``spec.capacity_ah`` charge."""
 
@@ -79,12 +105,15 @@ class PackModel:
         self._cum_wh_per_ah = np.concatenate(([0.0], np.cumsum(mid_v / self._segments)))
         self._ocv_list = [float(v) for v in self.cell_ocv_v]
         self._cum_list = [float(v) for v in self._cum_wh_per_ah]
+        self._soc_list = [float(v) for v in self.soc_points]
 
     def with_capacity(self, capacity_ah: float) -> PackModel:
-        """The same pack (curve, cells, reserve, resistance) holding ``capacity_ah`` (Ah)."""
-        return PackModel(
-            dataclasses.replace(self.spec, capacity_ah=capacity_ah), self.internal_resistance_ohm
-        )
+        """The same pack (curve, cells, reserve, resistance) holding ``capacity_ah`` (Ah). The
+        curve's tables do not depend on the capacity: the new pack shares them (the pack
+        filter's capacity moves at every reading)."""
+        pack = copy.copy(self)
+        pack.spec = dataclasses.replace(self.spec, capacity_ah=capacity_ah)
+        return pack
 
     def cell_ocv_slope_v(self, soc: float) -> tuple[float, float]:
         """Resting cell voltage (V) at ``soc`` and its slope dOCV/dSoC (V per unit SoC),
@@ -105,6 +134,22 @@ class PackModel:
         f = s * n - i
         v0, v1 = self._ocv_list[i], self._ocv_list[i + 1]
         return self._cum_list[i] + (v0 + 0.5 * f * (v1 - v0)) * f / n
+
+    def ocv_scalar_v(self, soc: float) -> float:
+        """:meth:`ocv_v` of one state of charge (the same value, V), in scalar arithmetic."""
+        s = min(max(float(soc), 0.0), 1.0)
+        return self.spec.cells * interp_scalar(s, self._soc_list, self._ocv_list)
+
+    def energy_scalar_wh(self, soc: float) -> float:
+        """:meth:`energy_wh` of one state of charge (the same value, Wh), scalar."""
+        s = min(max(float(soc), 0.0), 1.0)
+        per_ah = interp_scalar(s, self._soc_list, self._cum_list)
+        return self.spec.cells * self.spec.capacity_ah * per_ah
+
+    def soc_from_energy_scalar(self, energy_wh: float) -> float:
+        """:meth:`soc_from_energy` of one energy (the same value), scalar."""
+        per_ah = float(energy_wh) / (self.spec.cells * self.spec.capacity_ah)
+        return interp_scalar(per_ah, self._cum_list, self._soc_list)
 
     def ocv_v(self, soc: ArrayLike) -> NDArray[np.float64]:
         """Pack open-circuit voltage (V) at state of charge ``soc`` (clipped to [0, 1])."""

@@ -26,6 +26,7 @@ import itertools
 import math
 from collections.abc import Mapping, Sequence
 from dataclasses import asdict, dataclass, field, fields, replace
+from functools import cached_property
 from typing import Any, ClassVar
 
 import numpy as np
@@ -126,8 +127,11 @@ class PowerContext:
     propulsion_w: FloatArray | None = None
 
 
-def active(time_s: FloatArray, at_s: float | None, until_s: float | None) -> FloatArray:
-    """1 where ``at_s`` ≤ t < ``until_s`` (None: unbounded on that side), else 0."""
+def active(time_s: FloatArray, at_s: float | None, until_s: float | None) -> FloatArray | float:
+    """1 where ``at_s`` ≤ t < ``until_s`` (None: unbounded on that side), else 0; the scalar
+    1.0 when unbounded on both sides (every sample: no array to build)."""
+    if at_s is None and until_s is None:
+        return 1.0
     on = np.ones_like(time_s, dtype=float)
     if at_s is not None:
         on *= time_s >= at_s
@@ -184,6 +188,10 @@ class Wind(Effect):
 
     def vector_ne_mps(self) -> tuple[float, float]:
         """Air-mass velocity over ground (north, east), m/s."""
+        return self._vector_ne_mps
+
+    @cached_property
+    def _vector_ne_mps(self) -> tuple[float, float]:
         wn, we = wind_vector_ne_mps(self.speed_mps, self.from_deg)
         return float(wn), float(we)
 
@@ -328,8 +336,9 @@ class SampleMass(Effect):
         _add_mass(ctx, self.delta_kg)
 
 
-def _add_mass(ctx: PowerContext, delta_kg: FloatArray) -> None:
-    """Add ``delta_kg`` (per sample) to the mass and rescale the model's mass ratio."""
+def _add_mass(ctx: PowerContext, delta_kg: FloatArray | float) -> None:
+    """Add ``delta_kg`` (per sample, or one for every sample) to the mass and rescale the
+    model's mass ratio."""
     base_kg = ctx.mass_kg / ctx.mass_ratio
     ctx.mass_kg = ctx.mass_kg + delta_kg
     if np.any(ctx.mass_kg <= 0):
@@ -394,7 +403,7 @@ class Avionics(Effect):
     until_s: float | None = None
 
     def electrical_w(self, ctx: PowerContext) -> FloatArray:
-        return self.power_w * active(ctx.state.time_s, self.at_s, self.until_s)
+        return _arr(self.power_w * active(ctx.state.time_s, self.at_s, self.until_s))
 
 
 @dataclass(frozen=True)
