@@ -497,8 +497,8 @@ class Service:
             self.link.send(request)
         self._request_pack_info(target)
         log.info(
-            "%s requested: velocity %.0f Hz, battery %.1f Hz",
-            "message intervals (PX4)" if self._px4 else "streams",
+            "%s: velocity %.0f Hz, battery %.1f Hz",
+            "message intervals requested (PX4)" if self._px4 else "streams requested",
             cfg.velocity_rate_hz,
             cfg.battery_rate_hz,
         )
