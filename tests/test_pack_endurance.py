@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import importlib.util
 import json
+from collections.abc import Mapping, Sequence
 from pathlib import Path
 from typing import Any
 
@@ -48,9 +49,17 @@ MISSES = {
 }
 
 
-def _accuracy_param(name: str) -> Any:
-    marks = [pytest.mark.xfail(strict=True, reason=MISSES[name])] if name in MISSES else []
-    return pytest.param(name, id=_id(name), marks=marks)
+def _params(names: Sequence[str], misses: Mapping[str, str]) -> list[Any]:
+    """``names`` as test parameters (with their set in the id), each of ``misses`` a strict
+    xfail whose reason is the miss's cause."""
+    return [
+        pytest.param(
+            n,
+            id=_id(n),
+            marks=[pytest.mark.xfail(strict=True, reason=misses[n])] if n in misses else [],
+        )
+        for n in names
+    ]
 
 
 @pytest.fixture(scope="module")
@@ -82,7 +91,7 @@ def test_no_endurance_is_more_than_3_sigma_above_the_truth(
     assert np.nanmax(flight.z) <= 3.0
 
 
-@pytest.mark.parametrize("name", [_accuracy_param(n) for n in SCORED])
+@pytest.mark.parametrize("name", _params(SCORED, MISSES))
 def test_endurance_within_3_percent_median_and_8_percent_worst(
     flights: dict[str, PackFlight], name: str
 ) -> None:
@@ -202,15 +211,7 @@ SLOW_RESTARTS = {
 }
 
 
-@pytest.mark.parametrize(
-    "name",
-    [
-        pytest.param(n, marks=pytest.mark.xfail(strict=True, reason=SLOW_RESTARTS[n]))
-        if n in SLOW_RESTARTS
-        else n
-        for n in RESTARTED
-    ],
-)
+@pytest.mark.parametrize("name", _params(RESTARTED, SLOW_RESTARTS))
 def test_a_daemon_started_mid_flight_without_state_converges_within_60_s(
     restarts: dict[str, Restart | None], name: str
 ) -> None:
@@ -239,15 +240,7 @@ OVERCONFIDENT_RESTARTS = {
 }
 
 
-@pytest.mark.parametrize(
-    "name",
-    [
-        pytest.param(n, marks=pytest.mark.xfail(strict=True, reason=OVERCONFIDENT_RESTARTS[n]))
-        if n in OVERCONFIDENT_RESTARTS
-        else n
-        for n in RESTARTED_ALL
-    ],
-)
+@pytest.mark.parametrize("name", _params(RESTARTED_ALL, OVERCONFIDENT_RESTARTS))
 def test_a_daemon_started_mid_flight_is_never_surer_than_it_is_right(
     restarts: dict[str, Restart | None], name: str
 ) -> None:
