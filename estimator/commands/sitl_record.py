@@ -31,8 +31,8 @@ def register(subparsers: argparse._SubParsersAction[argparse.ArgumentParser]) ->
         nargs="*",
         metavar="SCENARIO",
         help="scenario names (the effects of replay/sitl, pack_* packs of replay/sitl_packs), "
-        "or all (every effect scenario), or packs / packs2 / packs3 (the first / second / "
-        "third set of pack_* scenarios)",
+        "or all (every effect scenario), or packs / packs2 / packs3 / packs4 (the first "
+        "to fourth set of pack_* scenarios)",
     )
     p.add_argument("--mission", metavar="FILE", help="fly this mission file in AUTO instead")
     p.add_argument(
@@ -53,6 +53,7 @@ def run(args: argparse.Namespace) -> int:
         PACK_SCENARIOS,
         PACK_SCENARIOS_2,
         PACK_SCENARIOS_3,
+        PACK_SCENARIOS_4,
         SCENARIOS,
         Scenario,
         mission_scenario,
@@ -77,14 +78,16 @@ def run(args: argparse.Namespace) -> int:
             "packs": list(PACK_SCENARIOS),
             "packs2": list(PACK_SCENARIOS_2),
             "packs3": list(PACK_SCENARIOS_3),
+            "packs4": list(PACK_SCENARIOS_4),
         }
-        known = SCENARIOS | PACK_SCENARIOS | PACK_SCENARIOS_2 | PACK_SCENARIOS_3
+        known = SCENARIOS | PACK_SCENARIOS | PACK_SCENARIOS_2 | PACK_SCENARIOS_3 | PACK_SCENARIOS_4
         names = [n for name in args.scenarios for n in groups.get(name, [name])]
         unknown = [n for n in names if n not in known]
         if unknown:
             listed = ", ".join(known)
             raise UserError(
-                f"unknown scenario {unknown[0]!r}; known: all, packs, packs2, packs3, {listed}"
+                f"unknown scenario {unknown[0]!r}; known: all, packs, packs2, packs3, packs4, "
+                f"{listed}"
             )
         scenarios = [known[n] for n in names]
     try:

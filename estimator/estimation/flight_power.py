@@ -15,6 +15,7 @@ from collections.abc import Sequence
 
 import numpy as np
 
+from estimator.estimation.courses_flown import CoursesFlown
 from estimator.estimation.held_turn import HeldTurn
 from estimator.estimation.online_effects import OnlineEffects
 from estimator.physics.effects import Effect, FlightState, predict_power_w
@@ -48,6 +49,7 @@ class FlightPower:
         self.tracked_sq_w2 = 0.0
         self.file_sq_w2 = 0.0
         self.track_rad = 0.0  # course over ground (the last one while moving)
+        self.courses = CoursesFlown()
         self._held_turn = HeldTurn()
         self.held_accel_mps2 = 0.0  # the a⊥ steady figures assume, m/s²
         self.v_me_mps = self.v_mr_mps = 0.0
@@ -61,6 +63,7 @@ class FlightPower:
         """The course over ground of ``state`` while it moves (else the last one kept)."""
         if state is not None and state.speed_mps > _TRACK_MIN_SPEED_MPS:
             self.track_rad = math.atan2(state.ve_mps, state.vn_mps)
+            self.courses.record(state.time_s, state.speed_mps, self.track_rad)
 
     def restart(self) -> None:
         """The autopilot's clock moved: the turn held is forgotten."""
@@ -76,13 +79,18 @@ class FlightPower:
         voltages_v: Sequence[float] = (),
         time_s: float = 0.0,
         effects: Sequence[Effect] | None = None,
+        tracks_rad: np.ndarray | None = None,
     ) -> np.ndarray:
         """Model power (W, ≥ 0): one row per kinematic state (at its battery voltage in
         ``voltages_v``, V, else ``latest_v``), then level flight at each steady speed along
         the course (it matters in wind) in a steady turn of a⊥ ``accel_centripetal_mps2``, at
-        ``time_s`` and ``latest_v``; with ``effects`` (default: those in use)."""
+        ``time_s`` and ``latest_v``; with ``effects`` (default: those in use); along
+        ``tracks_rad`` (one course per steady speed, rad from north) instead."""
         k = len(states)
-        north, east = math.cos(self.track_rad), math.sin(self.track_rad)
+        tracks = (
+            np.full(len(steady_speeds_mps), self.track_rad) if tracks_rad is None else tracks_rad
+        )
+        north, east = np.cos(tracks), np.sin(tracks)
         rows = np.empty((k + len(steady_speeds_mps), 8))
         if k:
             rows[:k] = [
@@ -90,16 +98,9 @@ class FlightPower:
                 for s, v in zip(states, voltages_v or [latest_v] * k, strict=True)
             ]
         # steady rows: level, along the track, a⊥ across it
-        rows[k:] = (
-            time_s,
-            0.0,
-            0.0,
-            0.0,
-            -east * accel_centripetal_mps2,
-            north * accel_centripetal_mps2,
-            0.0,
-            latest_v,
-        )
+        rows[k:] = (time_s, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, latest_v)
+        rows[k:, 4] = -east * accel_centripetal_mps2
+        rows[k:, 5] = north * accel_centripetal_mps2
         rows[k:, 1] = north * steady_speeds_mps
         rows[k:, 2] = east * steady_speeds_mps
         flight = FlightState(*rows.T)
@@ -113,6 +114,20 @@ class FlightPower:
         turn held."""
         speed = np.array([speed_mps])
         return float(self.predict((), speed, latest_v, self.held_accel_mps2, time_s=time_s)[0])
+
+    def course_mean_w(self, speed_mps: float, time_s: float, latest_v: float) -> float:
+        """Model power (W) in steady level flight at ``speed_mps`` in the turn held, averaged
+        over the courses flown lately at about that speed
+        (:mod:`estimator.estimation.courses_flown`); along the present course when there
+        are none."""
+        tracks_rad, weights = self.courses.near(speed_mps)
+        if not len(tracks_rad):
+            return self.steady_w(speed_mps, time_s, latest_v)
+        speeds = np.full(len(tracks_rad), speed_mps)
+        power = self.predict(
+            (), speeds, latest_v, self.held_accel_mps2, time_s=time_s, tracks_rad=tracks_rad
+        )
+        return float(power @ weights)
 
     def refresh_speeds(self, time_s: float, latest_v: float) -> None:
         """V_me, V_mr and their powers, and the hover power, with the effects in use."""

@@ -705,12 +705,20 @@ class Pipeline:
             flying=self.endurance_valid,
         )
 
+    def _endurance_power_w(self) -> float:
+        """Model power (W) the endurance holds: the steady flight's, at the present speed
+        over the courses flown lately at that speed (:meth:`FlightPower.course_mean_w`)."""
+        state = self._state
+        if state is None or self._steady_power_w <= 0:
+            return self._steady_power_w
+        return self.power.course_mean_w(state.speed_mps, self._time_s or 0.0, self._latest_v())
+
     def _emit(self, time_s: float) -> Estimate:
         est = self.energy.estimate()
         state = self._state
         steady_w = est.bias * self._steady_power_w
         power = self.power
-        model_w = np.array([self._steady_power_w, power.p_hover_w, power.p_me_w, power.p_mr_w])
+        model_w = np.array([self._endurance_power_w(), power.p_hover_w, power.p_me_w, power.p_mr_w])
         times_s, sigmas_s = self.energy.endurance_s(est.bias * model_w, est)
         endurance_s, hover_s, vme_s, vmr_s = (float(x) for x in times_s)
         endurance_sigma_s, hover_sigma_s, vme_sigma_s, vmr_sigma_s = (float(x) for x in sigmas_s)

@@ -8,10 +8,10 @@ along a circle), :class:`Mission` (AUTO), :class:`SetWind` (SIM_WIND_SPD/SIM_WIN
 loop until the pack reaches its true reserve), :class:`AutoMission` (a mission file in AUTO).
 Every flight ends with LAND (an AUTO mission that lands by itself ends there).
 
-Packs (:func:`pack_scenario`; three sets, :data:`PACK_SCENARIOS`, `PACK_SCENARIOS_2` and
-`PACK_SCENARIOS_3`): a 3S pack labelled 5.0 Ah that really holds less, with a higher
-resistance or partly charged at power-up (:class:`estimator.sitl.pack.Pack`), flown to its
-true reserve.
+Packs (:func:`pack_scenario`; four sets, :data:`PACK_SCENARIOS`, `PACK_SCENARIOS_2`,
+`PACK_SCENARIOS_3` and `PACK_SCENARIOS_4`): a 3S pack labelled 5.0 Ah that really holds
+less, with a higher resistance or partly charged at power-up
+(:class:`estimator.sitl.pack.Pack`), flown to its true reserve.
 
 Payload: ArduPilot's SITL servo gripper (SIM_GRPS_*) holds a 1.0 kg load once it closes on
 the ground; the load's mass is added to the multicopter's (``MultiCopter::gross_mass``) from
@@ -401,5 +401,21 @@ PACK_SCENARIOS_3: dict[str, Scenario] = {
         pack_scenario(Pack(4.25, 0.03, 0.8), payload=True, airframe=STRONG_MOTORS),
         pack_scenario(Pack(5.0, 0.04, 0.55), airframe=STRONG_MOTORS),
         pack_scenario(Pack(3.0, 0.01)),
+    )
+}
+#: The fourth held-out set (recorded 2026-11-26 after the endurance's course averaging,
+#: commit "endurance over the courses flown", was frozen; none of it tuned on): mostly wind,
+#: the effect that rule is about — 3, 5, 6 and 8 m/s from four directions —, 65–95 % of the
+#: label, 10–30 mΩ, 60–90 % charged at power-up, one with the payload.
+PACK_SCENARIOS_4: dict[str, Scenario] = {
+    s.name: s
+    for s in (
+        pack_scenario(Pack(4.5, 0.01), SetWind(6, 250)),
+        pack_scenario(Pack(3.5, 0.02), SetWind(8, 30)),
+        pack_scenario(Pack(5.0, 0.03, 0.8), SetWind(5, 170)),
+        pack_scenario(Pack(4.0, 0.02, 0.7), SetWind(5, 90), payload=True, airframe=STRONG_MOTORS),
+        pack_scenario(Pack(3.25, 0.02)),
+        pack_scenario(Pack(4.75, 0.01, 0.6)),
+        pack_scenario(Pack(3.75, 0.03, 0.9), SetWind(3, 300)),
     )
 }
