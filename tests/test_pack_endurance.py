@@ -3,8 +3,8 @@ replay/sitl_packs (a 5.0 Ah label; the real pack 65–100 % of it, 10 or 30 mΩ,
 charged at power-up, some with wind and payload) replayed with the LABELLED capacity
 (:mod:`estimator.analysis.pack_flights`): scored from 60 s after take-off until 60 s before
 the true reserve. Six flights were the tuning half, seven held out (split.json, fixed before
-any run), and two more sets of seven held out were recorded after the rules were frozen
-(``held_out_2`` at commit 2190ac9, ``held_out_3`` at a8aa701); ``python
+any run), and three more sets of seven held out were recorded after the rules were frozen
+(``held_out_2`` at commit 2190ac9, ``held_out_3`` at a8aa701, ``held_out_4`` at 2359ce0); ``python
 scripts/pack_state_sitl.py`` prints the table of docs/pack.md."""
 
 from __future__ import annotations
@@ -40,12 +40,10 @@ SCORED = [n for n in NAMES if n not in UNSCORED]
 
 #: Flights that miss 3 % median / 8 % worst, and why.
 MISSES = {
-    "pack_c80_r2_soc85_wind": "median 3.4 % (2.6 % when the set was first scored, before the "
-    "resistance from steps of current): in the 7 m/s wind the endurance for the present leg "
-    "swings ±5-7 % about the flight as flown, and the capacity learnt mid-flight is 1-2 % "
-    "lower (3.93-3.97 ± 0.1 Ah against 4.00)",
-    "pack_c75_r2_wind": "median 3.3 % (held-out 3, as first scored): the same cause in a 6 m/s "
-    "wind; the endurance for the present leg swings about the flight as flown, 12 % within 1σ",
+    "pack_c70_r2_wind": "median 3.2 %, worst 9.0 % (held-out 4, as first scored): in an 8 m/s "
+    "wind the flight mixes 6 m/s boxes, hovers and 10 m/s legs up and down wind whose powers "
+    "differ by 10-20 %; the endurance holds the present speed (averaged over its courses), "
+    "not the speeds still to come, and swings ±5 % about the flight as flown",
 }
 
 
@@ -127,7 +125,7 @@ def test_three_sigma_pooled_over_the_pack_flights_holds_97_percent(
 #: Why the first held-out half misses the 1σ band since waypoint corners stopped counting as
 #: steady turns (estimation/held_turn.py, a rule tuned on pack_c80_r1_wind).
 HELD_OUT_1SIGMA_MISS = (
-    "46 % within 1σ: the corners' bias-variance bumps had widened the σ (57 % before); "
+    "47 % within 1σ: the corners' bias-variance bumps had widened the σ (57 % before); "
     "without them pack_c100_r3's persistent +2.5-4 % (capacity 5.06 ± 0.05 Ah learnt by "
     "75 s, the truth 5.00) and the leg-to-leg power in the wind flights lie outside 1σ; "
     "since the resting drift between readings was corrected (54 % before), also "
@@ -142,6 +140,7 @@ HELD_OUT_1SIGMA_MISS = (
         pytest.param("held_out", marks=pytest.mark.xfail(strict=True, reason=HELD_OUT_1SIGMA_MISS)),
         "held_out_2",
         "held_out_3",
+        "held_out_4",
     ],
 )
 def test_one_sigma_pooled_over_each_half_holds_55_to_80_percent(
@@ -228,7 +227,8 @@ RESTARTED_ALL = (
     "pack_c100_r1_soc75", "pack_c80_r1_wind", "pack_c80_r1", "pack_c100_r3", "pack_c65_r3",
     "pack_c90_r2", "pack_c70_r1_soc85", "pack_c90_r3_wind", "pack_c100_r2_payload",
     "pack_c80_r2_soc85_wind", "pack_c75_r4", "pack_c85_r1_soc90", "pack_c75_r2_wind",
-    "pack_c60_r1",
+    "pack_c60_r1", "pack_c90_r1_wind", "pack_c70_r2_wind", "pack_c100_r3_soc80_wind",
+    "pack_c65_r2", "pack_c75_r3_soc90_wind",
 )  # fmt: skip
 #: Restarted flights surer than right, and why.
 OVERCONFIDENT_RESTARTS = {
@@ -237,6 +237,9 @@ OVERCONFIDENT_RESTARTS = {
     "the weight from the one that holds 10.8 mΩ and 2.9 Ah (truth 10 mΩ, 3.0 Ah), and the "
     "mixture carries the wrong start's narrow σ: the endurance −15 % at up to 6.2σ; the weight "
     "comes back to the right starts 110-170 s after the restart",
+    "pack_c65_r2": "held-out 4, as first scored: −28 % 60 s after the restart (at −1.8σ) "
+    "and 3.1σ at worst; the charge and the capacity of a pack restarted under a steady "
+    "current separate only at the first 10 m/s leg (pack_c65_r1's +29 %, the other sign)",
 }
 
 

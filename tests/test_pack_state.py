@@ -196,6 +196,8 @@ LATE_WARNINGS = {
     "pack_c95_r2_soc65_wind": "held-out 3, as first scored: a pack 5 % short of its label, "
     "powered up at 65 %, is announced 100 s after take-off (3σ of the capacity is 5 % only "
     "once enough charge has been drawn)",
+    "pack_c95_r1_soc60": "held-out 4, as first scored: the same, 5 % short and powered up at "
+    "60 %, announced 91 s after take-off",
 }
 
 
