@@ -90,10 +90,24 @@ def test_a_new_speed_is_judged_by_its_own_course(windy: FlightPower) -> None:
     alone, as the steady power."""
     v = 22.0
     t = _fly(windy, BOX, 0.0)
-    windy.follow_track(KinematicState.of_motion(t, (0.0, 12.0, 0.0), (0.0, 0.0)))
+    for _ in range(30):  # 3 s east at 12 m/s
+        windy.follow_track(KinematicState.of_motion(t, (0.0, 12.0, 0.0), (0.0, 0.0)))
+        t += 0.1
     assert windy.course_mean_w(12.0, t, v) == pytest.approx(windy.steady_w(12.0, t, v))
 
 
-def test_without_courses_flown_it_is_the_steady_power(windy: FlightPower) -> None:
-    assert windy.course_mean_w(0.0, 0.0, 22.0) == windy.steady_w(0.0, 0.0, 22.0)
-    assert windy.course_mean_w(6.0, 0.0, 22.0) == windy.steady_w(6.0, 0.0, 22.0)
+def test_without_courses_flown_the_steady_power_holds(windy: FlightPower) -> None:
+    assert windy.course_mean_w(0.0, 0.0, 22.0) is None
+    assert windy.course_mean_w(6.0, 0.0, 22.0) is None
+
+
+def test_the_mean_does_not_depend_on_the_leg_flown_now(windy: FlightPower) -> None:
+    """Round a corner the mean stays what it was; in still air it is the steady power."""
+    v = 22.0
+    t = _fly(windy, BOX, 0.0)  # ends on the westbound leg
+    west = windy.course_mean_w(6.0, t, v)
+    windy.track_rad = 0.0  # northbound, into the wind
+    assert windy.course_mean_w(6.0, t, v) == pytest.approx(west)
+    assert west is not None and west < windy.steady_w(6.0, t, v)
+    windy.effects = ()
+    assert windy.course_mean_w(6.0, t, v) == pytest.approx(windy.steady_w(6.0, t, v))

@@ -87,10 +87,6 @@ class FlightPower:
         ``time_s`` and ``latest_v``; with ``effects`` (default: those in use); along
         ``tracks_rad`` (one course per steady speed, rad from north) instead."""
         k = len(states)
-        tracks = (
-            np.full(len(steady_speeds_mps), self.track_rad) if tracks_rad is None else tracks_rad
-        )
-        north, east = np.cos(tracks), np.sin(tracks)
         rows = np.empty((k + len(steady_speeds_mps), 8))
         if k:
             rows[:k] = [
@@ -98,9 +94,15 @@ class FlightPower:
                 for s, v in zip(states, voltages_v or [latest_v] * k, strict=True)
             ]
         # steady rows: level, along the track, a⊥ across it
-        rows[k:] = (time_s, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, latest_v)
-        rows[k:, 4] = -east * accel_centripetal_mps2
-        rows[k:, 5] = north * accel_centripetal_mps2
+        if tracks_rad is None:  # one course for all (scalars: the per-sample path)
+            north, east = math.cos(self.track_rad), math.sin(self.track_rad)
+            a = accel_centripetal_mps2
+            rows[k:] = (time_s, 0.0, 0.0, 0.0, -east * a, north * a, 0.0, latest_v)
+        else:
+            north, east = np.cos(tracks_rad), np.sin(tracks_rad)
+            rows[k:] = (time_s, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, latest_v)
+            rows[k:, 4] = -east * accel_centripetal_mps2
+            rows[k:, 5] = north * accel_centripetal_mps2
         rows[k:, 1] = north * steady_speeds_mps
         rows[k:, 2] = east * steady_speeds_mps
         flight = FlightState(*rows.T)
@@ -115,14 +117,13 @@ class FlightPower:
         speed = np.array([speed_mps])
         return float(self.predict((), speed, latest_v, self.held_accel_mps2, time_s=time_s)[0])
 
-    def course_mean_w(self, speed_mps: float, time_s: float, latest_v: float) -> float:
+    def course_mean_w(self, speed_mps: float, time_s: float, latest_v: float) -> float | None:
         """Model power (W) in steady level flight at ``speed_mps`` in the turn held, averaged
         over the courses flown lately at about that speed
-        (:mod:`estimator.estimation.courses_flown`); along the present course when there
-        are none."""
+        (:mod:`estimator.estimation.courses_flown`); None when none was."""
         tracks_rad, weights = self.courses.near(speed_mps)
         if not len(tracks_rad):
-            return self.steady_w(speed_mps, time_s, latest_v)
+            return None
         speeds = np.full(len(tracks_rad), speed_mps)
         power = self.predict(
             (), speeds, latest_v, self.held_accel_mps2, time_s=time_s, tracks_rad=tracks_rad

@@ -711,7 +711,8 @@ class Pipeline:
         state = self._state
         if state is None or self._steady_power_w <= 0:
             return self._steady_power_w
-        return self.power.course_mean_w(state.speed_mps, self._time_s or 0.0, self._latest_v())
+        mean_w = self.power.course_mean_w(state.speed_mps, self._time_s or 0.0, self._latest_v())
+        return self._steady_power_w if mean_w is None else mean_w
 
     def _emit(self, time_s: float) -> Estimate:
         est = self.energy.estimate()
