@@ -32,7 +32,17 @@ from estimator.analysis.pack_flights import (
 )
 from estimator.mavlink.pack_alerts import PackLabelAlert
 from estimator.physics.vehicle import load_vehicle
-from estimator.sim.endurance_ensemble import ENSEMBLE_FLIGHTS, ensemble_configs, ensemble_errors
+from estimator.sim.endurance_ensemble import (
+    CHECK_AFTER_CHANGE_S,
+    ENSEMBLE_FLIGHTS,
+    Flown,
+    ensemble_configs,
+    ensemble_errors,
+    errors_after_change,
+    hover_cruise,
+    signed_pct,
+    table_rows,
+)
 
 REPO = Path(__file__).resolve().parent.parent
 FLIGHTS = REPO / "replay" / "sitl_packs"
@@ -315,6 +325,51 @@ def ensemble_summary() -> str:
     )
 
 
+@cache
+def _hover_cruise(cruise_speed_mps: float) -> Flown:
+    return hover_cruise(cruise_speed_mps)
+
+
+def hover_cruise_table(cruise_speed_mps: float) -> str:
+    """docs/daemon.md's table of the acceptance flight at ``cruise_speed_mps``."""
+    return "\n".join(
+        [
+            "| after change | truth s | estimate ± 1σ s | error | PX4-style s | error |",
+            "|---:|---:|---:|---:|---:|---:|",
+            *table_rows(_hover_cruise(cruise_speed_mps)),
+        ]
+    )
+
+
+def _errors(cruise_speed_mps: float, after_s: float) -> tuple[str, str]:
+    """Ours and the PX4-style relative error ``after_s`` after the change."""
+    e, truth_s, px4_s = errors_after_change(_hover_cruise(cruise_speed_mps), after_s)
+    return signed_pct(e.endurance_s / truth_s - 1), signed_pct(px4_s / truth_s - 1)
+
+
+def hover_cruise_readme() -> str:
+    """The README's table: ours and PX4-style at 10 s, 30 s and 2 min after the change, at
+    each cruise speed."""
+    rows = [
+        "| cruise | after the change | uav-energy | PX4-style (charge / 50 s mean current) |",
+        "|---|---|---|---|",
+    ]
+    for speed in (10.0, 14.0):
+        errors = [_errors(speed, after_s) for after_s in CHECK_AFTER_CHANGE_S]
+        ours = " / ".join(o.removesuffix(" %") for o, _ in errors)
+        px4 = " / ".join(p.removesuffix(" %") for _, p in errors)
+        rows.append(f"| {speed:.0f} m/s | +10 s / +30 s / +2 min | {ours} % | {px4} % |")
+    return "\n".join(rows)
+
+
+def hover_cruise_end() -> str:
+    """Ours and PX4-style 20 min into each cruise."""
+    (ours10, px4_10), (ours14, px4_14) = (_errors(speed, 1200.0) for speed in (10.0, 14.0))
+    return (
+        f"20 min: {ours10.removesuffix(' %')} / {ours14} vs {px4_10.removesuffix(' %')} / {px4_14}"
+    )
+
+
 #: Flights whose scores the misses of docs/pack.md quote.
 QUOTED_FLIGHTS = ("pack_c75_r2_wind", "pack_c80_r2_soc85_wind", "pack_c70_r2_wind")
 
@@ -343,6 +398,10 @@ def generators(table: ModuleType) -> dict[str, Callable[[], str]]:
     out["pack-ensemble-error"] = ensemble_error
     out["pack-ensemble-summary"] = ensemble_summary
     out["pack-ensemble-daemon"] = ensemble_daemon
+    out["hover-cruise-10"] = partial(hover_cruise_table, 10.0)
+    out["hover-cruise-14"] = partial(hover_cruise_table, 14.0)
+    out["hover-cruise-readme"] = hover_cruise_readme
+    out["hover-cruise-end"] = hover_cruise_end
     for name in QUOTED_FLIGHTS:
         out[f"pack-sitl-{name.replace('_', '-')}"] = partial(flight_scores, name)
     return out

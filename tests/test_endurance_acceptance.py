@@ -16,31 +16,25 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from estimator.physics.effects import Avionics, Wind
 from estimator.sim.endurance_ensemble import (
+    CHECK_AFTER_CHANGE_S,
     ENSEMBLE_FLIGHTS,
     EnsembleErrors,
     Flown,
     ensemble_configs,
     ensemble_errors,
-    fly,
+    table_rows,
 )
-from estimator.sim.plans import builtin_plan
-from estimator.sim.run import SimConfig
+from estimator.sim.endurance_ensemble import hover_cruise as fly_hover_cruise
 
 ROOT = Path(__file__).resolve().parent.parent
-CHECK_AFTER_CHANGE_S = (10.0, 30.0, 120.0)
-
-
-HIDDEN = (Wind(speed_mps=3.0, from_deg=200.0), Avionics(power_w=15.0))
 
 
 @pytest.fixture(scope="module", params=[10.0, 14.0], ids=["cruise10", "cruise14"])
 def hover_cruise(request: pytest.FixtureRequest) -> Flown:
     """The built-in hover-cruise plan (60 s hover, then cruise to the reserve) with hidden
     wind and avionics load, cruising at 10 m/s (below hover power) or 14 m/s (above)."""
-    plan = builtin_plan("hover-cruise", cruise_speed_mps=request.param)
-    return fly(SimConfig(plan=plan, effects=HIDDEN, seed=0))
+    return fly_hover_cruise(request.param)
 
 
 @pytest.mark.slow
@@ -87,15 +81,14 @@ def coverage(flown: Flown) -> np.ndarray:
 
 def report() -> None:
     """Print the tables of docs/daemon.md: ``python tests/test_endurance_acceptance.py``."""
-    flown = fly(SimConfig(plan="hover-cruise", effects=HIDDEN, seed=0))
+    flown = fly_hover_cruise(10.0)
     table(flown, "built-in hover-cruise (10 m/s), wind 3 m/s, avionics 15 W")
     z = coverage(flown)
     print(
         f"default settings: {np.mean(z <= 1):.0%} within 1σ, {np.mean(z <= 3):.0%} within 3σ "
         f"(n = {len(z)}), mean |error|/σ {np.mean(z):.2f}"
     )
-    fast = builtin_plan("hover-cruise", cruise_speed_mps=14.0)
-    table(fly(SimConfig(plan=fast, effects=HIDDEN, seed=0)), "hover-cruise at 14 m/s, same")
+    table(fly_hover_cruise(14.0), "hover-cruise at 14 m/s, same")
     ensemble()
 
 
@@ -149,30 +142,6 @@ def ensemble(flights: int = ENSEMBLE_FLIGHTS) -> None:
     )
 
 
-def _signed_pct(fraction: float) -> str:
-    return f"{100 * fraction:+.2f} %".replace("-", "−")
-
-
-def _after_label(after_s: float) -> str:
-    return f"{after_s:.0f} s" if after_s < 120 else f"{after_s / 60:.0f} min"
-
-
-def table_rows(flown: Flown) -> list[str]:
-    """The rows of a docs/daemon.md table: truth, ours ± 1σ and PX4-style after the change."""
-    rows = []
-    for after_s in (*CHECK_AFTER_CHANGE_S, 300.0, 600.0, 1200.0):
-        t = flown.change_s + after_s
-        e = flown.estimate_at(t)
-        truth_s = flown.truth_left_s(e.time_s)
-        px4_s = flown.px4_at(t)
-        rows.append(
-            f"| {_after_label(after_s)} | {truth_s:.0f} | {e.endurance_s:.0f} ± "
-            f"{e.endurance_sigma_s:.0f} | {_signed_pct((e.endurance_s - truth_s) / truth_s)} "
-            f"| {px4_s:.0f} | {_signed_pct((px4_s - truth_s) / truth_s)} |"
-        )
-    return rows
-
-
 def table(flown: Flown, title: str) -> None:
     print(title)
     print(
@@ -182,20 +151,6 @@ def table(flown: Flown, title: str) -> None:
     print("| after change | truth s | estimate ± 1σ s | error | PX4-style s | error |")
     print("|---:|---:|---:|---:|---:|---:|")
     print("\n".join(table_rows(flown)))
-
-
-@pytest.mark.slow
-def test_the_docs_give_the_hover_cruise_tables_as_measured(hover_cruise: Flown) -> None:
-    """docs/daemon.md's tables and the README's summary come from this flight: a figure
-    that drifts fails here."""
-    doc = (ROOT / "docs" / "daemon.md").read_text()
-    rows = table_rows(hover_cruise)
-    for row in rows:
-        assert row in doc, row
-    cells = [row.strip("| ").split(" | ") for row in rows[:3]]
-    ours = " / ".join(c[3].removesuffix(" %") for c in cells)
-    px4 = " / ".join(c[5].removesuffix(" %") for c in cells)
-    assert f"| +10 s / +30 s / +2 min | {ours} % | {px4} % |" in (ROOT / "README.md").read_text()
 
 
 if __name__ == "__main__":

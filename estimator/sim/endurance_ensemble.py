@@ -25,6 +25,12 @@ from estimator.telemetry.samples import BatterySample
 
 #: Drawn flights of the calibration ensemble.
 ENSEMBLE_FLIGHTS = 12
+#: What the acceptance flights hide from the estimator: a wind and an avionics load.
+HIDDEN = (Wind(speed_mps=3.0, from_deg=200.0), Avionics(power_w=15.0))
+#: When after the hover→cruise change the acceptance tests judge the endurance (s), and the
+#: later times docs/daemon.md's tables add.
+CHECK_AFTER_CHANGE_S = (10.0, 30.0, 120.0)
+TABLE_AFTER_CHANGE_S = (*CHECK_AFTER_CHANGE_S, 300.0, 600.0, 1200.0)
 #: The PX4-style estimate's current average, s.
 PX4_AVERAGE_S = 50.0
 
@@ -172,3 +178,41 @@ def ensemble_errors(configs: list[SimConfig]) -> EnsembleErrors:
         ours.append(np.array(errors))
         px4.append(np.array(px4_errors))
     return EnsembleErrors(np.array(z), ours, px4)
+
+
+def hover_cruise(cruise_speed_mps: float) -> Flown:
+    """The built-in hover-cruise plan (60 s hover, then cruise to the reserve) with
+    :data:`HIDDEN` effects, cruising at ``cruise_speed_mps`` (seed 0)."""
+    plan = builtin_plan("hover-cruise", cruise_speed_mps=cruise_speed_mps)
+    return fly(SimConfig(plan=plan, effects=HIDDEN, seed=0))
+
+
+def signed_pct(fraction: float) -> str:
+    """``fraction`` as a signed percentage with a typographic minus (``−0.47 %``)."""
+    return f"{100 * fraction:+.2f} %".replace("-", "−")
+
+
+def _after_label(after_s: float) -> str:
+    return f"{after_s:.0f} s" if after_s < 120 else f"{after_s / 60:.0f} min"
+
+
+def errors_after_change(flown: Flown, after_s: float) -> tuple[Estimate, float, float]:
+    """The estimate ``after_s`` after the change, the true time left then (s) and the
+    PX4-style endurance (s)."""
+    t = flown.change_s + after_s
+    estimate = flown.estimate_at(t)
+    return estimate, flown.truth_left_s(estimate.time_s), flown.px4_at(t)
+
+
+def table_rows(flown: Flown) -> list[str]:
+    """docs/daemon.md's table of ``flown``: truth, ours ± 1σ and PX4-style after the change
+    (markdown rows)."""
+    rows = []
+    for after_s in TABLE_AFTER_CHANGE_S:
+        e, truth_s, px4_s = errors_after_change(flown, after_s)
+        rows.append(
+            f"| {_after_label(after_s)} | {truth_s:.0f} | {e.endurance_s:.0f} ± "
+            f"{e.endurance_sigma_s:.0f} | {signed_pct((e.endurance_s - truth_s) / truth_s)} "
+            f"| {px4_s:.0f} | {signed_pct((px4_s - truth_s) / truth_s)} |"
+        )
+    return rows
