@@ -38,7 +38,7 @@ from estimator.sim.endurance_ensemble import (
     Flown,
     ensemble_configs,
     ensemble_errors,
-    errors_after_change,
+    figures_after_change,
     hover_cruise,
     signed_pct,
     table_rows,
@@ -343,7 +343,7 @@ def hover_cruise_table(cruise_speed_mps: float) -> str:
 
 def _errors(cruise_speed_mps: float, after_s: float) -> tuple[str, str]:
     """Ours and the PX4-style relative error ``after_s`` after the change."""
-    e, truth_s, px4_s = errors_after_change(_hover_cruise(cruise_speed_mps), after_s)
+    e, truth_s, px4_s = figures_after_change(_hover_cruise(cruise_speed_mps), after_s)
     return signed_pct(e.endurance_s / truth_s - 1), signed_pct(px4_s / truth_s - 1)
 
 

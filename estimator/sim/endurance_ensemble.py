@@ -196,7 +196,7 @@ def _after_label(after_s: float) -> str:
     return f"{after_s:.0f} s" if after_s < 120 else f"{after_s / 60:.0f} min"
 
 
-def errors_after_change(flown: Flown, after_s: float) -> tuple[Estimate, float, float]:
+def figures_after_change(flown: Flown, after_s: float) -> tuple[Estimate, float, float]:
     """The estimate ``after_s`` after the change, the true time left then (s) and the
     PX4-style endurance (s)."""
     t = flown.change_s + after_s
@@ -209,7 +209,7 @@ def table_rows(flown: Flown) -> list[str]:
     (markdown rows)."""
     rows = []
     for after_s in TABLE_AFTER_CHANGE_S:
-        e, truth_s, px4_s = errors_after_change(flown, after_s)
+        e, truth_s, px4_s = figures_after_change(flown, after_s)
         rows.append(
             f"| {_after_label(after_s)} | {truth_s:.0f} | {e.endurance_s:.0f} ± "
             f"{e.endurance_sigma_s:.0f} | {signed_pct((e.endurance_s - truth_s) / truth_s)} "
