@@ -1,7 +1,8 @@
 """The endurance's steady power over the courses flown lately at about the present speed
 (estimator/estimation/courses_flown.py, FlightPower.course_mean_w): a box in wind is judged
-by its legs together, a new speed by its own course, and the courses fade out after the
-window."""
+by its legs together, a pattern that comes back to the present speed by one period of it, a
+new speed by its own course, a change of speed by the present flight, and the courses fade
+out after the window."""
 
 from __future__ import annotations
 
@@ -10,7 +11,7 @@ import math
 import numpy as np
 import pytest
 
-from estimator.estimation.courses_flown import WINDOW_S, CoursesFlown
+from estimator.estimation.courses_flown import PATTERN_GAP_S, WINDOW_S, CoursesFlown
 from estimator.estimation.flight_power import FlightPower
 from estimator.physics.effects import Wind
 from estimator.physics.kinematics import KinematicState
@@ -111,3 +112,50 @@ def test_the_mean_does_not_depend_on_the_leg_flown_now(windy: FlightPower) -> No
     assert west is not None and west < windy.steady_w(6.0, t, v)
     windy.effects = ()
     assert windy.course_mean_w(6.0, t, v) == pytest.approx(windy.steady_w(6.0, t, v))
+
+
+def _record(courses: CoursesFlown, start_s: float, seconds: int, speed_mps: float) -> float:
+    """``seconds`` at ``speed_mps`` heading north, one record a second; the time after."""
+    for i in range(seconds):
+        courses.record(start_s + i, speed_mps, 0.0)
+    return start_s + seconds
+
+
+def test_a_speed_taken_up_again_is_judged_by_one_period_of_the_pattern() -> None:
+    """Hover 20 s, 6 m/s for 30 s, 3 m/s for 30 s, then hover again: one period is the
+    80 s from the first hover to the second, in its parts' proportions."""
+    courses = CoursesFlown()
+    t = _record(courses, 0.0, 20, 0.0)
+    t = _record(courses, t, 30, 6.0)
+    t = _record(courses, t, 30, 3.0)
+    assert courses.pattern(0.0) is None  # not hovering yet
+    _record(courses, t, 5, 0.0)
+    pattern = courses.pattern(0.0)
+    assert pattern is not None
+    speeds, _, weights = pattern
+    share = {float(v): float(w) for v, w in zip(speeds, weights, strict=True)}
+    assert share == pytest.approx({0.0: 0.25, 6.0: 0.375, 3.0: 0.375})
+
+
+def test_a_speed_flown_once_or_left_briefly_is_no_pattern() -> None:
+    courses = CoursesFlown()
+    t = _record(courses, 0.0, 30, 0.0)
+    t = _record(courses, t, 60, 8.0)  # hover, then a cruise: a new speed
+    assert courses.pattern(8.0) is None
+    t = _record(courses, t, int(PATTERN_GAP_S) - 2, 2.0)  # a short slow-down
+    _record(courses, t, 10, 8.0)
+    assert courses.pattern(8.0) is None
+
+
+def test_a_change_of_speed_is_judged_by_the_present_flight(windy: FlightPower) -> None:
+    """While the vehicle speeds up or slows down (here at 2 m/s²) its speed is not one it
+    holds, and is not averaged over courses."""
+    v = 22.0
+    t = _fly(windy, BOX, 0.0)
+    state = KinematicState.of_motion(t, (0.0, 5.5, 0.0), (0.0, 2.0))
+    windy.follow_track(state)
+    steady_w = windy.steady_w(5.5, t, v)
+    assert windy.endurance_w(state, steady_w, t, v) == steady_w
+    assert windy.course_mean_w(5.5, t, v) != pytest.approx(steady_w, rel=0.01)
+    held = KinematicState.of_motion(t, (0.0, 6.0, 0.0), (0.0, 0.0))
+    assert windy.endurance_w(held, steady_w, t, v) == windy.course_mean_w(6.0, t, v)

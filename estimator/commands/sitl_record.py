@@ -31,8 +31,8 @@ def register(subparsers: argparse._SubParsersAction[argparse.ArgumentParser]) ->
         nargs="*",
         metavar="SCENARIO",
         help="scenario names (the effects of replay/sitl, pack_* packs of replay/sitl_packs), "
-        "or all (every effect scenario), or packs / packs2 / packs3 / packs4 (the first "
-        "to fourth set of pack_* scenarios)",
+        "or all (every effect scenario), or packs / packs2 / ... / packs5 (the first "
+        "to fifth set of pack_* scenarios)",
     )
     p.add_argument("--mission", metavar="FILE", help="fly this mission file in AUTO instead")
     p.add_argument(
@@ -50,10 +50,7 @@ def run(args: argparse.Namespace) -> int:
     from estimator.logs.mission_files import load_mission
     from estimator.sitl.recorder import record
     from estimator.sitl.scenarios import (
-        PACK_SCENARIOS,
-        PACK_SCENARIOS_2,
-        PACK_SCENARIOS_3,
-        PACK_SCENARIOS_4,
+        PACK_SETS,
         SCENARIOS,
         Scenario,
         mission_scenario,
@@ -73,21 +70,16 @@ def run(args: argparse.Namespace) -> int:
             raise UserError("--wind and --gripper go with --mission")
         if not args.scenarios:
             raise UserError("name a scenario (or all), or give --mission FILE")
-        groups = {
-            "all": list(SCENARIOS),
-            "packs": list(PACK_SCENARIOS),
-            "packs2": list(PACK_SCENARIOS_2),
-            "packs3": list(PACK_SCENARIOS_3),
-            "packs4": list(PACK_SCENARIOS_4),
-        }
-        known = SCENARIOS | PACK_SCENARIOS | PACK_SCENARIOS_2 | PACK_SCENARIOS_3 | PACK_SCENARIOS_4
+        groups = {"all": list(SCENARIOS)} | {g: list(s) for g, s in PACK_SETS.items()}
+        known = SCENARIOS.copy()
+        for pack_set in PACK_SETS.values():
+            known |= pack_set
         names = [n for name in args.scenarios for n in groups.get(name, [name])]
         unknown = [n for n in names if n not in known]
         if unknown:
             listed = ", ".join(known)
             raise UserError(
-                f"unknown scenario {unknown[0]!r}; known: all, packs, packs2, packs3, packs4, "
-                f"{listed}"
+                f"unknown scenario {unknown[0]!r}; known: {', '.join(groups)}, {listed}"
             )
         scenarios = [known[n] for n in names]
     try:

@@ -33,6 +33,9 @@ _TRACK_MIN_SPEED_MPS = 1.0
 #: the point estimate is biased by the curvature of P(V).
 _TRACKED_WIND_SIGMA_MPS = 1.0
 _TRACKED_MASS_SIGMA_FRACTION = 0.05
+#: Faster than this along the track (m/s², either sign) the vehicle is changing speed: the
+#: speed it flies is not one it holds, and is not kept among the speeds flown.
+_CHANGING_SPEED_MPS2 = 1.0
 #: Gain of the moving averages that score tracked against vehicle-file effects (per update).
 _SCORE_GAIN = 1.0 / 30.0
 
@@ -60,9 +63,13 @@ class FlightPower:
         self.held_accel_mps2 = self._held_turn.update(state.time_s, state.accel_centripetal_mps2)
 
     def follow_track(self, state: KinematicState | None) -> None:
-        """The course over ground of ``state`` while it moves (else the last one kept)."""
-        if state is not None and state.speed_mps > _TRACK_MIN_SPEED_MPS:
+        """The course over ground of ``state`` while it moves (else the last one kept), and
+        the speed and course flown."""
+        if state is None:
+            return
+        if state.speed_mps > _TRACK_MIN_SPEED_MPS:
             self.track_rad = math.atan2(state.ve_mps, state.vn_mps)
+        if abs(state.accel_tangential_mps2) <= _CHANGING_SPEED_MPS2:
             self.courses.record(state.time_s, state.speed_mps, self.track_rad)
 
     def restart(self) -> None:
@@ -117,10 +124,28 @@ class FlightPower:
         speed = np.array([speed_mps])
         return float(self.predict((), speed, latest_v, self.held_accel_mps2, time_s=time_s)[0])
 
+    def endurance_w(
+        self, state: KinematicState, steady_w: float, time_s: float, latest_v: float
+    ) -> float:
+        """Model power (W) the endurance holds: the pattern's or the courses' mean at the
+        present speed (:meth:`course_mean_w`), else the steady power ``steady_w`` (W); while
+        the vehicle changes speed (a speed it does not hold), ``steady_w``."""
+        if abs(state.accel_tangential_mps2) > _CHANGING_SPEED_MPS2:
+            return steady_w
+        mean_w = self.course_mean_w(state.speed_mps, time_s, latest_v)
+        return steady_w if mean_w is None else mean_w
+
     def course_mean_w(self, speed_mps: float, time_s: float, latest_v: float) -> float | None:
-        """Model power (W) in steady level flight at ``speed_mps`` in the turn held, averaged
-        over the courses flown lately at about that speed
-        (:mod:`estimator.estimation.courses_flown`); None when none was."""
+        """Model power (W) in steady level flight: when the flight repeats a pattern that
+        comes back to ``speed_mps``, its mean over one period of it (each speed and course as
+        flown, no turn); else at ``speed_mps`` in the turn held, averaged over the courses
+        flown lately at about that speed (:mod:`estimator.estimation.courses_flown`); None
+        when none was."""
+        pattern = self.courses.pattern(speed_mps)
+        if pattern is not None:
+            speeds, tracks_rad, weights = pattern
+            power = self.predict((), speeds, latest_v, time_s=time_s, tracks_rad=tracks_rad)
+            return float(power @ weights)
         tracks_rad, weights = self.courses.near(speed_mps)
         if not len(tracks_rad):
             return None

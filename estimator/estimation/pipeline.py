@@ -706,13 +706,12 @@ class Pipeline:
         )
 
     def _endurance_power_w(self) -> float:
-        """Model power (W) the endurance holds: the steady flight's, at the present speed
-        over the courses flown lately at that speed (:meth:`FlightPower.course_mean_w`)."""
+        """Model power (W) the endurance holds (:meth:`FlightPower.endurance_w`)."""
         state = self._state
         if state is None or self._steady_power_w <= 0:
             return self._steady_power_w
-        mean_w = self.power.course_mean_w(state.speed_mps, self._time_s or 0.0, self._latest_v())
-        return self._steady_power_w if mean_w is None else mean_w
+        time_s = self._time_s or 0.0
+        return self.power.endurance_w(state, self._steady_power_w, time_s, self._latest_v())
 
     def _emit(self, time_s: float) -> Estimate:
         est = self.energy.estimate()
