@@ -11,7 +11,7 @@ import math
 import numpy as np
 import pytest
 
-from estimator.estimation.courses_flown import PATTERN_GAP_S, WINDOW_S, CoursesFlown
+from estimator.estimation.courses_flown import WINDOW_S, CoursesFlown
 from estimator.estimation.flight_power import FlightPower
 from estimator.physics.effects import Wind
 from estimator.physics.kinematics import KinematicState
@@ -41,26 +41,26 @@ def _fly(
 def test_courses_at_other_speeds_and_outside_the_window_do_not_count() -> None:
     courses = CoursesFlown()
     for i in range(60):
-        courses.record(float(i), 6.0, 0.0)  # north at 6 m/s
+        courses.record(float(i), 6.0, 0.0, True)  # north at 6 m/s
     for i in range(60, 90):
-        courses.record(float(i), 10.0, math.pi)  # south at 10 m/s
+        courses.record(float(i), 10.0, math.pi, True)  # south at 10 m/s
     tracks, weights = courses.near(6.0)
     assert np.allclose(tracks, [0.0]) and np.allclose(weights, [1.0])
     tracks, _ = courses.near(10.0)
     assert np.allclose(tracks, [math.pi])
     for i in range(90, 90 + int(WINDOW_S)):
-        courses.record(float(i), 10.0, math.pi)
+        courses.record(float(i), 10.0, math.pi, True)
     assert not len(courses.near(6.0)[0])  # the northbound leg left the window
 
 
 def test_courses_are_kept_once_a_second_and_a_clock_that_goes_back_starts_afresh() -> None:
     courses = CoursesFlown()
     for i in range(100):
-        courses.record(0.1 * i, 6.0, 0.5 * math.pi if i < 50 else 0.0)
+        courses.record(0.1 * i, 6.0, 0.5 * math.pi if i < 50 else 0.0, True)
     tracks, weights = courses.near(6.0)
     assert np.isclose(weights.sum(), 1.0) and len(tracks) == 2
     assert np.allclose(sorted(weights), [0.5, 0.5])
-    courses.record(1.0, 6.0, math.pi)
+    courses.record(1.0, 6.0, math.pi, True)
     tracks, weights = courses.near(6.0)
     assert np.allclose(tracks, [math.pi]) and np.allclose(weights, [1.0])
 
@@ -114,48 +114,52 @@ def test_the_mean_does_not_depend_on_the_leg_flown_now(windy: FlightPower) -> No
     assert windy.course_mean_w(6.0, t, v) == pytest.approx(windy.steady_w(6.0, t, v))
 
 
-def _record(courses: CoursesFlown, start_s: float, seconds: int, speed_mps: float) -> float:
-    """``seconds`` at ``speed_mps`` heading north, one record a second; the time after."""
+def _record(
+    courses: CoursesFlown, start_s: float, seconds: int, speed_mps: float, course_rad: float
+) -> float:
+    """``seconds`` at ``speed_mps`` on ``course_rad``, one record a second; the time after."""
     for i in range(seconds):
-        courses.record(start_s + i, speed_mps, 0.0)
+        courses.record(start_s + i, speed_mps, course_rad, True)
     return start_s + seconds
 
 
-def test_a_speed_taken_up_again_is_judged_by_one_period_of_the_pattern() -> None:
-    """Hover 20 s, 6 m/s for 30 s, 3 m/s for 30 s, then hover again: one period is the
-    80 s from the first hover to the second, in its parts' proportions."""
+def test_a_flight_that_repeats_itself_is_judged_by_its_last_period() -> None:
+    """Hover 20 s, 6 m/s north for 30 s, 3 m/s back south for 30 s, three times: one period
+    is 80 s, in its parts' proportions, whichever part the vehicle is in."""
     courses = CoursesFlown()
-    t = _record(courses, 0.0, 20, 0.0)
-    t = _record(courses, t, 30, 6.0)
-    t = _record(courses, t, 30, 3.0)
-    assert courses.pattern(0.0) is None  # not hovering yet
-    _record(courses, t, 5, 0.0)
-    pattern = courses.pattern(0.0)
+    t = 0.0
+    for _ in range(3):
+        t = _record(courses, t, 20, 0.0, 0.0)
+        t = _record(courses, t, 30, 6.0, 0.0)
+        t = _record(courses, t, 30, 3.0, math.pi)
+    pattern = courses.pattern()
     assert pattern is not None
     speeds, _, weights = pattern
     share = {float(v): float(w) for v, w in zip(speeds, weights, strict=True)}
     assert share == pytest.approx({0.0: 0.25, 6.0: 0.375, 3.0: 0.375})
 
 
-def test_a_speed_flown_once_or_left_briefly_is_no_pattern() -> None:
+def test_a_steady_flight_or_a_new_speed_is_no_pattern() -> None:
     courses = CoursesFlown()
-    t = _record(courses, 0.0, 30, 0.0)
-    t = _record(courses, t, 60, 8.0)  # hover, then a cruise: a new speed
-    assert courses.pattern(8.0) is None
-    t = _record(courses, t, int(PATTERN_GAP_S) - 2, 2.0)  # a short slow-down
-    _record(courses, t, 10, 8.0)
-    assert courses.pattern(8.0) is None
+    t = _record(courses, 0.0, 100, 8.0, 0.0)  # a straight cruise
+    assert courses.pattern() is None
+    t = _record(courses, t, 60, 0.0, 0.0)  # then a hover
+    assert courses.pattern() is None
+    _record(courses, t, 30, 8.0, 0.0)  # and a cruise again: seen once, no pattern
+    assert courses.pattern() is None
 
 
 def test_a_change_of_speed_is_judged_by_the_present_flight(windy: FlightPower) -> None:
     """While the vehicle speeds up or slows down (here at 2 m/s²) its speed is not one it
-    holds, and is not averaged over courses."""
+    holds: the present steady power, not the courses' mean, with the distance from the
+    figure before the change as a spread."""
     v = 22.0
     t = _fly(windy, BOX, 0.0)
+    state = KinematicState.of_motion(t, (0.0, 6.0, 0.0), (0.0, 0.0))
+    held_w = windy.endurance_w(state, windy.steady_w(6.0, t, v), t, v)
+    assert held_w == windy.course_mean_w(6.0, t, v) and windy.change_spread == 0.0
     state = KinematicState.of_motion(t, (0.0, 5.5, 0.0), (0.0, 2.0))
     windy.follow_track(state)
     steady_w = windy.steady_w(5.5, t, v)
     assert windy.endurance_w(state, steady_w, t, v) == steady_w
-    assert windy.course_mean_w(5.5, t, v) != pytest.approx(steady_w, rel=0.01)
-    held = KinematicState.of_motion(t, (0.0, 6.0, 0.0), (0.0, 0.0))
-    assert windy.endurance_w(held, steady_w, t, v) == windy.course_mean_w(6.0, t, v)
+    assert windy.change_spread == pytest.approx(abs(steady_w - held_w) / steady_w)

@@ -10,10 +10,11 @@ vehicle that has just changed speed has flown no other course at the new one yet
 present course alone.
 
 A pattern may also change speed: legs it cannot fly at the set speed into a strong wind,
-hovers between legs, a dash. When the present speed was flown before in the window, left for
-at least :data:`PATTERN_GAP_S` and taken up again, the flight repeats itself, and the figure
-is the mean over one period of it (:meth:`CoursesFlown.pattern`): every speed and course
-flown from the start of the earlier visit to the start of the present one.
+hovers between legs, a dash. When the ground velocity of the last minutes repeats itself one
+period earlier, seen over at least two periods (:meth:`CoursesFlown.pattern`: a period of
+:data:`PERIOD_MIN_S` to :data:`PERIOD_MAX_S`, the velocities a period apart differing by at
+most :data:`PATTERN_MISMATCH` of their spread), the figure is the mean over the last period
+as flown, whatever the vehicle does at the moment.
 
 Frames and units: course over ground in rad from north, speeds horizontal (m/s), times on
 the autopilot's clock (s).
@@ -36,71 +37,104 @@ SPEED_TOLERANCE_FRACTION = 0.15
 #: Courses are counted in sectors this wide (rad): a handful of rows to predict, not one per
 #: second flown.
 SECTOR_RAD = math.radians(10.0)
-#: The present speed taken up again after at least this long (s) at other speeds, within
-#: the window, marks a repeated pattern; shorter dips (a corner) belong to the visit.
-PATTERN_GAP_S = 10.0
+#: Periods (s) a repeated pattern is looked for at, in steps of :data:`PERIOD_STEP_S`; the
+#: flight is compared with itself one period earlier over at least one period (a flight
+#: seen once is no pattern), within the last :data:`PATTERN_WINDOW_S`.
+PERIOD_MIN_S, PERIOD_MAX_S, PERIOD_STEP_S = 20.0, 90.0, 2.0
+PATTERN_WINDOW_S = 2 * PERIOD_MAX_S + 20.0
+#: How often (s) a pattern is looked for: it changes over periods, not seconds.
+SEARCH_PERIOD_S = 2.0
+#: The flight repeats itself when its ground velocities one period apart differ (mean
+#: squared) by at most this fraction of twice their variance (1 for unrelated velocities)...
+PATTERN_MISMATCH = 0.2
+#: ... and that variance is at least this (m²/s²): a steady flight is no pattern.
+PATTERN_SPREAD_MIN_M2PS2 = 1.0
 #: A pattern's speeds are counted in bins this wide (m/s).
 SPEED_BIN_MPS = 0.5
 
 
+#: Speeds (m/s), courses (rad) and the fraction of a period at each.
+Pattern = tuple[np.ndarray, np.ndarray, np.ndarray]
+
+
 class CoursesFlown:
-    """Courses over ground with the speed each was flown at, over the last :data:`WINDOW_S`."""
+    """Courses over ground with the speed each was flown at, over the last
+    :data:`PATTERN_WINDOW_S`."""
 
     def __init__(self) -> None:
-        self._flown: deque[tuple[float, float, float]] = deque()  # (time s, speed m/s, rad)
+        #: (time s, speed m/s, course rad, held: a speed the vehicle held, not one it passed)
+        self._flown: deque[tuple[float, float, float, bool]] = deque()
+        self._pattern: Pattern | None = None  # found at the last search
+        self._searched_s = -math.inf  # time of the newest record at the last search, s
 
-    def record(self, time_s: float, speed_mps: float, course_rad: float) -> None:
-        """The vehicle flies ``course_rad`` at ``speed_mps`` at ``time_s`` (kept at most once
-        per :data:`RECORD_PERIOD_S`)."""
+    def record(self, time_s: float, speed_mps: float, course_rad: float, held: bool) -> None:
+        """The vehicle flies ``course_rad`` at ``speed_mps`` at ``time_s``, a speed it holds
+        or (``held`` False) one it passes through; kept at most once per
+        :data:`RECORD_PERIOD_S`."""
         flown = self._flown
         if flown and time_s < flown[-1][0]:
             flown.clear()  # the autopilot's clock went back: a new flight
+            self._searched_s = -math.inf
         if flown and time_s - flown[-1][0] < RECORD_PERIOD_S:
             return
-        flown.append((time_s, speed_mps, course_rad))
-        while flown[0][0] < time_s - WINDOW_S:
+        flown.append((time_s, speed_mps, course_rad, held))
+        while flown[0][0] < time_s - PATTERN_WINDOW_S:
             flown.popleft()
 
-    def pattern(self, speed_mps: float) -> tuple[np.ndarray, np.ndarray, np.ndarray] | None:
-        """When the present speed was flown before within the window, left for at least
-        :data:`PATTERN_GAP_S` and taken up again, the flight repeats a pattern: the speeds
-        (m/s, bin centres) and courses (rad, sector centres) of one period of it (from the
-        start of the last earlier visit to the start of the present one) and the fraction of
-        the period at each (summing to 1). None when the present speed is new."""
-        tolerance = max(SPEED_TOLERANCE_MPS, SPEED_TOLERANCE_FRACTION * speed_mps)
+    def pattern(self) -> Pattern | None:
+        """When the flight repeats itself (the ground velocities of the window against
+        themselves one period earlier, at the period that matches best), the speeds (m/s, bin
+        centres) and courses (rad, sector centres) of its last period and the fraction of
+        the period at each (summing to 1); None when it does not. Looked for every
+        :data:`SEARCH_PERIOD_S` of records."""
+        if self._flown and self._flown[-1][0] >= self._searched_s + SEARCH_PERIOD_S:
+            self._pattern, self._searched_s = self._find_pattern(), self._flown[-1][0]
+        return self._pattern
+
+    def _find_pattern(self) -> Pattern | None:
         flown = self._flown
-        if not flown or abs(flown[-1][1] - speed_mps) > tolerance:
-            return None  # the last second was flown at another speed
-        visit_start_s = period_start_s = math.nan
-        later_s = math.inf  # the time of the last record at the present speed seen (going back)
-        for time_s, flown_mps, _ in reversed(flown):
-            if abs(flown_mps - speed_mps) > tolerance:
-                continue
-            if later_s - time_s >= PATTERN_GAP_S and not math.isinf(later_s):
-                if not math.isnan(period_start_s):
-                    break  # a visit before the earlier one
-                visit_start_s = later_s
-            if not math.isnan(visit_start_s):
-                period_start_s = time_s
-            later_s = time_s
-        if math.isnan(period_start_s):
+        if not flown or flown[-1][0] - flown[0][0] < 2 * PERIOD_MIN_S:
             return None
-        counts: dict[tuple[int, int], int] = {}
-        for time_s, flown_mps, course_rad in flown:
-            if period_start_s <= time_s < visit_start_s:
-                key = (round(flown_mps / SPEED_BIN_MPS), round(course_rad / SECTOR_RAD))
-                counts[key] = counts.get(key, 0) + 1
-        bins = np.array(list(counts), dtype=float)
-        weights = np.array(list(counts.values()), dtype=float)
-        return bins[:, 0] * SPEED_BIN_MPS, bins[:, 1] * SECTOR_RAD, weights / weights.sum()
+        time_s, speed_mps, course_rad, _ = (np.array(c) for c in zip(*flown, strict=True))
+        # the ground velocity on a grid of PERIOD_STEP_S, so that a period is a shift
+        grid_s = np.arange(time_s[0], time_s[-1] + 1e-9, PERIOD_STEP_S)
+        north = np.interp(grid_s, time_s, speed_mps * np.cos(course_rad))
+        east = np.interp(grid_s, time_s, speed_mps * np.sin(course_rad))
+        spread = 2.0 * (north.var() + east.var())
+        if spread < PATTERN_SPREAD_MIN_M2PS2:
+            return None
+        # mean |v(t) − v(t − shift)|² over the overlap, for every shift at once
+        n = len(grid_s)
+        shifts = np.arange(
+            round(PERIOD_MIN_S / PERIOD_STEP_S),
+            min(round(PERIOD_MAX_S / PERIOD_STEP_S), n // 2) + 1,  # over at least one period
+        )
+        if not len(shifts):
+            return None
+        squares = np.concatenate(([0.0], np.cumsum(north**2 + east**2)))
+        cross = (np.correlate(north, north, "full") + np.correlate(east, east, "full"))[n - 1 :]
+        mismatch = ((squares[n] - squares[shifts]) + squares[n - shifts] - 2.0 * cross[shifts]) / (
+            n - shifts
+        )
+        best = int(np.argmin(mismatch))
+        if mismatch[best] > PATTERN_MISMATCH * spread:
+            return None
+        period_s = float(shifts[best] * PERIOD_STEP_S)
+        last = time_s > time_s[-1] - period_s
+        bins = np.stack(
+            (np.round(speed_mps[last] / SPEED_BIN_MPS), np.round(course_rad[last] / SECTOR_RAD))
+        )
+        kept, counts = np.unique(bins, axis=1, return_counts=True)
+        return kept[0] * SPEED_BIN_MPS, kept[1] * SECTOR_RAD, counts / counts.sum()
 
     def near(self, speed_mps: float) -> tuple[np.ndarray, np.ndarray]:
         """Courses (rad, sector centres) flown at about ``speed_mps`` and the fraction of
         them in each sector (summing to 1); empty when none was."""
         tolerance = max(SPEED_TOLERANCE_MPS, SPEED_TOLERANCE_FRACTION * speed_mps)
         counts: dict[int, int] = {}
-        for _, flown_mps, course_rad in self._flown:
-            if abs(flown_mps - speed_mps) <= tolerance:
+        since_s = self._flown[-1][0] - WINDOW_S if self._flown else 0.0
+        for time_s, flown_mps, course_rad, held in self._flown:
+            if time_s >= since_s and held and abs(flown_mps - speed_mps) <= tolerance:
                 sector = round(course_rad / SECTOR_RAD)
                 counts[sector] = counts.get(sector, 0) + 1
         if not counts:

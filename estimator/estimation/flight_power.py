@@ -53,6 +53,10 @@ class FlightPower:
         self.file_sq_w2 = 0.0
         self.track_rad = 0.0  # course over ground (the last one while moving)
         self.courses = CoursesFlown()
+        self._held_w = 0.0  # the endurance's last figure at a speed held, W
+        #: While the vehicle changes speed: how far (fraction) the endurance's figure is from
+        #: the one at the speed held before the change; 0 otherwise.
+        self.change_spread = 0.0
         self._held_turn = HeldTurn()
         self.held_accel_mps2 = 0.0  # the a⊥ steady figures assume, m/s²
         self.v_me_mps = self.v_mr_mps = 0.0
@@ -69,13 +73,14 @@ class FlightPower:
             return
         if state.speed_mps > _TRACK_MIN_SPEED_MPS:
             self.track_rad = math.atan2(state.ve_mps, state.vn_mps)
-        if abs(state.accel_tangential_mps2) <= _CHANGING_SPEED_MPS2:
-            self.courses.record(state.time_s, state.speed_mps, self.track_rad)
+        held = abs(state.accel_tangential_mps2) <= _CHANGING_SPEED_MPS2
+        self.courses.record(state.time_s, state.speed_mps, self.track_rad, held)
 
     def restart(self) -> None:
         """The autopilot's clock moved: the turn held is forgotten."""
         self._held_turn.reset()
         self.held_accel_mps2 = 0.0
+        self._held_w = self.change_spread = 0.0
 
     def predict(
         self,
@@ -127,25 +132,30 @@ class FlightPower:
     def endurance_w(
         self, state: KinematicState, steady_w: float, time_s: float, latest_v: float
     ) -> float:
-        """Model power (W) the endurance holds: the pattern's or the courses' mean at the
-        present speed (:meth:`course_mean_w`), else the steady power ``steady_w`` (W); while
-        the vehicle changes speed (a speed it does not hold), ``steady_w``."""
-        if abs(state.accel_tangential_mps2) > _CHANGING_SPEED_MPS2:
-            return steady_w
-        mean_w = self.course_mean_w(state.speed_mps, time_s, latest_v)
-        return steady_w if mean_w is None else mean_w
-
-    def course_mean_w(self, speed_mps: float, time_s: float, latest_v: float) -> float | None:
-        """Model power (W) in steady level flight: when the flight repeats a pattern that
-        comes back to ``speed_mps``, its mean over one period of it (each speed and course as
-        flown, no turn); else at ``speed_mps`` in the turn held, averaged over the courses
-        flown lately at about that speed (:mod:`estimator.estimation.courses_flown`); None
-        when none was."""
-        pattern = self.courses.pattern(speed_mps)
+        """Model power (W) the endurance holds: while the flight repeats a pattern, its mean
+        over the last period as flown (each speed and course, no turn); else the courses'
+        mean at the present speed (:meth:`course_mean_w`), or the steady power ``steady_w``
+        (W) when none was flown or while the vehicle changes speed (a speed it does not
+        hold; :attr:`change_spread` says how far that is from the figure before)."""
+        self.change_spread = 0.0
+        pattern = self.courses.pattern()
         if pattern is not None:
             speeds, tracks_rad, weights = pattern
             power = self.predict((), speeds, latest_v, time_s=time_s, tracks_rad=tracks_rad)
-            return float(power @ weights)
+            self._held_w = float(power @ weights)
+        elif abs(state.accel_tangential_mps2) > _CHANGING_SPEED_MPS2:
+            if self._held_w > 0 and steady_w > 0:
+                self.change_spread = abs(steady_w - self._held_w) / steady_w
+            return steady_w
+        else:
+            mean_w = self.course_mean_w(state.speed_mps, time_s, latest_v)
+            self._held_w = steady_w if mean_w is None else mean_w
+        return self._held_w
+
+    def course_mean_w(self, speed_mps: float, time_s: float, latest_v: float) -> float | None:
+        """Model power (W) in steady level flight at ``speed_mps`` in the turn held, averaged
+        over the courses held lately at about that speed
+        (:mod:`estimator.estimation.courses_flown`); None when none was."""
         tracks_rad, weights = self.courses.near(speed_mps)
         if not len(tracks_rad):
             return None

@@ -722,6 +722,8 @@ class Pipeline:
         times_s, sigmas_s = self.energy.endurance_s(est.bias * model_w, est)
         endurance_s, hover_s, vme_s, vmr_s = (float(x) for x in times_s)
         endurance_sigma_s, hover_sigma_s, vme_sigma_s, vmr_sigma_s = (float(x) for x in sigmas_s)
+        # changing speed, the speed it will hold is not known: from the one before to this one
+        endurance_sigma_s = math.hypot(endurance_sigma_s, power.change_spread * endurance_s)
         battery = self._battery
         stale = battery is None or time_s - battery.time_s > self.settings.battery_stale_s
         voltage = self.energy.voltage
