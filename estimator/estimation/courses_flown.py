@@ -10,11 +10,11 @@ vehicle that has just changed speed has flown no other course at the new one yet
 present course alone.
 
 A pattern may also change speed: legs it cannot fly at the set speed into a strong wind,
-hovers between legs, a dash. When the ground velocity of the last minutes repeats itself one
-period earlier, seen over at least two periods (:meth:`CoursesFlown.pattern`: a period of
-:data:`PERIOD_MIN_S` to :data:`PERIOD_MAX_S`, the velocities a period apart differing by at
-most :data:`PATTERN_MISMATCH` of their spread), the figure is the mean over the last period
-as flown, whatever the vehicle does at the moment.
+hovers between legs, a dash. When the ground velocity of the last period repeats the period
+before it (:meth:`CoursesFlown.pattern`: a period of :data:`PERIOD_MIN_S` to
+:data:`PERIOD_MAX_S`, the velocities a period apart differing by at most
+:data:`PATTERN_MISMATCH` of their spread over both), the figure is the mean over the last
+period as flown, whatever the vehicle does at the moment.
 
 Frames and units: course over ground in rad from north, speeds horizontal (m/s), times on
 the autopilot's clock (s).
@@ -37,15 +37,16 @@ SPEED_TOLERANCE_FRACTION = 0.15
 #: Courses are counted in sectors this wide (rad): a handful of rows to predict, not one per
 #: second flown.
 SECTOR_RAD = math.radians(10.0)
-#: Periods (s) a repeated pattern is looked for at, in steps of :data:`PERIOD_STEP_S`; the
-#: flight is compared with itself one period earlier over at least one period (a flight
-#: seen once is no pattern), within the last :data:`PATTERN_WINDOW_S`.
+#: Periods (s) a repeated pattern is looked for at, in steps of :data:`PERIOD_STEP_S`: the
+#: last period against the one before (a flight seen once is no pattern), within the last
+#: :data:`PATTERN_WINDOW_S`.
 PERIOD_MIN_S, PERIOD_MAX_S, PERIOD_STEP_S = 20.0, 90.0, 2.0
 PATTERN_WINDOW_S = 2 * PERIOD_MAX_S + 20.0
 #: How often (s) a pattern is looked for: it changes over periods, not seconds.
 SEARCH_PERIOD_S = 2.0
 #: The flight repeats itself when its ground velocities one period apart differ (mean
-#: squared) by at most this fraction of twice their variance (1 for unrelated velocities)...
+#: squared) by at most this fraction of twice their variance over the two periods (1 for
+#: unrelated velocities)...
 PATTERN_MISMATCH = 0.2
 #: ... and that variance is at least this (m²/s²): a steady flight is no pattern.
 PATTERN_SPREAD_MIN_M2PS2 = 1.0
@@ -82,11 +83,10 @@ class CoursesFlown:
             flown.popleft()
 
     def pattern(self) -> Pattern | None:
-        """When the flight repeats itself (the ground velocities of the window against
-        themselves one period earlier, at the period that matches best), the speeds (m/s, bin
-        centres) and courses (rad, sector centres) of its last period and the fraction of
-        the period at each (summing to 1); None when it does not. Looked for every
-        :data:`SEARCH_PERIOD_S` of records."""
+        """When the flight repeats itself (its last period against the period before, at the
+        period that matches best), the speeds (m/s, bin centres) and courses (rad, sector
+        centres) of its last period and the fraction of the period at each (summing to 1);
+        None when it does not. Looked for every :data:`SEARCH_PERIOD_S` of records."""
         if self._flown and self._flown[-1][0] >= self._searched_s + SEARCH_PERIOD_S:
             self._pattern, self._searched_s = self._find_pattern(), self._flown[-1][0]
         return self._pattern
@@ -100,24 +100,33 @@ class CoursesFlown:
         grid_s = np.arange(time_s[0], time_s[-1] + 1e-9, PERIOD_STEP_S)
         north = np.interp(grid_s, time_s, speed_mps * np.cos(course_rad))
         east = np.interp(grid_s, time_s, speed_mps * np.sin(course_rad))
-        spread = 2.0 * (north.var() + east.var())
-        if spread < PATTERN_SPREAD_MIN_M2PS2:
-            return None
-        # mean |v(t) − v(t − shift)|² over the overlap, for every shift at once
+        # the last period against the one before, at every period k that fits (in grid steps):
+        # the mean |v(t) − v(t − k)|² over the last k against twice the variance of v over 2k
         n = len(grid_s)
         shifts = np.arange(
             round(PERIOD_MIN_S / PERIOD_STEP_S),
-            min(round(PERIOD_MAX_S / PERIOD_STEP_S), n // 2) + 1,  # over at least one period
+            min(round(PERIOD_MAX_S / PERIOD_STEP_S), n // 2) + 1,
         )
         if not len(shifts):
             return None
-        squares = np.concatenate(([0.0], np.cumsum(north**2 + east**2)))
-        cross = (np.correlate(north, north, "full") + np.correlate(east, east, "full"))[n - 1 :]
-        mismatch = ((squares[n] - squares[shifts]) + squares[n - shifts] - 2.0 * cross[shifts]) / (
-            n - shifts
+        back = np.stack((north[::-1], east[::-1]))  # newest first
+        sums = np.concatenate((np.zeros((2, 1)), np.cumsum(back, axis=1)), axis=1)
+        squares = np.concatenate(([0.0], np.cumsum((back**2).sum(axis=0))))
+        steps = np.arange(shifts[-1])[:, None]  # i < k: the last period's i-th newest step
+        inside = steps < shifts[None, :]
+        later = back[:, np.minimum(steps, n - 1)]
+        earlier = back[:, np.minimum(steps + shifts[None, :], n - 1)]
+        cross = np.where(inside, (later * earlier).sum(axis=0), 0.0).sum(axis=0)
+        mismatch = (squares[2 * shifts] - 2.0 * cross) / shifts
+        mean = sums[:, 2 * shifts] / (2 * shifts)
+        spread = 2.0 * (squares[2 * shifts] / (2 * shifts) - (mean**2).sum(axis=0))
+        ratio = np.where(
+            spread >= PATTERN_SPREAD_MIN_M2PS2,  # a steady flight is no pattern
+            mismatch / np.maximum(spread, PATTERN_SPREAD_MIN_M2PS2),
+            np.inf,
         )
-        best = int(np.argmin(mismatch))
-        if mismatch[best] > PATTERN_MISMATCH * spread:
+        best = int(np.argmin(ratio))
+        if not ratio[best] <= PATTERN_MISMATCH:
             return None
         period_s = float(shifts[best] * PERIOD_STEP_S)
         last = time_s > time_s[-1] - period_s
