@@ -55,6 +55,7 @@ SET_NAMES = {
     "held_out_3": "held-out 3",
     "held_out_4": "held-out 4",
     "held_out_5": "held-out 5",
+    "held_out_6": "held-out 6",
 }
 #: The label warning's deadline after take-off (s) that ``tests/test_pack_state.py`` holds.
 WARNING_WITHIN_S = 90.0
@@ -375,9 +376,8 @@ def hover_cruise_end() -> str:
 QUOTED_FLIGHTS = (
     "pack_c75_r2_wind",
     "pack_c80_r2_soc85_wind",
-    "pack_c70_r2_wind",
-    "pack_c85_r2_wind",
-    "pack_c65_r3_wind",
+    "pack_c100_r2_soc70_wind",
+    "pack_c95_r3_wind",
 )
 
 
@@ -398,9 +398,9 @@ def generators(table: ModuleType) -> dict[str, Callable[[], str]]:
     out["pack-sitl-1sigma-held-out"] = partial(set_one_sigma, "held_out")
     out["pack-sitl-restarts-held-out"] = restarts_held_out
     out["pack-sitl-restarts-sure"] = restarts_sure
-    out["pack-sitl-1sigma-held-out-4"] = partial(set_one_sigma, "held_out_4")
-    out["pack-sitl-1sigma-held-out-5"] = partial(set_one_sigma, "held_out_5")
-    for name in ("pack_c65_r1", "pack_c65_r2"):
+    for half in ("tuning", "held_out_2", "held_out_6"):
+        out[f"pack-sitl-1sigma-{half.replace('_', '-')}"] = partial(set_one_sigma, half)
+    for name in ("pack_c65_r1", "pack_c65_r2", "pack_c65_r3_wind"):
         out[f"pack-sitl-restart-{name.replace('_', '-')}"] = partial(restart_scores, name)
     out["pack-ensemble-sigma"] = ensemble_sigma
     out["pack-ensemble-error"] = ensemble_error
