@@ -37,6 +37,7 @@ SPEED_TOLERANCE_FRACTION = 0.15
 #: Courses are counted in sectors this wide (rad): a handful of rows to predict, not one per
 #: second flown.
 SECTOR_RAD = math.radians(10.0)
+_SECTORS_HALF = round(math.pi / SECTOR_RAD)  # a course in (−π, π] lies within ± this many
 #: Periods (s) a repeated pattern is looked for at, in steps of :data:`PERIOD_STEP_S`: the
 #: last period against the one before (a flight seen once is no pattern), within the last
 #: :data:`PATTERN_WINDOW_S`.
@@ -95,7 +96,7 @@ class CoursesFlown:
         flown = self._flown
         if not flown or flown[-1][0] - flown[0][0] < 2 * PERIOD_MIN_S:
             return None
-        time_s, speed_mps, course_rad, _ = (np.array(c) for c in zip(*flown, strict=True))
+        time_s, speed_mps, course_rad, _ = np.array(flown, dtype=float).T
         # the ground velocity on a grid of PERIOD_STEP_S, so that a period is a shift
         grid_s = np.arange(time_s[0], time_s[-1] + 1e-9, PERIOD_STEP_S)
         north = np.interp(grid_s, time_s, speed_mps * np.cos(course_rad))
@@ -130,11 +131,13 @@ class CoursesFlown:
             return None
         period_s = float(shifts[best] * PERIOD_STEP_S)
         last = time_s > time_s[-1] - period_s
-        bins = np.stack(
-            (np.round(speed_mps[last] / SPEED_BIN_MPS), np.round(course_rad[last] / SECTOR_RAD))
-        )
-        kept, counts = np.unique(bins, axis=1, return_counts=True)
-        return kept[0] * SPEED_BIN_MPS, kept[1] * SECTOR_RAD, counts / counts.sum()
+        # one integer key per (speed bin, course sector): sectors lie within ±_SECTORS_HALF
+        speed_bin = np.round(speed_mps[last] / SPEED_BIN_MPS)
+        sector = np.round(course_rad[last] / SECTOR_RAD)
+        keys, counts = np.unique(speed_bin * (2 * _SECTORS_HALF + 1) + sector, return_counts=True)
+        speed_bin = np.round(keys / (2 * _SECTORS_HALF + 1))
+        sector = keys - speed_bin * (2 * _SECTORS_HALF + 1)
+        return speed_bin * SPEED_BIN_MPS, sector * SECTOR_RAD, counts / counts.sum()
 
     def near(self, speed_mps: float) -> tuple[np.ndarray, np.ndarray]:
         """Courses (rad, sector centres) flown at about ``speed_mps`` and the fraction of
