@@ -34,7 +34,7 @@ _TRACK_MIN_SPEED_MPS = 1.0
 _TRACKED_WIND_SIGMA_MPS = 1.0
 _TRACKED_MASS_SIGMA_FRACTION = 0.05
 #: Faster than this along the track (m/s², either sign) the vehicle is changing speed: the
-#: speed it flies is not one it holds, and is not kept among the speeds flown.
+#: speed it flies is not one it holds, and does not count among the courses held.
 _CHANGING_SPEED_MPS2 = 1.0
 #: Gain of the moving averages that score tracked against vehicle-file effects (per update).
 _SCORE_GAIN = 1.0 / 30.0
