@@ -257,12 +257,14 @@ def restarts_held_out() -> str:
 
 
 def restarts_sure() -> str:
-    """How many restarted flights stay within 3σ throughout, and their largest |z|."""
+    """The largest |z| of every restarted flight, and their median |error| 60 s after the
+    restart."""
     judged = [r for half in restarts().values() for r in half]
-    sure = [r.worst_abs_z for r in judged if r.worst_abs_z <= 3.0]
+    worst = max(r.worst_abs_z for r in judged)
+    median = 100 * float(np.median([abs(r.error_at) for r in judged]))
     return (
-        f"The other {len(sure)} restarted flights stay within {max(sure):.1f}σ; the test holds "
-        f"all {len(judged)} to 3σ"
+        f"All {len(judged)} restarted flights stay within {worst:.1f}σ (the test holds them "
+        f"to 3σ); 60 s after the restart their median |error| is {median:.1f} %"
     )
 
 
@@ -400,8 +402,7 @@ def generators(table: ModuleType) -> dict[str, Callable[[], str]]:
     out["pack-sitl-restarts-sure"] = restarts_sure
     for half in ("tuning", "held_out_2", "held_out_6"):
         out[f"pack-sitl-1sigma-{half.replace('_', '-')}"] = partial(set_one_sigma, half)
-    for name in ("pack_c65_r1", "pack_c65_r2", "pack_c65_r3_wind"):
-        out[f"pack-sitl-restart-{name.replace('_', '-')}"] = partial(restart_scores, name)
+    out["pack-sitl-restart-pack-c65-r1"] = partial(restart_scores, "pack_c65_r1")
     out["pack-ensemble-sigma"] = ensemble_sigma
     out["pack-ensemble-error"] = ensemble_error
     out["pack-ensemble-summary"] = ensemble_summary
