@@ -56,6 +56,7 @@ SET_NAMES = {
     "held_out_4": "held-out 4",
     "held_out_5": "held-out 5",
     "held_out_6": "held-out 6",
+    "held_out_7": "held-out 7",
 }
 #: The label warning's deadline after take-off (s) that ``tests/test_pack_state.py`` holds.
 WARNING_WITHIN_S = 90.0
@@ -173,7 +174,8 @@ def endurance() -> str:
     scored = _scored(_all())
     over_median = [f for f in scored if np.median(_abs_pct([f])) > MEDIAN_BOUND_PCT]
     over_worst = [f for f in scored if _abs_pct([f]).max() > WORST_BOUND_PCT]
-    windy = sum(_wind_mps(f) > 0 for f in over_median)
+    missed = {f.name: f for f in (*over_median, *over_worst)}
+    windy = sum(_wind_mps(f) > 0 for f in missed.values())
     peers = [
         np.median(_abs_pct(pooled, which))
         for pooled in flights().values()
@@ -183,7 +185,7 @@ def endurance() -> str:
         f"Ours has a median |error| of {medians}; the worst is "
         f"{_abs_pct(scored).max():.1f} % ({len(over_worst)} of the {len(scored)} scored flights "
         f"above {WORST_BOUND_PCT:.0f} % worst, {len(over_median)} above "
-        f"{MEDIAN_BOUND_PCT:.0f} % median, {windy} of them in wind). The autopilots count "
+        f"{MEDIAN_BOUND_PCT:.0f} % median; {windy} of these in wind). The autopilots count "
         f"against the label and miss by {min(peers):.0f}–{max(peers):.0f} % at the median"
     )
 
@@ -205,6 +207,24 @@ def pooled_one_sigma() -> str:
 
 def set_one_sigma(half: str) -> str:
     return f"{_within(flights()[half], 1):.0f} % within 1σ"
+
+
+def set_summary(half: str) -> str:
+    """How many of a set's scored flights are within the per-flight bounds (and the largest
+    median and worst), its 1σ coverage and its highest |error|/σ above the truth."""
+    scored = _scored(flights()[half])
+    medians = [float(np.median(_abs_pct([f]))) for f in scored]
+    worsts = [float(_abs_pct([f]).max()) for f in scored]
+    within = sum(
+        m <= MEDIAN_BOUND_PCT and w <= WORST_BOUND_PCT for m, w in zip(medians, worsts, strict=True)
+    )
+    every = "All" if within == len(scored) else f"{within} of the"
+    return (
+        f"{every} {len(scored)} within {MEDIAN_BOUND_PCT:.0f} % median (at most "
+        f"{max(medians):.1f} %) and {WORST_BOUND_PCT:.0f} % worst (at most {max(worsts):.1f} %), "
+        f"{_within(scored, 1):.0f} % within 1σ, at most {float(np.max(_z(scored))):.2f}σ above "
+        "the truth"
+    )
 
 
 def wind_medians() -> str:
@@ -257,14 +277,17 @@ def restarts_held_out() -> str:
 
 
 def restarts_sure() -> str:
-    """The largest |z| of every restarted flight, and their median |error| 60 s after the
-    restart."""
+    """How many restarted flights stay within 3σ throughout (and their largest |z|), those
+    that do not, and the median |error| of all 60 s after the restart."""
     judged = [r for half in restarts().values() for r in half]
-    worst = max(r.worst_abs_z for r in judged)
+    sure = [r.worst_abs_z for r in judged if r.worst_abs_z <= 3.0]
+    unsure = "".join(
+        f"; {r.name} reaches {r.worst_abs_z:.2f}σ" for r in judged if r.worst_abs_z > 3.0
+    )
     median = 100 * float(np.median([abs(r.error_at) for r in judged]))
     return (
-        f"All {len(judged)} restarted flights stay within {worst:.1f}σ (the test holds them "
-        f"to 3σ); 60 s after the restart their median |error| is {median:.1f} %"
+        f"{len(sure)} of the {len(judged)} restarted flights stay within {max(sure):.1f}σ "
+        f"throughout{unsure}; 60 s after the restart their median |error| is {median:.1f} %"
     )
 
 
@@ -398,6 +421,7 @@ def generators(table: ModuleType) -> dict[str, Callable[[], str]]:
         "pack-sitl-wind": wind_medians,
     }
     out["pack-sitl-1sigma-held-out"] = partial(set_one_sigma, "held_out")
+    out["pack-sitl-held-out-7"] = partial(set_summary, "held_out_7")
     out["pack-sitl-restarts-held-out"] = restarts_held_out
     out["pack-sitl-restarts-sure"] = restarts_sure
     for half in ("tuning", "held_out_2", "held_out_6"):

@@ -31,8 +31,8 @@ def register(subparsers: argparse._SubParsersAction[argparse.ArgumentParser]) ->
         nargs="*",
         metavar="SCENARIO",
         help="scenario names (the effects of replay/sitl, pack_* packs of replay/sitl_packs), "
-        "or all (every effect scenario), or packs / packs2 / ... / packs6 (the first "
-        "to sixth set of pack_* scenarios)",
+        "or all (every effect scenario), or packs / packs2 / ... / packs7 (the first "
+        "to seventh set of pack_* scenarios)",
     )
     p.add_argument("--mission", metavar="FILE", help="fly this mission file in AUTO instead")
     p.add_argument(
