@@ -10,7 +10,7 @@ import pytest
 
 from estimator import cli
 from estimator.analysis.replay import replay_log, summarize
-from estimator.estimation.pipeline import PipelineSettings
+from estimator.estimation.pipeline_settings import PipelineSettings
 from estimator.physics.effects import Wind, effects_from_tables
 from estimator.physics.vehicle import default_vehicle, load_vehicle
 from estimator.sim.files import write_tlog

@@ -8,7 +8,8 @@ from dataclasses import replace
 import pytest
 
 from estimator.estimation.estimate import Estimate
-from estimator.estimation.pipeline import Pipeline, PipelineSettings
+from estimator.estimation.pipeline import Pipeline
+from estimator.estimation.pipeline_settings import PipelineSettings
 from estimator.physics.battery import PackModel
 from estimator.physics.effects import Effect, Mass, Wind
 from estimator.physics.vehicle import default_vehicle

@@ -23,7 +23,8 @@ from estimator.cli import main
 from estimator.commands.replay import CSV_COLUMNS, flight_names, parse_speed
 from estimator.estimation.estimate import Estimate
 from estimator.estimation.fusion import FusionSettings
-from estimator.estimation.pipeline import Pipeline, PipelineSettings
+from estimator.estimation.pipeline import Pipeline
+from estimator.estimation.pipeline_settings import PipelineSettings
 from estimator.logs import iter_samples
 from estimator.mavlink.config import ServiceConfig
 from estimator.mavlink.publish import json_line

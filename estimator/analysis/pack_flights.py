@@ -21,7 +21,7 @@ from estimator.analysis.endurance_truth import score_endurance
 from estimator.analysis.peer_endurance import peer_endurance_s
 from estimator.analysis.replay import replay_stream, with_batteries
 from estimator.estimation.estimate import Estimate
-from estimator.estimation.pipeline import PipelineSettings
+from estimator.estimation.pipeline_settings import PipelineSettings
 from estimator.logs import iter_samples
 from estimator.physics.vehicle import Vehicle
 from estimator.telemetry.samples import BatterySample

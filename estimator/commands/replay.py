@@ -57,7 +57,8 @@ from estimator.errors import UserError, naming
 from estimator.estimation.estimate import Estimate
 from estimator.estimation.pack_identity import FlightPack
 from estimator.estimation.pack_memory import check_pack_id
-from estimator.estimation.pipeline import Pipeline, PipelineSettings
+from estimator.estimation.pipeline import Pipeline
+from estimator.estimation.pipeline_settings import PipelineSettings
 from estimator.estimation.return_home import MissionSample
 from estimator.logs import (
     FORMATS,

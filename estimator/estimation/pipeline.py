@@ -40,36 +40,35 @@ from __future__ import annotations
 import math
 from collections import Counter
 from collections.abc import Mapping, Sequence
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
 
-from estimator.errors import UserError
 from estimator.estimation.airborne import AirborneGate, Phase
 from estimator.estimation.estimate import Estimate, PowerReading
 from estimator.estimation.flight_power import FlightPower
-from estimator.estimation.fusion import EnergyEstimate, EnergyFilter, FusionSettings
+from estimator.estimation.fusion import EnergyEstimate, EnergyFilter
 from estimator.estimation.online_effects import OnlineEffects, TrackerReading
 from estimator.estimation.pack_bank import PackBank
-from estimator.estimation.pack_state import PackEstimate, PackPrior, PackSettings
+from estimator.estimation.pack_state import PackEstimate, PackPrior
+from estimator.estimation.pipeline_settings import PipelineSettings
+from estimator.estimation.pipeline_snapshot import Resume, parse_snapshot, take_snapshot
 from estimator.estimation.return_home import (
     MissionEnergyFn,
     MissionSample,
     ReturnHome,
     ReturnInputs,
-    ReturnSettings,
 )
+from estimator.estimation.tracker_steps import TrackerSteps
 from estimator.physics.battery import PackModel
 from estimator.physics.effects import (
     Climb,
     Effect,
     effects_from_tables,
-    effects_to_tables,
 )
-from estimator.physics.kinematics import KinematicsFilter, KinematicsSettings, KinematicState
+from estimator.physics.kinematics import KinematicsFilter, KinematicState
 from estimator.physics.vehicle import Vehicle
-from estimator.telemetry.plausibility import MAX_POWER_PER_HOVER
 from estimator.telemetry.samples import (
     ArmedSample,
     BatterySample,
@@ -86,36 +85,6 @@ from estimator.telemetry.samples import (
 
 #: How often (s, sample clock) V_me, V_mr and hover power follow the tracked wind and mass.
 _SPEEDS_REFRESH_S = 5.0
-
-
-@dataclass(frozen=True, slots=True)
-class PipelineSettings:
-    """battery_stale_s: estimates are ``stale`` when the newest battery sample is older than
-    this on the sample clock.  add_climb_effect: add a default :class:`Climb` effect when the
-    vehicle file has none (climbing costs m·g·v_c/η).  track_effects: follow wind and mass
-    online from measured power (:class:`~estimator.estimation.online_effects.OnlineEffects`),
-    starting
-    from the vehicle file's values; off keeps those values for the whole flight.
-    estimate_period_s: one estimate per this much sample clock (s); see the module
-    docstring. track_period_s: the online tracker takes one reading per this much sample
-    clock (s): wind and payload change over tens of seconds, and readings close together
-    share their errors (gusts, ESC ripple). endurance_valid_after_s: endurance figures are
-    published once flying readings (:mod:`estimator.estimation.airborne`) have been fused for this
-    long
-    (s, sample clock): the bias then rests on them, not on its prior (a payload carried from
-    take-off puts the measured power 30–40 % above the model's). return_home: the return
-    and mission figures (:mod:`estimator.estimation.return_home`)."""
-
-    kinematics: KinematicsSettings = field(default_factory=KinematicsSettings)
-    fusion: FusionSettings = field(default_factory=FusionSettings)
-    pack: PackSettings = field(default_factory=PackSettings)
-    battery_stale_s: float = 5.0
-    add_climb_effect: bool = True
-    track_effects: bool = True
-    estimate_period_s: float = 1.0
-    track_period_s: float = 2.0
-    endurance_valid_after_s: float = 2.0
-    return_home: ReturnSettings = field(default_factory=ReturnSettings)
 
 
 @dataclass(frozen=True, slots=True)
@@ -143,18 +112,6 @@ class _Event:
     voltage_v: float
 
 
-@dataclass(frozen=True, slots=True)
-class _Resume:
-    """A parsed snapshot waiting for the first battery sample."""
-
-    energy: EnergyFilter
-    effects: tuple[Effect, ...]
-    tracked_sq_w2: float
-    file_sq_w2: float
-    endurance_valid: bool
-    pack: PackBank | None
-
-
 class Pipeline:
     """Samples in (:meth:`process`), estimates out; ``counts`` says what it did and skipped.
 
@@ -179,19 +136,11 @@ class Pipeline:
             effects.append(Climb())
         #: The effects in use and the model power with them.
         self.power = FlightPower(vehicle, tuple(effects))
-        self.online = (
-            OnlineEffects(
-                vehicle.model,
-                vehicle.mass_kg,
-                self.power.effects,
-                slow_error_fraction=vehicle.slow_error_fraction,
-            )
-            if self.settings.track_effects
-            else None
+        #: The online wind/mass tracker and its steps.
+        self.tracking = TrackerSteps(
+            vehicle, self.power.effects, self.settings.track_period_s, self.settings.track_effects
         )
         self._speeds_time_s = -math.inf
-        self._track_bin: int | None = None  # track_period_s bin of the last tracker step
-        self._track_queue: list[TrackerReading] = []  # readings for the next tracker step
         self.pack = PackModel(vehicle.battery)
         self.kinematics = KinematicsFilter(self.settings.kinematics)
         self.energy = EnergyFilter(self.pack, self.settings.fusion)
@@ -224,12 +173,17 @@ class Pipeline:
         self._steady_power_w = 0.0
         self._time_s: float | None = None  # newest sample time (ordering)
         self._loss_factor = 1.0
-        self._resume: _Resume | None = None
+        self._resume: Resume | None = None
         #: Position, home and mission for the return figures of each estimate.
         self.returning = ReturnHome(vehicle, self.settings.return_home, mission_energy)
         self._refresh_speeds()
 
     # -- power ------------------------------------------------------------------------------
+
+    @property
+    def online(self) -> OnlineEffects | None:
+        """The online wind/mass tracker (None when effects are not tracked)."""
+        return self.tracking.online
 
     @property
     def effects(self) -> tuple[Effect, ...]:
@@ -367,20 +321,10 @@ class Pipeline:
     # -- continuing after a restart ---------------------------------------------------------------
 
     def snapshot(self) -> dict[str, Any] | None:
-        """What a restarted process needs to continue this flight (JSON-ready): the energy
-        and resistance filters with the energy anchor, the effects in use (tracked wind and
-        mass), their scores, and whether endurance is valid. None before the energy state
-        starts."""
-        if not self.energy.initialized:
-            return None
-        return {
-            "energy": self.energy.snapshot(),
-            "effects": effects_to_tables(self.power.effects),
-            "tracked_sq_w2": self.power.tracked_sq_w2,
-            "file_sq_w2": self.power.file_sq_w2,
-            "endurance_valid": self.endurance_valid,
-            "pack": None if self.pack_state is None else self.pack_state.snapshot(),
-        }
+        """What a restarted process needs to continue this flight
+        (:func:`~estimator.estimation.pipeline_snapshot.take_snapshot`); None before the energy
+        state starts."""
+        return take_snapshot(self.energy, self.power, self.endurance_valid, self.pack_state)
 
     def resume(self, snapshot: Mapping[str, Any]) -> None:
         """Continue from ``snapshot`` (:meth:`snapshot` of the same autopilot boot, checked by
@@ -390,41 +334,20 @@ class Pipeline:
         self._resume = self._parsed(snapshot)
 
     def check_snapshot(self, snapshot: Mapping[str, Any]) -> None:
-        """ValueError when :meth:`resume` would refuse ``snapshot``: a value that does not
-        parse or lies out of its range (the energy and pack filters' ranges; the effects in
-        use must keep the vehicle's hover power finite and within
-        :data:`~estimator.telemetry.plausibility.MAX_POWER_PER_HOVER` times the file's; the
-        power scores finite, ≥ 0)."""
+        """ValueError when :meth:`resume` would refuse ``snapshot``
+        (:func:`~estimator.estimation.pipeline_snapshot.parse_snapshot`)."""
         self._parsed(snapshot)
 
-    def _parsed(self, snapshot: Mapping[str, Any]) -> _Resume:
-        try:
-            energy = EnergyFilter(self.pack, self.settings.fusion)
-            energy.restore(snapshot["energy"])
-            pack = None
-            if snapshot.get("pack") is not None:
-                pack = PackBank(self.pack, self.settings.pack, self.pack_prior)
-                pack.restore(snapshot["pack"])
-            effects = tuple(effects_from_tables(snapshot["effects"]))
-            hover_w = self.power.predict((), np.zeros(1), self._latest_v(), effects=effects)[0]
-            if not hover_w <= MAX_POWER_PER_HOVER * self.vehicle.model.hover_power_w:
-                raise ValueError(f"the effects make hovering take {hover_w:.0f} W")
-            scores = (float(snapshot["tracked_sq_w2"]), float(snapshot["file_sq_w2"]))
-            if not all(math.isfinite(v) and v >= 0 for v in scores):
-                raise ValueError(f"power scores {scores} are not finite and ≥ 0")
-            if not isinstance(valid := snapshot["endurance_valid"], bool):
-                raise ValueError(f"endurance_valid is {valid!r}")
-            return _Resume(energy, effects, *scores, valid, pack)
-        except (
-            KeyError,
-            TypeError,
-            AttributeError,
-            ValueError,
-            OverflowError,
-            UserError,
-            np.linalg.LinAlgError,
-        ) as exc:
-            raise ValueError(f"not a pipeline snapshot ({exc})") from None
+    def _parsed(self, snapshot: Mapping[str, Any]) -> Resume:
+        return parse_snapshot(
+            snapshot,
+            lambda: EnergyFilter(self.pack, self.settings.fusion),
+            lambda: PackBank(self.pack, self.settings.pack, self.pack_prior),
+            lambda effects: float(
+                self.power.predict((), np.zeros(1), self._latest_v(), effects=effects)[0]
+            ),
+            self.vehicle.model.hover_power_w,
+        )
 
     def _initialize(self, sample: BatterySample) -> None:
         """First valid battery sample: start the energy state at the model power now, or
@@ -445,13 +368,7 @@ class Pipeline:
             if resume.pack is not None:
                 resume.pack.last_time_s = sample.time_s
                 self._pack_estimate = resume.pack.estimate()
-            if self.online is not None:
-                self.online = OnlineEffects(
-                    self.vehicle.model,
-                    self.vehicle.mass_kg,
-                    self.power.effects,
-                    slow_error_fraction=self.vehicle.slow_error_fraction,
-                )
+            self.tracking.renew(self.power.effects)
             self._refresh_speeds()
         self._battery = sample
         self._time_s = sample.time_s
@@ -480,11 +397,10 @@ class Pipeline:
         estimate = self.flush()
         self.kinematics.reset()
         self.power.restart()
-        self._track_queue, self._track_bin, self._speeds_time_s = [], None, -math.inf
+        self.tracking.restart_clock()
+        self._speeds_time_s = -math.inf
         self._gate.reset()
         self._phase, self._flying_since_s = Phase.GROUND, None
-        if self.online is not None:
-            self.online.restart_clock()
         self._state = None
         self._armed = self._on_ground = None
         self._battery = None
@@ -596,11 +512,11 @@ class Pipeline:
                 self._kinetic_sigma_w(),
                 n,
             )
-            self._track_queue += [
+            self.tracking.queue(
                 TrackerReading(r.state, measured_w, r.sample.voltage_v)
                 for r, _, measured_w in powered
                 if r.state is not None
-            ]
+            )
             self._track_effects(latest.time_s)
         if powered or (flying and not scored):
             if self._flying_since_s is None:
@@ -647,23 +563,9 @@ class Pipeline:
             self.energy.anchor(self._pack_estimate)
 
     def _track_effects(self, time_s: float) -> None:
-        """Follow wind and mass with the readings queued since the last tracker step, once
-        per ``track_period_s`` (after the fusion step, so each reading is fused with the
-        effects that predicted it). Tracked and file effects are scored on each step's
-        readings, as predicted before the step."""
-        online = self.online
-        if online is None or not self._track_queue:
-            return
-        track_bin = math.floor(time_s / self.settings.track_period_s)
-        if track_bin == self._track_bin:
-            return
-        self._track_bin = track_bin
-        readings, self._track_queue = self._track_queue, []
-        steps = online.steps
-        online.update_readings(readings)
-        if online.steps == steps:
-            return  # nothing used (idle, vertical motion, bad values)
-        chosen = self.power.choose(online)
+        """A step of the tracker (:mod:`estimator.estimation.tracker_steps`); when it changes
+        the effects in use, the bias moves by the model's change."""
+        chosen = self.tracking.step(time_s, self.power)
         if chosen is None:
             return
         file_chosen = chosen == self.power.file_effects

@@ -19,7 +19,7 @@ from estimator.physics.route_energy import DEFAULT_MAX_GROUND_SPEED_MPS, DEFAULT
 from estimator.toml_files import read_toml
 
 if TYPE_CHECKING:
-    from estimator.estimation.pipeline import PipelineSettings
+    from estimator.estimation.pipeline_settings import PipelineSettings
 
 LOG_LEVELS = ("debug", "info", "warning", "error")
 
@@ -118,7 +118,7 @@ class ServiceConfig:
     def pipeline_settings(self) -> PipelineSettings:
         """The pipeline's settings this configuration asks for."""
         from estimator.estimation.fusion import FusionSettings
-        from estimator.estimation.pipeline import PipelineSettings
+        from estimator.estimation.pipeline_settings import PipelineSettings
         from estimator.estimation.return_home import ReturnSettings
 
         return PipelineSettings(

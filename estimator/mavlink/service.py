@@ -57,7 +57,8 @@ from pymavlink.dialects.v20 import common as mavlink
 
 from estimator.estimation.estimate import Estimate
 from estimator.estimation.pack_identity import FlightPack
-from estimator.estimation.pipeline import Pipeline, PipelineSettings
+from estimator.estimation.pipeline import Pipeline
+from estimator.estimation.pipeline_settings import PipelineSettings
 from estimator.estimation.return_home import MissionEnergyFn, MissionSample
 from estimator.estimation.rtl_profiles import rtl_settings
 from estimator.logs.mission_files import MissionItem

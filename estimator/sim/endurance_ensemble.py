@@ -13,7 +13,8 @@ import numpy as np
 
 from estimator.estimation.estimate import Estimate
 from estimator.estimation.pack_state import OWN_CURVE_SIGMA_V, PackSettings
-from estimator.estimation.pipeline import Pipeline, PipelineSettings
+from estimator.estimation.pipeline import Pipeline
+from estimator.estimation.pipeline_settings import PipelineSettings
 from estimator.physics.battery import CHEMISTRY_OCV_V, SOC_POINTS
 from estimator.physics.effects import Avionics, Wind
 from estimator.physics.vehicle import default_vehicle
