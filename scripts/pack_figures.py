@@ -211,7 +211,8 @@ def set_one_sigma(half: str) -> str:
 
 def set_summary(half: str) -> str:
     """How many of a set's scored flights are within the per-flight bounds (and the largest
-    median and worst), its 1σ coverage and its highest |error|/σ above the truth."""
+    median and worst), its 1σ coverage, its highest |error|/σ above the truth, and how many
+    of its restarted flights stay within 3σ."""
     scored = _scored(flights()[half])
     medians = [float(np.median(_abs_pct([f]))) for f in scored]
     worsts = [float(_abs_pct([f]).max()) for f in scored]
@@ -219,11 +220,15 @@ def set_summary(half: str) -> str:
         m <= MEDIAN_BOUND_PCT and w <= WORST_BOUND_PCT for m, w in zip(medians, worsts, strict=True)
     )
     every = "All" if within == len(scored) else f"{within} of the"
+    judged = restarts()[half]
+    sure = [r for r in judged if r.worst_abs_z <= 3.0]
+    unsure = "".join(f", {r.name} reaches {r.worst_abs_z:.2f}σ" for r in judged if r not in sure)
     return (
         f"{every} {len(scored)} within {MEDIAN_BOUND_PCT:.0f} % median (at most "
         f"{max(medians):.1f} %) and {WORST_BOUND_PCT:.0f} % worst (at most {max(worsts):.1f} %), "
         f"{_within(scored, 1):.0f} % within 1σ, at most {float(np.max(_z(scored))):.2f}σ above "
-        "the truth"
+        f"the truth; restarted 90 s after take-off, {len(sure)} of its {len(judged)} flights "
+        f"long enough stay within 3σ throughout{unsure}"
     )
 
 

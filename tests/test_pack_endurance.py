@@ -166,6 +166,14 @@ def test_one_sigma_pooled_over_each_half_holds_55_to_80_percent(
     assert 0.55 <= np.mean(np.abs(z) <= 1.0) <= 0.80
 
 
+@pytest.mark.parametrize("half", HALVES)
+def test_three_sigma_pooled_over_each_half_holds_97_percent(
+    flights: dict[str, PackFlight], half: str
+) -> None:
+    z = np.concatenate([flights[n].z for n in SPLIT[half] if n in SCORED])
+    assert np.mean(np.abs(z) <= 3.0) >= 0.97
+
+
 def test_one_sigma_pooled_over_every_pack_flight_holds_55_to_80_percent(
     flights: dict[str, PackFlight],
 ) -> None:
