@@ -30,7 +30,7 @@ from numpy.typing import NDArray
 
 from estimator.estimation.airborne import AIRBORNE_ALT_M
 from estimator.estimation.estimate import Estimate, PowerReading
-from estimator.estimation.online_effects import OnlineSettings
+from estimator.estimation.online_settings import OnlineSettings
 from estimator.estimation.pipeline import Pipeline
 from estimator.estimation.pipeline_settings import PipelineSettings
 from estimator.estimation.return_home import MissionSample

@@ -28,7 +28,7 @@ import numpy as np
 from estimator.telemetry.samples import WindSample
 
 if TYPE_CHECKING:
-    from estimator.estimation.online_effects import OnlineSettings
+    from estimator.estimation.online_settings import OnlineSettings
 
 
 def mahalanobis2(d: np.ndarray, cov: np.ndarray) -> float:

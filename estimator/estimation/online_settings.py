@@ -1,0 +1,69 @@
+"""The online wind/mass tracker's settings (:class:`OnlineSettings`; the tracker is
+:mod:`estimator.estimation.online_effects`, whose docstring explains each stage). SI units:
+speeds m/s, masses kg, powers W, times s; process noises are random-walk densities per √s."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+from estimator.estimation.airborne import IDLE_FRACTION_OF_HOVER
+
+
+@dataclass(frozen=True)
+class OnlineSettings:
+    """Tuning (SI units). Process noises are random-walk densities per √s."""
+
+    wind_walk_mps_per_sqrt_s: float = 0.03
+    mass_walk_kg_per_sqrt_s: float = 0.002
+    initial_wind_sigma_mps: float = 3.0
+    initial_mass_sigma_fraction: float = 0.15
+    power_noise_w: float = 5.0
+    #: The model's slow error b (:mod:`~estimator.estimation.online_effects`): 1σ as a
+    #: fraction of the model's hover power where the vehicle file states none (``[model]
+    #: slow_error_fraction``; 0: the model's errors are taken as white, as for a simulator's
+    #: own model), and its correlation time (s).
+    model_error_fraction: float = 0.0
+    model_error_time_s: float = 30.0
+    power_noise_fraction: float = 0.03
+    gate_sigma: float = 5.0
+    max_vertical_speed_mps: float = 1.0
+    #: Power below this fraction of the model's hover power is not flight (idle motors).
+    min_power_fraction_of_hover: float = IDLE_FRACTION_OF_HOVER
+    #: Gain of the adaptive measurement-noise estimate (per power sample).
+    noise_gain: float = 0.02
+    #: CUSUM on the normalised innovations (:mod:`~estimator.estimation.online_effects`): drift
+    #: k and threshold h.
+    cusum_drift_sigma: float = 0.5
+    cusum_threshold_sigma: float = 7.0
+    #: Below this ground speed (m/s) the vehicle hovers: the wind is held and a detected
+    #: change is taken for mass; above it, for wind.
+    moving_speed_mps: float = 2.0
+    #: A wind known to this 1σ (m/s, both components) makes a mass learnt in hover final.
+    wind_known_sigma_mps: float = 1.0
+    #: A change in forward flight: the mass-step and wind-change hypotheses run until one is
+    #: this much likelier (log-likelihood ratio, nats; 4.6 = 100:1) or for this many steps.
+    hypothesis_nats: float = 4.6
+    hypothesis_max_steps: int = 30
+    #: Mass may not drop below this fraction of the vehicle file's.
+    min_mass_fraction: float = 0.3
+    #: No multirotor flies in more wind than this (m/s): the estimate is held below it.
+    max_wind_mps: float = 15.0
+    #: The autopilot's own wind estimate (ArduPilot WIND, PX4 WIND_COV) as a measurement of
+    #: the wind states: its 1σ per component (m/s), the time its errors stay correlated (s:
+    #: each step takes it with the variance scaled by that time over the step's, so a minute
+    #: of it weighs as one measurement), the age beyond which it is not used (s), and the speed
+    #: (m/s) it must once have exceeded since boot (an autopilot that does not estimate the
+    #: wind reports exactly zero).
+    autopilot_wind_sigma_mps: float = 1.0
+    autopilot_wind_correlation_s: float = 60.0
+    autopilot_wind_max_age_s: float = 10.0
+    autopilot_wind_active_mps: float = 0.1
+    #: A wind change the autopilot saw: its report this far from the estimate (squared
+    #: Mahalanobis distance with the report's own 1σ; 13.8 = χ²₂ at 0.1 %) on this many steps
+    #: in a row reopens the wind's variance, as a change found in the power does.
+    autopilot_wind_change_chi2: float = 13.8
+    autopilot_wind_change_steps: int = 3
+    #: A wind in use this far from the estimate (squared Mahalanobis distance with the
+    #: estimate's covariance; χ²₂ at 0.1 %) is refuted: the estimate replaces it even before
+    #: it is identified (after a change, the old wind is worse than the new one's first guess).
+    wind_refuted_chi2: float = 13.8
