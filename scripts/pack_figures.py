@@ -99,6 +99,16 @@ def _z(pooled: Sequence[PackFlight]) -> np.ndarray:
     return z[np.isfinite(z)]
 
 
+def _median_pct(flight: PackFlight) -> float:
+    """One flight's median |error| (%)."""
+    return float(np.median(_abs_pct([flight])))
+
+
+def _worst_pct(flight: PackFlight) -> float:
+    """One flight's largest |error| (%)."""
+    return float(_abs_pct([flight]).max())
+
+
 def _within(pooled: Sequence[PackFlight], sigmas: float) -> float:
     """Share (%) of the scored estimates whose truth lies within ``sigmas``."""
     return float(100 * np.mean(np.abs(_z(pooled)) <= sigmas))
@@ -172,8 +182,8 @@ def endurance() -> str:
         for half, pooled in flights().items()
     )
     scored = _scored(_all())
-    over_median = [f for f in scored if np.median(_abs_pct([f])) > MEDIAN_BOUND_PCT]
-    over_worst = [f for f in scored if _abs_pct([f]).max() > WORST_BOUND_PCT]
+    over_median = [f for f in scored if _median_pct(f) > MEDIAN_BOUND_PCT]
+    over_worst = [f for f in scored if _worst_pct(f) > WORST_BOUND_PCT]
     missed = {f.name: f for f in (*over_median, *over_worst)}
     windy = sum(_wind_mps(f) > 0 for f in missed.values())
     peers = [
@@ -214,15 +224,14 @@ def set_summary(half: str) -> str:
     median and worst), its 1σ coverage, its highest |error|/σ above the truth, and how many
     of its restarted flights stay within 3σ."""
     scored = _scored(flights()[half])
-    medians = [float(np.median(_abs_pct([f]))) for f in scored]
-    worsts = [float(_abs_pct([f]).max()) for f in scored]
+    medians = [_median_pct(f) for f in scored]
+    worsts = [_worst_pct(f) for f in scored]
     within = sum(
         m <= MEDIAN_BOUND_PCT and w <= WORST_BOUND_PCT for m, w in zip(medians, worsts, strict=True)
     )
     every = "All" if within == len(scored) else f"{within} of the"
     judged = restarts()[half]
-    sure = [r for r in judged if r.worst_abs_z <= 3.0]
-    unsure = "".join(f", {r.name} reaches {r.worst_abs_z:.2f}σ" for r in judged if r not in sure)
+    sure, unsure = _sure_restarts(judged, ", ")
     return (
         f"{every} {len(scored)} within {MEDIAN_BOUND_PCT:.0f} % median (at most "
         f"{max(medians):.1f} %) and {WORST_BOUND_PCT:.0f} % worst (at most {max(worsts):.1f} %), "
@@ -237,7 +246,7 @@ def wind_medians() -> str:
     windy: list[float] = []
     calm: list[float] = []
     for flight in _scored(_all()):
-        median = float(np.median(_abs_pct([flight])))
+        median = _median_pct(flight)
         (windy if _wind_mps(flight) >= STRONG_WIND_MPS else calm).append(median)
     return (
         f"The {len(windy)} flights with a wind of {STRONG_WIND_MPS:.0f} m/s or more have "
@@ -249,7 +258,7 @@ def wind_medians() -> str:
 def flight_scores(name: str) -> str:
     """One flight's median |error| and 1σ coverage."""
     [flight] = [f for f in _all() if f.name == name]
-    return f"median {np.median(_abs_pct([flight])):.1f} %, {_within([flight], 1):.0f} % within 1σ"
+    return f"median {_median_pct(flight):.1f} %, {_within([flight], 1):.0f} % within 1σ"
 
 
 @cache
@@ -281,17 +290,25 @@ def restarts_held_out() -> str:
     )
 
 
+def _sure_restarts(judged: Sequence[Restart], separator: str) -> tuple[list[Restart], str]:
+    """The restarts that stay within 3σ throughout, and the others as text (each after
+    ``separator``: its name and largest |z|)."""
+    sure = [r for r in judged if r.worst_abs_z <= 3.0]
+    unsure = "".join(
+        f"{separator}{r.name} reaches {r.worst_abs_z:.2f}σ" for r in judged if r.worst_abs_z > 3.0
+    )
+    return sure, unsure
+
+
 def restarts_sure() -> str:
     """How many restarted flights stay within 3σ throughout (and their largest |z|), those
     that do not, and the median |error| of all 60 s after the restart."""
     judged = [r for half in restarts().values() for r in half]
-    sure = [r.worst_abs_z for r in judged if r.worst_abs_z <= 3.0]
-    unsure = "".join(
-        f"; {r.name} reaches {r.worst_abs_z:.2f}σ" for r in judged if r.worst_abs_z > 3.0
-    )
+    sure, unsure = _sure_restarts(judged, "; ")
     median = 100 * float(np.median([abs(r.error_at) for r in judged]))
     return (
-        f"{len(sure)} of the {len(judged)} restarted flights stay within {max(sure):.1f}σ "
+        f"{len(sure)} of the {len(judged)} restarted flights stay within "
+        f"{max(r.worst_abs_z for r in sure):.1f}σ "
         f"throughout{unsure}; 60 s after the restart their median |error| is {median:.1f} %"
     )
 

@@ -40,7 +40,7 @@ COLLAPSE_WEIGHT = 0.999
 #: & van Ommen, "Inconsistency of Bayesian inference for misspecified linear models", Bayesian
 #: Analysis 12(4), 2017). The likelihood counts each reading as independent evidence, but what
 #: tells the starts apart (the pack's curve against the configured one, the lag of its voltage
-#: behind a step) persists over many readings: at full power, on the SITL pack flights
+#: behind a step) persists over many readings: at full weight, on the SITL pack flights
 #: restarted in flight, the weight swung to 0.99 on a wrong start and back within a minute,
 #: and the mixture's σ was that start's own (pack_c60_r1: −15 % at 6.2σ). Chosen on those 35
 #: restarted development flights: worst |error|/σ 6.2 → 2.5, median |error| 60 s after the
