@@ -163,8 +163,10 @@ def test_a_serial_becomes_a_file_name_or_nothing(serial: str, pack_id: str | Non
 
 def _started_pipeline() -> Pipeline:
     pipeline = Pipeline(default_vehicle())
-    for sample in (BatterySample(1.0, 24.0, 10.0, 0.0), BatterySample(2.1, 24.0, 10.0, 3.0)):
-        pipeline.process(sample)  # the second closes a period: the pack filter runs
+    for time_s, consumed_mah in ((1.0, 0.0), (2.1, 3.0), (3.2, 6.0)):
+        # the first starts the energy state; the third closes the second's period: the
+        # pack filter runs
+        pipeline.process(BatterySample(time_s, 24.0, 10.0, consumed_mah))
     assert pipeline.pack_state is not None
     return pipeline
 
@@ -187,8 +189,8 @@ def test_a_serial_on_the_ground_after_the_filter_started_restarts_it_from_memory
     note = pack.reported("PACK-7")
     assert note is not None and "its memory says 3.20 Ah" in note
     assert pipeline.pack_prior is not None and pipeline.pack_state is None
-    pipeline.process(BatterySample(3.2, 24.0, 10.0, 6.0))
     pipeline.process(BatterySample(4.3, 24.0, 10.0, 9.0))
+    pipeline.process(BatterySample(5.4, 24.0, 10.0, 12.0))
     assert pipeline.pack_state is not None
     assert pipeline.pack_state.estimate().capacity_ah == pytest.approx(3.2, rel=0.05)
 

@@ -138,8 +138,9 @@ def test_the_daemon_starts_from_the_packs_memory_and_stores_what_it_learns(
     service = Service(config, vehicle)
     assert service.pipeline.pack_prior is not None
     assert service.pipeline.pack_prior.capacity_ah == 3.2
-    for sample in (BatterySample(1.0, 24.0, 10.0, 0.0), BatterySample(2.1, 24.0, 10.0, 3.0)):
-        service.pipeline.process(sample)  # the second closes a period: the pack filter runs
+    for time_s, consumed_mah in ((1.0, 0.0), (2.1, 3.0), (3.2, 6.0)):
+        # the third closes the second's period: the pack filter runs
+        service.pipeline.process(BatterySample(time_s, 24.0, 10.0, consumed_mah))
     assert service.pipeline.pack_state is not None
     service._remember_pack()
     record = load_record(tmp_path, "pack-A")

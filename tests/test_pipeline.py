@@ -66,6 +66,42 @@ def test_no_estimate_before_the_first_battery_sample_then_one_per_period() -> No
     assert p.counts["estimates"] == 2
 
 
+def test_a_reading_is_fused_in_the_period_its_time_falls_in() -> None:
+    """A link stamps BATTERY_STATUS with the newest autopilot time it has seen, so a reading
+    can be the first sample past a period's end; a log with denser positions has one of
+    those first. Either way the reading belongs to the next period: the periods fuse the
+    same readings, and the pack filter learns the same pack."""
+
+    def stream(dense: bool) -> list[Sample]:
+        samples: list[Sample] = [BatterySample(0.0, FULL_V, 0.3, 0.0), ArmedSample(0.0, True)]
+        consumed_mah = 0.0
+        for k in range(1, 600):
+            t = k * 0.1 + 0.08  # positions stamped 80 ms past each tenth
+            if dense and k % 10 == 0:
+                samples.append(VelocitySample(t - 0.08, 8.0, 0.0, 0.0, 20.0))
+            if k % 5 == 0:
+                current_a = 20.0 + 3.0 * ((k // 5) % 3)
+                consumed_mah += current_a * 0.5 / 3.6
+                voltage_v = FULL_V - 0.02 * current_a - 0.0005 * k
+                samples.append(BatterySample(t, voltage_v, current_a, consumed_mah))
+            samples.append(VelocitySample(t, 8.0, 0.0, 0.0, 20.0))
+        return samples
+
+    fused = []
+    for dense in (False, True):
+        p = Pipeline(VEHICLE)
+        periods = [
+            (e.time_s, [r.time_s for r in p.readings])
+            for s in stream(dense)
+            if (e := p.process(s)) is not None
+        ]
+        for end_s, readings in periods:  # periods of 1 s of the sample clock
+            assert all(t < math.floor(end_s) for t in readings), (end_s, readings)
+        assert p.pack_state is not None
+        fused.append(([r for _, r in periods], p.pack_state.estimate()))
+    assert fused[0] == fused[1]
+
+
 def test_flush_closes_the_open_period() -> None:
     p = Pipeline(VEHICLE)
     p.process(BatterySample(0.0, FULL_V, 0.0, 0.0))

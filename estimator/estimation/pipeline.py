@@ -3,10 +3,11 @@
 The daemon feeds it from a socket, replay from a file, tests from lists; time comes only from
 the samples, so the same samples always give the same estimates.
 
-Work happens in *periods* of the sample clock (``estimate_period_s``, 0.5 s by default): each
+Work happens in *periods* of the sample clock (``estimate_period_s``, 1 s by default): each
 velocity sample runs the kinematics (causal Kalman filter, scalar arithmetic) and is queued;
-each battery sample is queued. The sample that reaches the end of a period closes it, and then,
-once for the whole period:
+each battery sample is queued in the period its time falls in. The sample that reaches the end
+of a period closes it (a velocity sample as the period's last event, a battery reading as the
+next period's first), and then, once for the whole period:
 
 1. the model power after every queued velocity sample, in one vectorized call of
    :func:`estimator.physics.effects.predict_power_w` (the one place power is predicted);
@@ -259,12 +260,7 @@ class Pipeline:
             if not self.energy.initialized:
                 self._initialize(sample)
                 return None
-            alt_m = None if self._state is None else self._state.alt_m
-            reading = _Reading(
-                sample, len(self._events), self._armed, alt_m, self._state, self._on_ground
-            )
-            self._pending.append(reading)
-            self._battery = sample
+            return self._queue_reading(sample)
         elif isinstance(sample, ArmedSample):
             self.counts["armed" if sample.armed else "disarmed"] += 1
             self._armed = sample.armed
@@ -298,6 +294,24 @@ class Pipeline:
         if sample.time_s < self._period_end_s:
             return None
         return self._close_period(sample.time_s)
+
+    def _queue_reading(self, sample: BatterySample) -> Estimate | None:
+        """Queue a battery reading in the period its time falls in: one past the open
+        period's end closes that period first (so the period's readings, and the one the pack
+        filter takes, are the same whichever other samples came between them: a log and a
+        link that interleave them differently fuse the same readings)."""
+        estimate = None
+        if sample.time_s >= self._period_end_s:
+            self._time_s = sample.time_s
+            estimate = self._close_period(sample.time_s)
+        alt_m = None if self._state is None else self._state.alt_m
+        reading = _Reading(
+            sample, len(self._events), self._armed, alt_m, self._state, self._on_ground
+        )
+        self._pending.append(reading)
+        self._battery = sample
+        self._time_s = sample.time_s
+        return estimate
 
     def flush(self) -> Estimate | None:
         """Close the open period at the newest sample's time (end of a log): the estimate of
