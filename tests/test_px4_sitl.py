@@ -32,6 +32,7 @@ from collections.abc import Iterator
 from dataclasses import dataclass
 from datetime import datetime
 from pathlib import Path
+from statistics import median
 
 import pytest
 from pymavlink.dialects.v20 import common as mavlink
@@ -74,7 +75,7 @@ PARAMS = {"MIS_TAKEOFF_ALT": FLIGHT_ALT_M}
 TEST_PACK_PARAMS = {**PARAMS, "SIM_BAT_ENABLE": 0.0, "COM_FLTT_LOW_ACT": 0.0, "SDLOG_MODE": 0.0}
 #: PX4's default BATTERY_STATUS rate on its onboard link (Hz), and the daemon's request.
 PX4_DEFAULT_BATTERY_HZ = 0.5
-REQUESTED_BATTERY_HZ = 2.0
+REQUESTED_BATTERY_HZ = 5.0
 #: PX4 seconds from take-off to the daemon's first estimate in the air (the done-when bound).
 FIRST_ESTIMATE_S = 15.0
 #: PX4 seconds after take-off by which the endurance is valid (the take-off transient and the
@@ -110,15 +111,17 @@ RTL_TIME_TOLERANCE = 0.10
 LEG_S, RTL_LEG_S = 15.0, 25.0
 #: PX4 seconds from its landed state leaving ON_GROUND to the daemon's (the done-when bound).
 OFF_GROUND_S = 2.0
-#: The ULog replay's energy against the live estimates', largest difference (%). The aim is
-#: 1 %: the pack filter takes each period's latest reading, which the two transports take
-#: from different rates (BATTERY_STATUS at 2 Hz live, about 5 Hz in the ULog), and the
-#: neighbouring reading moves its capacity by up to 2 % (0.09–1.99 % measured over six runs;
-#: docs/daemon.md).
-ULOG_ENERGY_PCT = 3.0
-#: The same, in the live estimate's energy σ: the aim of 1 % is finer than the energy is
-#: known this early in the pack (σ 8-13 %); 0.01-0.15σ measured over six runs.
-ULOG_ENERGY_SIGMAS = 0.25
+#: The ULog replay's energy against the live estimates', largest difference (%): the
+#: done-when bound. The link carries the readings the ULog holds (BATTERY_STATUS asked for at
+#: 5 Hz, the test's pack's rate), and each is fused in the period its time falls in by either
+#: transport (docs/daemon.md).
+ULOG_ENERGY_PCT = 1.0
+#: The same, in the live estimate's energy σ (8-13 % this early in the pack).
+ULOG_ENERGY_SIGMAS = 0.05
+#: PX4 seconds on the ground before arming, with the test's pack: the link carries
+#: BATTERY_STATUS at PX4's 0.5 Hz until the daemon's request is in, so a take-off straight
+#: after boot met the pack filter with fewer readings at rest by the link than by the log.
+GROUND_S = 10.0
 
 
 @dataclass
@@ -182,6 +185,7 @@ def fly(
     pack: MotorPack | None,
     mission: tuple[MissionItem, ...] = (),
     rtl: bool = False,
+    ground_s: float = 0.0,
 ) -> Flown:
     """The daemon, then PX4 (with ``params``) on a free instance in ``tmp_path``, the flight
     (``pack`` fed into PX4 when given; ``mission`` uploaded first; ending in RTL with
@@ -200,7 +204,9 @@ def fly(
                 pilot.listeners.append(lambda _: drawn_at_changes(pilot, drawn_wh))
                 try:
                     leg_s = RTL_LEG_S if rtl else LEG_S
-                    pilot.fly(alt_m=FLIGHT_ALT_M, leg_s=leg_s, mission=mission, rtl=rtl)
+                    pilot.fly(
+                        FLIGHT_ALT_M, leg_s=leg_s, mission=mission, rtl=rtl, ground_s=ground_s
+                    )
                     end_s = pilot.state.boot_s - 1.0
                     deadline = time.monotonic() + CATCH_UP_WALL_S
                     while time.monotonic() < deadline:  # PX4 runs on: the daemon catches up
@@ -257,9 +263,9 @@ def battery_hz(flown: Flown) -> float:
 
 def test_px4_with_a_measured_pack(tmp_path: Path) -> None:
     """The test's pack, current from PX4's motor outputs: PX4 locked, message intervals
-    requested the PX4 way (BATTERY_STATUS from 0.5 Hz to 2 Hz), fused estimates with the
+    requested the PX4 way (BATTERY_STATUS from 0.5 Hz to 5 Hz), fused estimates with the
     endurance valid in the air, energy falling as the pack drains, NAMED_VALUE_FLOATs out."""
-    flown = fly(tmp_path, TEST_PACK_PARAMS, MotorPack(capacity_ah=1.5))
+    flown = fly(tmp_path, TEST_PACK_PARAMS, MotorPack(capacity_ah=1.5), ground_s=GROUND_S)
     assert "autopilot found" in flown.log or "locked" in flown.log, flown.log
     assert "message intervals requested (PX4)" in flown.log, flown.log
     assert "streams requested" not in flown.log  # no REQUEST_DATA_STREAM to PX4
@@ -286,8 +292,9 @@ def test_px4_with_a_measured_pack(tmp_path: Path) -> None:
     assert {"ENERGY_WH", "ENDUR_S", "FLAGS"} <= names
     battery = [m for m in flown.published if m.get_type() == "BATTERY_STATUS"]
     assert battery and {m.get_srcComponent() for m in flown.published} == {191}
-    # the first estimate after PX4's take-off (its landed state leaving ON_GROUND)
-    takeoff_s = flown.px4.landed_changes[flown.landed_change(mavlink.MAV_LANDED_STATE_TAKEOFF)][0]
+    # the first estimate after PX4's take-off: its landed state leaving ON_GROUND (for
+    # TAKEOFF, or, after a wait on the ground, often straight for IN_AIR)
+    takeoff_s = next(t for t, state in flown.px4.landed_changes if state != ON_GROUND)
     first_s = min(e["time_s"] for e in flown.estimates if e["time_s"] >= takeoff_s)
     assert first_s - takeoff_s <= FIRST_ESTIMATE_S
     # the same flight from PX4's own log: `uav-energy replay` of the ULog, estimate by
@@ -303,14 +310,23 @@ def test_px4_with_a_measured_pack(tmp_path: Path) -> None:
     )
     assert energy_pct <= ULOG_ENERGY_PCT
     doc_figure("ULog replay against the live energy, largest difference", energy_pct)
-    # the same difference against the live estimate's own 1σ: the two transports' readings
-    # differ, and this early in the pack the energy is known to 8-13 %
+    # the same difference against the live estimate's own 1σ (8-13 % this early in the pack)
     energy_sigmas = max(
         abs(r.energy_remaining_wh - e["energy_remaining_wh"]) / e["energy_remaining_sigma_wh"]
         for r, e in matched
     )
     assert energy_sigmas <= ULOG_ENERGY_SIGMAS
     doc_figure("ULog replay against the live energy, in the live σ", energy_sigmas)
+    # the endurance rests on the model power of each transport's own velocities (the ULog's
+    # vehicle_local_position, the link's GLOBAL_POSITION_INT): held to its table row only
+    # (null in JSON: not valid, or no end in sight on the ground)
+    endurance_pct = [
+        100 * abs(r.endurance_s / e["endurance_s"] - 1)
+        for r, e in matched
+        if e["endurance_valid"] and e["endurance_s"] and 0 < r.endurance_s < math.inf
+    ]
+    doc_figure("ULog replay against the live endurance, median difference", median(endurance_pct))
+    doc_figure("ULog replay against the live endurance, largest difference", max(endurance_pct))
     # the pack's voltage follows its load: never flagged, its response well above the floor
     assert all(e["voltage_follows_load"] for e in flown.estimates)
     assert "does not follow the load" not in flown.log

@@ -83,7 +83,7 @@ class ServiceConfig:
     system_id: int = 1
     request_streams: bool = True
     velocity_rate_hz: float = 10.0
-    battery_rate_hz: float = 2.0
+    battery_rate_hz: float = 5.0
     publish_rate_hz: float = 1.0
     battery_id: int = 9
     values_to_autopilot: bool = False

@@ -368,13 +368,15 @@ class Px4Pilot(Receiver):
         leg_s: float = 15.0,
         mission: Sequence[MissionItem] = (),
         rtl: bool = False,
+        ground_s: float = 0.0,
     ) -> None:
-        """The whole flight: ``mission`` uploaded (when given; not flown), take-off, hover, a
-        reposition, an OFFBOARD leg (``leg_s`` of PX4's clock), hold, land (or RTL with
-        ``rtl``)."""
+        """The whole flight: ``mission`` uploaded (when given; not flown), ``ground_s`` of
+        PX4's clock on the ground, take-off, hover, a reposition, an OFFBOARD leg (``leg_s``
+        of PX4's clock), hold, land (or RTL with ``rtl``)."""
         self.connect()
         if mission:
             self.upload_mission(mission)
+        self.hold(ground_s)
         self.arm()
         self.take_off(alt_m)
         self.hold(hover_s)
