@@ -269,7 +269,9 @@ def test_px4_with_a_measured_pack(tmp_path: Path) -> None:
     assert "autopilot found" in flown.log or "locked" in flown.log, flown.log
     assert "message intervals requested (PX4)" in flown.log, flown.log
     assert "streams requested" not in flown.log  # no REQUEST_DATA_STREAM to PX4
-    assert battery_hz(flown) > 0.75 * REQUESTED_BATTERY_HZ > PX4_DEFAULT_BATTERY_HZ
+    # the request is in (over the whole boot, PX4's 0.5 Hz before it: its table row holds
+    # the rate itself)
+    assert battery_hz(flown) > 0.6 * REQUESTED_BATTERY_HZ > PX4_DEFAULT_BATTERY_HZ
     doc_figure("BATTERY_STATUS decoded by the daemon", battery_hz(flown))
     # PX4's landed detector reached the pipeline: off the ground, and back on it
     assert flown.counters["pipeline_off_ground"] >= 1 <= flown.counters["pipeline_on_ground"]

@@ -300,17 +300,15 @@ class Pipeline:
         period's end closes that period first (so the period's readings, and the one the pack
         filter takes, are the same whichever other samples came between them: a log and a
         link that interleave them differently fuse the same readings)."""
-        estimate = None
-        if sample.time_s >= self._period_end_s:
-            self._time_s = sample.time_s
-            estimate = self._close_period(sample.time_s)
+        self._time_s = sample.time_s
+        closing = sample.time_s >= self._period_end_s
+        estimate = self._close_period(sample.time_s) if closing else None
         alt_m = None if self._state is None else self._state.alt_m
         reading = _Reading(
             sample, len(self._events), self._armed, alt_m, self._state, self._on_ground
         )
         self._pending.append(reading)
         self._battery = sample
-        self._time_s = sample.time_s
         return estimate
 
     def flush(self) -> Estimate | None:
