@@ -143,6 +143,11 @@ class Flown:
         """The index of the first change of PX4's landed state to ``state``."""
         return next(i for i, (_, s) in enumerate(self.px4.landed_changes) if s == state)
 
+    def off_ground_s(self) -> float:
+        """PX4's clock (s) when its landed state first left ON_GROUND (for TAKEOFF, or after
+        a wait on the ground often straight for IN_AIR)."""
+        return next(t for t, s in self.px4.landed_changes if s != ON_GROUND)
+
     def airborne(self) -> list[dict]:
         """The estimates between PX4's take-off (landed state IN_AIR) and its landing."""
         up = self.landed_change(mavlink.MAV_LANDED_STATE_IN_AIR)
@@ -294,9 +299,8 @@ def test_px4_with_a_measured_pack(tmp_path: Path) -> None:
     assert {"ENERGY_WH", "ENDUR_S", "FLAGS"} <= names
     battery = [m for m in flown.published if m.get_type() == "BATTERY_STATUS"]
     assert battery and {m.get_srcComponent() for m in flown.published} == {191}
-    # the first estimate after PX4's take-off: its landed state leaving ON_GROUND (for
-    # TAKEOFF, or, after a wait on the ground, often straight for IN_AIR)
-    takeoff_s = next(t for t, state in flown.px4.landed_changes if state != ON_GROUND)
+    # the first estimate after PX4's take-off
+    takeoff_s = flown.off_ground_s()
     first_s = min(e["time_s"] for e in flown.estimates if e["time_s"] >= takeoff_s)
     assert first_s - takeoff_s <= FIRST_ESTIMATE_S
     # the same flight from PX4's own log: `uav-energy replay` of the ULog, estimate by
@@ -402,7 +406,7 @@ def test_px4_own_pack_mission_rtl_and_take_off(tmp_path: Path) -> None:
     doc_figure("the daemon's RTL time against PX4's, error", 100 * (predicted_s / flown_s - 1))
     # off the ground: the daemon's landed state against PX4's (its detector: TAKEOFF, then
     # IN_AIR once the take-off is done)
-    up_s = next(t for t, s in flown.px4.landed_changes if s != ON_GROUND)
+    up_s = flown.off_ground_s()
     in_air_s = flown.px4.landed_changes[flown.landed_change(mavlink.MAV_LANDED_STATE_IN_AIR)][0]
     daemon_up_s = float(re.findall(r"landed detector: off the ground at ([\d.]+) s", flown.log)[0])
     first = next(e for e in flown.estimates if e["time_s"] >= daemon_up_s)
