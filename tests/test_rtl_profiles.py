@@ -10,7 +10,12 @@ from pymavlink.dialects.v20 import common as mavlink
 
 from estimator.errors import UserError
 from estimator.estimation.return_home import ReturnHome, ReturnSettings
-from estimator.estimation.rtl_profiles import px4_rtl, rtl_settings
+from estimator.estimation.rtl_profiles import (
+    PX4_FLOWN_ACCEL_MPS2,
+    PX4_TOUCHDOWN_S,
+    px4_rtl,
+    rtl_settings,
+)
 from estimator.logs.mission_files import MissionItem
 from estimator.mavlink.config import ServiceConfig, build_config
 from estimator.mavlink.mission_download import item_text
@@ -41,9 +46,10 @@ def test_px4_rtl_flies_its_cruise_speed_and_lands_from_its_return_height() -> No
     """Under PX4's RTL: 100 m more take 100 m / MPC_XY_CRUISE (5 m/s); 10 m above
     RTL_RETURN_ALT (30 m) take 10 m / MPC_Z_V_AUTO_DN (1.5 m/s) more; below it the climb is
     at MPC_Z_V_AUTO_UP (3 m/s). From 200 m out at 30 m the return is the leg (200 m at 5 m/s
-    plus one ramp of 5/3 + 3/4 s, MPC_ACC_HOR and MPC_JERK_AUTO) and the landing: 20 m at
-    1.5 m/s after a start of 2·sqrt(1.5/4) s (MPC_JERK_AUTO bounds it), the blend from 10 m to
-    5 m, 4 m at 0.7 m/s, the 1 m crawl at 0.3 m/s and 3 s of the land detector."""
+    plus one ramp of 5/a + a/4 s: PX4's ramp as flown, a, and MPC_JERK_AUTO) and the landing:
+    20 m at 1.5 m/s after a start of 2·sqrt(1.5/4) s (MPC_JERK_AUTO bounds it), the blend from
+    10 m to 5 m, 5 m at 0.7 m/s (no crawl without a distance sensor) and the touchdown to
+    ON_GROUND as flown."""
     px4 = px4_rtl(ReturnSettings())
     at_30_s = route_time_s(px4, 200.0, 30.0)
     assert route_time_s(px4, 300.0, 30.0) - at_30_s == pytest.approx(100.0 / 5.0)
@@ -51,10 +57,11 @@ def test_px4_rtl_flies_its_cruise_speed_and_lands_from_its_return_height() -> No
     assert route_time_s(px4, 200.0, 0.0) - route_time_s(px4, 200.0, 15.0) == pytest.approx(
         15.0 / 3.0
     )
-    leg_s = 200.0 / 5.0 + 5.0 / 3.0 + 3.0 / 4.0
+    a = PX4_FLOWN_ACCEL_MPS2
+    leg_s = 200.0 / 5.0 + 5.0 / a + a / 4.0
     start_s = 2.0 * math.sqrt(1.5 / 4.0)
     landing_s = start_s + (20.0 - 1.5 * start_s / 2) / 1.5 + 5.0 / 0.8 * math.log(1.5 / 0.7)
-    landing_s += 4.0 / 0.7 + 1.0 / 0.3 + 3.0
+    landing_s += 5.0 / 0.7 + PX4_TOUCHDOWN_S
     assert at_30_s == pytest.approx(leg_s + landing_s, abs=0.01)
 
 

@@ -515,12 +515,12 @@ class ReturnHome:
                     rv, conditions, loiter_m - height_m, s.descent_rate_mps, kinematics=k
                 ),
                 hover_energy(rv, conditions, s.loiter_s),
-                *self._landing(conditions, loiter_m, k),
+                *self.landing(conditions, loiter_m, k),
             ]
         )
         return total, leg.ground_speed_mps
 
-    def _landing(self, conditions: Conditions, height_m: float, k: Kinematics) -> list[RouteEnergy]:
+    def landing(self, conditions: Conditions, height_m: float, k: Kinematics) -> list[RouteEnergy]:
         """The landing from ``height_m`` (m over home): fast, (PX4) blended, slow, and the
         crawl over a distance sensor when set, then the touchdown."""
         s, rv = self.settings, self._vehicle
