@@ -26,7 +26,8 @@ from pymavlink.dialects.v20 import common as mavlink
 
 from estimator.estimation.return_home import ReturnHome, ReturnSettings
 from estimator.estimation.rtl_profiles import PX4_FLOWN_ACCEL_MPS2, PX4_TOUCHDOWN_S, px4_rtl
-from estimator.physics.route_energy import Conditions, Kinematics, RouteVehicle, leg_energy
+from estimator.physics.route_energy import Conditions, RouteVehicle
+from estimator.physics.route_segments import Kinematics, leg_energy
 from estimator.physics.vehicle import load_vehicle
 from estimator.sitl.px4 import (
     Px4Options,

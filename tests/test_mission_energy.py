@@ -25,14 +25,16 @@ from estimator.physics.route_energy import (
     UNCERTAINTY_SOURCES,
     Conditions,
     InfeasibleTrack,
-    Kinematics,
     RouteVehicle,
+    optimal_speed,
+    steady_power_w,
+)
+from estimator.physics.route_segments import (
+    Kinematics,
     hover_energy,
     landing_energy,
     leg_energy,
-    optimal_speed,
     reachable_ground_speed_mps,
-    steady_power_w,
     sum_energies,
     vertical_energy,
 )

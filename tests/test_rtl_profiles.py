@@ -19,7 +19,8 @@ from estimator.estimation.rtl_profiles import (
 from estimator.logs.mission_files import MissionItem
 from estimator.mavlink.config import ServiceConfig, build_config
 from estimator.mavlink.mission_download import item_text
-from estimator.physics.route_energy import Conditions, RouteVehicle, landing_energy
+from estimator.physics.route_energy import Conditions, RouteVehicle
+from estimator.physics.route_segments import landing_energy
 from estimator.physics.vehicle import default_vehicle
 
 

@@ -47,16 +47,18 @@ from estimator.physics.route_energy import (
     DEFAULT_VERTICAL_ACCEL_MPS2,
     Conditions,
     InfeasibleTrack,
-    Kinematics,
     RouteEnergy,
     RouteVehicle,
     SpeedChoice,
+    optimal_speed,
+    steady_power_w,
+)
+from estimator.physics.route_segments import (
+    Kinematics,
     hover_energy,
     landing_energy,
     leg_energy,
-    optimal_speed,
     reachable_ground_speed_mps,
-    steady_power_w,
     sum_energies,
     vertical_energy,
 )
@@ -81,7 +83,7 @@ class FlightSettings:
     angles θ scale it by sqrt(cot(θ/2)), 0 for a reversal). spool_s: motors spinning up at
     take-off before the climb. max_airspeed_mps: the vehicle's (None: its file's, else 20).
     airspeed_along_track: the limit holds for the airspeed along the track (the vehicle
-    faces its track; :func:`~estimator.physics.route_energy.reachable_ground_speed_mps`).
+    faces its track; :func:`~estimator.physics.route_segments.reachable_ground_speed_mps`).
     """
 
     cruise_mps: float = 10.0

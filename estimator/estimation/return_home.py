@@ -53,13 +53,15 @@ from estimator.physics.route_energy import (
     UNCERTAINTY_SOURCES,
     Conditions,
     InfeasibleTrack,
-    Kinematics,
     RouteEnergy,
     RouteVehicle,
+    optimal_speed,
+)
+from estimator.physics.route_segments import (
+    Kinematics,
     hover_energy,
     landing_energy,
     leg_energy,
-    optimal_speed,
     sum_energies,
     vertical_energy,
 )
@@ -110,12 +112,12 @@ class ReturnSettings:
     wind-optimal search stays below it), m/s; None: the vehicle file's ``max_airspeed_mps``,
     else :data:`~estimator.physics.route_energy.DEFAULT_MAX_AIRSPEED_MPS`.
     airspeed_along_track: that limit holds for the airspeed along the track (a multicopter
-    facing its track; :func:`~estimator.physics.route_energy.reachable_ground_speed_mps`).
+    facing its track; :func:`~estimator.physics.route_segments.reachable_ground_speed_mps`).
     max_ground_speed_mps: the fastest return ground speed the autopilot accepts (ArduCopter
     RTL_SPEED ≤ 20 m/s), m/s.
     accel_mps2, jerk_mps3, vertical_accel_mps2: how the autopilot changes speed (ArduCopter
     WPNAV_ACCEL, WPNAV_JERK, WPNAV_ACCEL_Z): the stop from the current velocity and the speed
-    ramps (:class:`~estimator.physics.route_energy.Kinematics`); vertical_jerk_mps3: the
+    ramps (:class:`~estimator.physics.route_segments.Kinematics`); vertical_jerk_mps3: the
     vertical ramps' jerk limit (None: none; PX4's MPC_JERK_AUTO). pause_s: RTL's pause in
     place before it turns home (2 s, measured in SITL by the mission-energy work).
     climb_rate_mps / descent_rate_mps: vertical speeds of the climb and of the landing above

@@ -3,14 +3,19 @@
 Pure functions of a :class:`RouteVehicle` (the vehicle file's power model, mass and effects) and
 :class:`Conditions` (wind, payload and their uncertainty). Power comes from the project's one
 prediction, :func:`~estimator.physics.effects.predict_power_w`, piecewise: each phase of a
-segment at one velocity with its mean acceleration (steady, unless :class:`Kinematics` adds
-the speed changes).
+segment at one velocity with its mean acceleration (steady, unless
+:class:`~estimator.physics.route_segments.Kinematics` adds the speed changes).
 
 Conventions: positions and velocities NED (north, east, down), horizontal tracks in degrees
 clockwise from north; the wind follows :class:`~estimator.physics.effects.Wind`: ``speed_mps``
 and ``from_deg``, the direction it blows **from** (0 = a north wind, blowing south).
 Ground speeds are over ground (what an autopilot's waypoint speed sets), airspeeds relative to
 the air mass. Energies are electrical, at the battery, Wh.
+
+The segments (legs, hovers, vertical moves, landings, their sum) are
+:mod:`estimator.physics.route_segments`; this module holds what they rest on: the vehicle and
+the conditions, a segment's result, the steady power and the energy of a segment's phases with
+its sensitivities, and the wind-optimal speed.
 
 Climbs and descents: the vehicle file's ``[effects.climb]`` when it has one; otherwise the same
 momentum-theory term with its consistency efficiency m g v0 / c3 capped at 1 (see
@@ -22,9 +27,10 @@ Uncertainty (1σ, first order): each result carries ``sensitivity_wh``, the sign
 energy for a 1σ change of each independent source in :data:`UNCERTAINTY_SOURCES` — the model's
 coefficients (the vehicle file's ``[model.stderr]``, taken as independent: the file has no
 covariance, so σ is conservative where c1 and c3 anticorrelate), each horizontal wind component
-and the payload. Summing sensitivities over segments (:func:`sum_energies`) keeps the sources'
-correlation along a route; ``energy_sigma_wh`` is their root sum of squares. Speeds chosen as
-wind-optimal are held at the nominal choice (a commanded speed) when propagating.
+and the payload. Summing sensitivities over segments
+(:func:`~estimator.physics.route_segments.sum_energies`) keeps the sources' correlation along a
+route; ``energy_sigma_wh`` is their root sum of squares. Speeds chosen as wind-optimal are held
+at the nominal choice (a commanded speed) when propagating.
 """
 
 from __future__ import annotations
@@ -75,7 +81,7 @@ DEFAULT_LAND_SPEED_MPS = 0.5
 MIN_GROUND_SPEED_MPS = 0.2
 #: Finite-difference step of the sensitivities, in units of each source's 1σ.
 _STEP_SIGMAS = 0.05
-_J_PER_WH = 3600.0
+J_PER_WH = 3600.0
 #: Energy per metre (J/m) standing for "beyond the airspeed limit" in the speed search.
 _OUT_OF_RANGE = 1e12
 #: Phase states whose powers a :class:`RouteVehicle` keeps per set of hypotheses, and sets of
@@ -178,7 +184,8 @@ class SpeedChoice:
 
 @dataclass(frozen=True)
 class RouteEnergy:
-    """Energy and time of one segment (or a sum of segments, :func:`sum_energies`).
+    """Energy and time of one segment (or a sum of segments,
+    :func:`~estimator.physics.route_segments.sum_energies`).
 
     kind: "leg", "hover", "vertical", "landing" or "sum". distance_m: horizontal over ground,
     m. climb_m: height gained (negative: lost), m. time_s: duration, s. ground_speed_mps,
@@ -308,7 +315,7 @@ class _PhaseState(NamedTuple):
 
 
 @dataclass(frozen=True)
-class _Phase:
+class Phase:
     """A piece of flight at one mean state: velocity NED (m/s), horizontal acceleration NED
     (m/s²), duration (s)."""
 
@@ -325,7 +332,7 @@ class _Phase:
 
 
 def _energies_wh(
-    vehicle: RouteVehicle, phases: Sequence[_Phase], hypotheses: Sequence[_Hypothesis]
+    vehicle: RouteVehicle, phases: Sequence[Phase], hypotheses: Sequence[_Hypothesis]
 ) -> list[float]:
     """Energy (Wh) of ``phases`` under each hypothesis. The powers of phase states not yet in
     the vehicle's :attr:`~RouteVehicle.phase_powers_w` come from one prediction over those
@@ -356,11 +363,11 @@ def _energies_wh(
         for s, powers in zip(missing, power_w.T.tolist(), strict=True):
             table[s] = tuple(powers)
     rows = [(table[s], ph.duration_s) for s, ph in zip(states, phases, strict=True)]
-    return [sum(p[i] * d for p, d in rows) / _J_PER_WH for i in range(len(hypotheses))]
+    return [sum(p[i] * d for p, d in rows) / J_PER_WH for i in range(len(hypotheses))]
 
 
-def _energy_with_sensitivity(
-    vehicle: RouteVehicle, conditions: Conditions, phases: Sequence[_Phase]
+def energy_with_sensitivity(
+    vehicle: RouteVehicle, conditions: Conditions, phases: Sequence[Phase]
 ) -> tuple[float, tuple[float, ...]]:
     """Energy (Wh) of ``phases`` and its 1σ sensitivities (:data:`UNCERTAINTY_SOURCES`): the
     wind and payload steps in one prediction with the nominal, each model step in its own."""
@@ -403,8 +410,9 @@ def optimal_speed(
     """The ground speed along ``track_deg`` with the least energy per metre over ground, with
     ground speed in [:data:`MIN_GROUND_SPEED_MPS`, max_ground_speed_mps] and airspeed at most
     ``max_airspeed_mps`` (its component along the track when ``along_track``, see
-    :func:`reachable_ground_speed_mps`); in still air this is the model's V_mr.
-    InfeasibleTrack when no ground speed in range keeps the airspeed within its limit."""
+    :func:`~estimator.physics.route_segments.reachable_ground_speed_mps`); in still air this is
+    the model's V_mr. InfeasibleTrack when no ground speed in range keeps the airspeed within
+    its limit."""
     wn, we = conditions.wind_ne_mps()
     un, ue = math.cos(math.radians(track_deg)), math.sin(math.radians(track_deg))
 
@@ -430,345 +438,3 @@ def optimal_speed(
     vg = argmin_on_grid(cost, lo, hi)
     per_m = float(cost(np.array([vg]))[0])
     return SpeedChoice(track_deg, vg, float(airspeed(np.array([vg]))[0]), per_m * vg, per_m)
-
-
-# -- segments ------------------------------------------------------------------------------------
-
-
-def reachable_ground_speed_mps(
-    conditions: Conditions, track_deg: float, max_airspeed_mps: float, along_track: bool = False
-) -> float:
-    """The fastest ground speed along ``track_deg`` at ``max_airspeed_mps`` in the wind (m/s;
-    0 when the wind allows no headway). ``along_track``: the limit holds for the airspeed's
-    component along the track only (a multicopter facing its track whose limit is forward
-    drag, as ArduCopter SITL's quad), so a crosswind costs no ground speed."""
-    wn, we = conditions.wind_ne_mps()
-    un, ue = math.cos(math.radians(track_deg)), math.sin(math.radians(track_deg))
-    along, across = wn * un + we * ue, -wn * ue + we * un
-    if along_track:
-        return max(along + max_airspeed_mps, 0.0)
-    if abs(across) >= max_airspeed_mps:
-        return 0.0
-    return max(along + math.sqrt(max_airspeed_mps**2 - across**2), 0.0)
-
-
-@dataclass(frozen=True)
-class Kinematics:
-    """How the autopilot changes speed: horizontal ``accel_mps2`` (m/s²) with ``jerk_mps3``
-    (m/s³; None: no jerk limit), vertical ``vertical_accel_mps2`` (m/s²; None: at once) with
-    ``vertical_jerk_mps3`` (m/s³; None: none, ArduCopter's model; PX4's MPC_JERK_AUTO limits
-    every axis). A speed change of Δv takes Δv/a + a/j when Δv ≥ a²/j, else 2 sqrt(Δv/j) (a
-    jerk-limited S-curve), and is flown at the mean speed with the mean acceleration (so eq.
-    (2)'s kinetic term and the file's ``acceleration`` effect count the kinetic energy gained
-    and lost)."""
-
-    accel_mps2: float
-    jerk_mps3: float | None = None
-    vertical_accel_mps2: float | None = None
-    vertical_jerk_mps3: float | None = None
-
-    def ramp_s(self, dv_mps: float, vertical: bool = False) -> float:
-        """Time (s) to change speed by ``dv_mps``."""
-        dv = abs(dv_mps)
-        accel, jerk = self.accel_mps2, self.jerk_mps3
-        if vertical:
-            accel, jerk = self.vertical_accel_mps2 or 0.0, self.vertical_jerk_mps3
-            if not accel:
-                return 0.0
-        if jerk is None or jerk <= 0:
-            return dv / accel
-        if dv >= accel**2 / jerk:
-            return dv / accel + accel / jerk
-        return 2.0 * math.sqrt(dv / jerk)
-
-
-def leg_energy(
-    vehicle: RouteVehicle,
-    conditions: Conditions,
-    *,
-    distance_m: float,
-    track_deg: float,
-    climb_m: float = 0.0,
-    ground_speed_mps: float | None = None,
-    climb_rate_mps: float = DEFAULT_CLIMB_RATE_MPS,
-    descent_rate_mps: float = DEFAULT_DESCENT_RATE_MPS,
-    max_ground_speed_mps: float = DEFAULT_MAX_GROUND_SPEED_MPS,
-    max_airspeed_mps: float = DEFAULT_MAX_AIRSPEED_MPS,
-    kinematics: Kinematics | None = None,
-    start_speed_mps: float = 0.0,
-    end_speed_mps: float = 0.0,
-    along_track: bool = False,
-) -> RouteEnergy:
-    """A straight leg of ``distance_m`` over ground along ``track_deg`` while changing height by
-    ``climb_m`` (m, + up), at ``ground_speed_mps`` (None: :func:`optimal_speed`), never faster
-    than ``max_airspeed_mps`` allows in the wind.
-
-    Horizontal and vertical motion run together, as a multicopter's waypoint controller flies a
-    sloped leg: the leg takes the longer of the horizontal and the vertical time (``climb_rate_mps``
-    up, ``descent_rate_mps`` down; the horizontal speed is lowered to match). Without
-    ``kinematics`` the whole leg is flown at one speed; with it the leg speeds up from
-    ``start_speed_mps`` and slows to ``end_speed_mps`` (m/s: 0 to stop at its end, more to
-    round a corner), the cruise speed lowered when the leg is too short to reach it.
-    ``along_track``: the airspeed limit holds along the track (:func:`reachable_ground_speed_mps`).
-    """
-    if distance_m < 0 or not math.isfinite(distance_m):
-        raise ValueError("distance must be finite and ≥ 0")
-    if ground_speed_mps is None:
-        ground_speed_mps = optimal_speed(
-            vehicle,
-            conditions,
-            track_deg,
-            max_ground_speed_mps=max_ground_speed_mps,
-            max_airspeed_mps=max_airspeed_mps,
-            along_track=along_track,
-        ).ground_speed_mps
-    if ground_speed_mps <= 0:
-        raise ValueError("ground speed must be > 0")
-    rate_mps = climb_rate_mps if climb_m >= 0 else descent_rate_mps
-    if rate_mps <= 0:
-        raise ValueError("vertical rates must be > 0")
-    if distance_m > 0:
-        reachable = reachable_ground_speed_mps(conditions, track_deg, max_airspeed_mps, along_track)
-        if reachable <= 0:
-            raise InfeasibleTrack(
-                f"a {conditions.wind_speed_mps:g} m/s wind from {conditions.wind_from_deg:g}° "
-                f"allows no headway along {track_deg:.0f}° within {max_airspeed_mps:g} m/s airspeed"
-            )
-        ground_speed_mps = min(ground_speed_mps, reachable)
-    vertical_s = abs(climb_m) / rate_mps
-    if kinematics is not None and climb_m:
-        vertical_s += kinematics.ramp_s(rate_mps, vertical=True)
-    ends = (min(start_speed_mps, ground_speed_mps), min(end_speed_mps, ground_speed_mps))
-    cruise = ground_speed_mps
-    pieces = _profile(distance_m, cruise, ends, kinematics)
-    if sum(d for _, _, d in pieces) < vertical_s:  # the climb sets the pace
-        cruise = _speed_for_time(distance_m, vertical_s, ends, kinematics)
-        pieces = _profile(distance_m, cruise, ends, kinematics)
-    time_s = max(sum(d for _, _, d in pieces), vertical_s)
-    if time_s <= 0:
-        return _result(vehicle, conditions, "leg", [], 0.0, 0.0, 0.0)
-    rad = math.radians(track_deg)
-    vd = -climb_m / time_s
-    phases = [
-        _Phase(v * math.cos(rad), v * math.sin(rad), vd, d, a * math.cos(rad), a * math.sin(rad))
-        for v, a, d in pieces
-    ]
-    if time_s > sum(ph.duration_s for ph in phases):  # waiting on the climb, in place
-        phases.append(_Phase(0.0, 0.0, vd, time_s - sum(ph.duration_s for ph in phases)))
-    return _result(vehicle, conditions, "leg", phases, distance_m, climb_m, cruise, track_deg)
-
-
-def _profile(
-    distance_m: float,
-    cruise_mps: float,
-    ends: tuple[float, float],
-    kinematics: Kinematics | None,
-) -> list[tuple[float, float, float]]:
-    """(mean speed m/s, acceleration m/s², duration s) of the speed-up, cruise and slow-down
-    of a leg; the cruise speed lowered (bisection) when the leg is too short for it."""
-    if distance_m <= 0 or cruise_mps <= 0:
-        return []
-    if kinematics is None:
-        return [(cruise_mps, 0.0, distance_m / cruise_mps)]
-
-    def ramps(v: float) -> tuple[float, float, float, float]:
-        t1, t3 = kinematics.ramp_s(v - ends[0]), kinematics.ramp_s(v - ends[1])
-        return t1, t3, 0.5 * (v + ends[0]) * t1, 0.5 * (v + ends[1]) * t3
-
-    v = cruise_mps
-    t1, t3, d1, d3 = ramps(v)
-    if d1 + d3 > distance_m:
-        lo, hi = 0.0, v
-        for _ in range(50):
-            mid = 0.5 * (lo + hi)
-            lo, hi = (mid, hi) if sum(ramps(mid)[2:]) <= distance_m else (lo, mid)
-        v = lo
-        t1, t3, d1, d3 = ramps(v)
-        scale = distance_m / (d1 + d3) if d1 + d3 > 0 else 0.0
-        t1, t3, d1, d3 = t1 * scale, t3 * scale, d1 * scale, d3 * scale
-    out = []
-    if t1 > 0:
-        out.append((d1 / t1, (v - ends[0]) / t1, t1))
-    if distance_m - d1 - d3 > 0 and v > 0:
-        out.append((v, 0.0, (distance_m - d1 - d3) / v))
-    if t3 > 0:
-        out.append((d3 / t3, (ends[1] - v) / t3, t3))
-    return out
-
-
-def _profile_s(
-    distance_m: float, cruise_mps: float, ends: tuple[float, float], kin: Kinematics | None
-) -> float:
-    return sum(d for _, _, d in _profile(distance_m, cruise_mps, ends, kin))
-
-
-def _speed_for_time(
-    distance_m: float, time_s: float, ends: tuple[float, float], kin: Kinematics | None
-) -> float:
-    """The cruise speed (m/s) that flies the leg in ``time_s`` (bisection; time falls with
-    speed)."""
-    lo, hi = 1e-3, distance_m / max(time_s, 1e-9) * 4.0 + 1.0
-    for _ in range(60):
-        mid = 0.5 * (lo + hi)
-        lo, hi = (lo, mid) if _profile_s(distance_m, mid, ends, kin) <= time_s else (mid, hi)
-    return hi
-
-
-def hover_energy(vehicle: RouteVehicle, conditions: Conditions, duration_s: float) -> RouteEnergy:
-    """Holding position for ``duration_s`` (s): airspeed is the wind speed."""
-    if duration_s < 0:
-        raise ValueError("duration must be ≥ 0")
-    return _result(vehicle, conditions, "hover", [_Phase(0.0, 0.0, 0.0, duration_s)], 0, 0, 0)
-
-
-def vertical_energy(
-    vehicle: RouteVehicle,
-    conditions: Conditions,
-    climb_m: float,
-    rate_mps: float,
-    *,
-    kinematics: Kinematics | None = None,
-) -> RouteEnergy:
-    """Climbing (``climb_m`` > 0) or descending in place at ``rate_mps`` (m/s, > 0); with
-    ``kinematics``, from and to rest at its vertical acceleration."""
-    if rate_mps <= 0:
-        raise ValueError("vertical rate must be > 0")
-    return _result(
-        vehicle,
-        conditions,
-        "vertical",
-        _vertical_phases(climb_m, rate_mps, kinematics),
-        0.0,
-        climb_m,
-        0.0,
-    )
-
-
-def _vertical_phases(climb_m: float, rate_mps: float, kin: Kinematics | None) -> list[_Phase]:
-    """A vertical move as (speed-up, steady, slow-down) phases at their mean rates; the
-    rate lowered when the move is too short to reach it."""
-    if climb_m == 0:
-        return []
-    sign = -1.0 if climb_m > 0 else 1.0  # NED: climbing is negative down-velocity
-    height = abs(climb_m)
-    ramp = kin.ramp_s(rate_mps, vertical=True) if kin is not None else 0.0
-    if ramp <= 0:
-        return [_Phase(0.0, 0.0, sign * rate_mps, height / rate_mps)]
-    accel = rate_mps / ramp
-    rate = min(rate_mps, math.sqrt(height * accel))  # triangular when too short
-    ramp = rate / accel
-    steady_m = height - rate * ramp
-    phases = [_Phase(0.0, 0.0, sign * rate / 2, ramp), _Phase(0.0, 0.0, sign * rate / 2, ramp)]
-    if steady_m > 0:
-        phases.insert(1, _Phase(0.0, 0.0, sign * rate, steady_m / rate))
-    return phases
-
-
-def landing_energy(
-    vehicle: RouteVehicle,
-    conditions: Conditions,
-    height_m: float,
-    descent_rate_mps: float,
-    *,
-    final_height_m: float = 0.0,
-    final_rate_mps: float | None = None,
-    blend_height_m: float | None = None,
-    touchdown_s: float = 0.0,
-    kinematics: Kinematics | None = None,
-) -> RouteEnergy:
-    """Landing from ``height_m`` (m above the ground): down to ``final_height_m`` at
-    ``descent_rate_mps``, the rest at ``final_rate_mps`` (m/s; None: the same rate), then
-    ``touchdown_s`` (s) at hover power until the motors stop (ArduCopter's LAND: WPNAV_SPEED_DN
-    above LAND_ALT_LOW, then LAND_SPEED); with ``blend_height_m`` (m, above
-    ``final_height_m``), the rate goes linearly with height from the first to the final
-    between the two heights (PX4's MPC_LAND_ALT1 / MPC_LAND_ALT2); with ``kinematics``, the
-    first descent starts from rest at its vertical acceleration."""
-    if height_m < 0 or descent_rate_mps <= 0:
-        raise ValueError("landing needs a height ≥ 0 and a descent rate > 0")
-    slow_rate = descent_rate_mps if final_rate_mps is None else final_rate_mps
-    if slow_rate <= 0:
-        raise ValueError("final descent rate must be > 0")
-    top_m = final_height_m if blend_height_m is None else max(blend_height_m, final_height_m)
-    fast_m = max(height_m - top_m, 0.0)
-    blend_m = max(min(height_m, top_m) - final_height_m, 0.0)
-    ramp_s = kinematics.ramp_s(descent_rate_mps, vertical=True) if kinematics else 0.0
-    ramp_s = min(ramp_s, 2.0 * fast_m / descent_rate_mps)  # starting from rest
-    phases = [
-        _Phase(0.0, 0.0, descent_rate_mps / 2, ramp_s),
-        _Phase(
-            0.0, 0.0, descent_rate_mps, (fast_m - descent_rate_mps * ramp_s / 2) / descent_rate_mps
-        ),
-        _blend_phase(blend_m, top_m - final_height_m, descent_rate_mps, slow_rate),
-        _Phase(0.0, 0.0, slow_rate, (height_m - fast_m - blend_m) / slow_rate),
-        _Phase(0.0, 0.0, 0.0, max(touchdown_s, 0.0)),
-    ]
-    return _result(vehicle, conditions, "landing", phases, 0.0, -height_m, 0.0)
-
-
-def _blend_phase(height_m: float, span_m: float, top_rate: float, low_rate: float) -> _Phase:
-    """The last ``height_m`` of a ``span_m`` over which the descent rate goes linearly with
-    height from ``top_rate`` (at its top) to ``low_rate`` (at its bottom), as one phase at its
-    mean rate: at rate v(h) = low + k·h, the time is ln(v(height)/low)/k."""
-    if height_m <= 0:
-        return _Phase(0.0, 0.0, 0.0, 0.0)
-    slope = (top_rate - low_rate) / span_m
-    if abs(slope) < 1e-9:
-        return _Phase(0.0, 0.0, low_rate, height_m / low_rate)
-    time_s = math.log((low_rate + slope * height_m) / low_rate) / slope
-    return _Phase(0.0, 0.0, height_m / time_s, time_s)
-
-
-def _result(
-    vehicle: RouteVehicle,
-    conditions: Conditions,
-    kind: str,
-    phases: Sequence[_Phase],
-    distance_m: float,
-    climb_m: float,
-    ground_speed_mps: float,
-    track_deg: float = 0.0,
-) -> RouteEnergy:
-    """A segment's energy, time and sensitivities from its phases; ``ground_speed_mps`` along
-    ``track_deg`` is its cruise (for the airspeed)."""
-    phases = [ph for ph in phases if ph.duration_s > 0]
-    time_s = sum(ph.duration_s for ph in phases)
-    if phases:
-        energy_wh, sens = _energy_with_sensitivity(vehicle, conditions, phases)
-    else:
-        energy_wh, sens = 0.0, (0.0,) * len(UNCERTAINTY_SOURCES)
-    rad = math.radians(track_deg)
-    wn, we = conditions.wind_ne_mps()
-    return RouteEnergy(
-        kind=kind,
-        distance_m=distance_m,
-        climb_m=climb_m,
-        time_s=time_s,
-        ground_speed_mps=ground_speed_mps,
-        airspeed_mps=math.hypot(
-            ground_speed_mps * math.cos(rad) - wn, ground_speed_mps * math.sin(rad) - we
-        ),
-        power_w=energy_wh * _J_PER_WH / time_s if time_s > 0 else 0.0,
-        energy_wh=energy_wh,
-        sensitivity_wh=sens,
-    )
-
-
-def sum_energies(segments: Iterable[RouteEnergy]) -> RouteEnergy:
-    """Several segments flown one after the other: distances, climbs, times, energies and
-    sensitivities add (the sources are shared, so their σ add per source, not in quadrature)."""
-    items = list(segments)
-    time_s = sum(s.time_s for s in items)
-    energy_wh = sum(s.energy_wh for s in items)
-    # per source, in segment order (as numpy's sum over the first axis adds)
-    sens = tuple(map(sum, zip(*(s.sensitivity_wh for s in items), strict=True)))
-    return RouteEnergy(
-        kind="sum",
-        distance_m=sum(s.distance_m for s in items),
-        climb_m=sum(s.climb_m for s in items),
-        time_s=time_s,
-        ground_speed_mps=0.0,
-        airspeed_mps=0.0,
-        power_w=energy_wh * _J_PER_WH / time_s if time_s > 0 else 0.0,
-        energy_wh=energy_wh,
-        sensitivity_wh=sens if items else (0.0,) * len(UNCERTAINTY_SOURCES),
-    )
