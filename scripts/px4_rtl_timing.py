@@ -25,7 +25,12 @@ from statistics import mean
 from pymavlink.dialects.v20 import common as mavlink
 
 from estimator.estimation.return_home import ReturnHome, ReturnSettings
-from estimator.estimation.rtl_profiles import PX4_FLOWN_ACCEL_MPS2, PX4_TOUCHDOWN_S, px4_rtl
+from estimator.estimation.rtl_profiles import (
+    PX4_FLOWN_ACCEL_MPS2,
+    PX4_TOUCHDOWN_S,
+    PX4_XY_CRUISE_MPS,
+    px4_rtl,
+)
 from estimator.physics.route_energy import Conditions, RouteVehicle
 from estimator.physics.route_segments import Kinematics, leg_energy
 from estimator.physics.vehicle import load_vehicle
@@ -93,7 +98,7 @@ def main(argv: list[str]) -> int:
     leg_m = math.hypot(*REPOSITION_NE_M) - THERE_M
     leg = leg_energy(
         RouteVehicle.from_vehicle(vehicle), still, distance_m=leg_m, track_deg=0.0,
-        ground_speed_mps=settings.return_speed_mps or 5.0, kinematics=kin,
+        ground_speed_mps=PX4_XY_CRUISE_MPS, kinematics=kin,
     )  # fmt: skip
     print(
         f"profile: ramp {PX4_FLOWN_ACCEL_MPS2} m/s², touchdown {PX4_TOUCHDOWN_S} s; "

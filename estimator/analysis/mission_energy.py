@@ -7,7 +7,7 @@ straight up at WPNAV_SPEED_UP; waypoint legs straight at the mission's ground sp
 place (air speed = wind speed); loiter turns at CIRCLE_RATE on their radius; LAND flies to its
 position and descends at WPNAV_SPEED_DN, the last LAND_ALT_LOW at LAND_SPEED; RTL climbs to
 RTL_ALT when lower, flies home, waits RTL_LOIT_TIME and lands. A mission that ends in the air
-gets that return added. Each piece's energy is :mod:`estimator.physics.route_energy`'s; the
+gets that return added. Each piece's energy is :mod:`estimator.physics.route_segments`'s; the
 total's σ keeps the shared sources (model, wind, payload) correlated along the route.
 
 Feasibility: the pack's usable energy above its reserve (vehicle file ``[battery]``, at the

@@ -10,7 +10,7 @@ lower (a vehicle higher returns at its height), fly the great-circle bearing to 
 (PX4: after a descent to ``descend_alt_m``), land. The horizontal leg flies at the airspeed
 of least energy per metre over ground in the wind in use (or at ``return_speed_mps`` over
 ground when the autopilot's return speed is set), the climb and the landing at the vertical
-speeds of :mod:`estimator.physics.route_energy` (the leg physics is there, not here).
+speeds of :mod:`estimator.physics.route_segments` (the leg physics is there, not here).
 Energies are electrical (terminal) energy scaled by the fused bias; the margin compares them,
 times the pack's loss factor OCV/V, with the usable energy left above the reserve.
 
@@ -474,7 +474,7 @@ class ReturnHome:
         conditions: Conditions,
         velocity_ne_mps: tuple[float, float] = (0.0, 0.0),
     ) -> tuple[RouteEnergy, float]:
-        """The return (:mod:`estimator.physics.route_energy`, model energy before the bias) from
+        """The return (:mod:`estimator.physics.route_segments`, model energy before the bias) from
         a ground velocity ``velocity_ne_mps`` (m/s): stop and pause in place (at hover power;
         the distance flown away while stopping is added to the leg), climb in place to the
         return height, the leg home with the autopilot's speed ramps, the descent to the
