@@ -32,7 +32,7 @@ from estimator.estimation.rtl_profiles import (
     px4_rtl,
 )
 from estimator.physics.route_energy import Conditions, RouteVehicle
-from estimator.physics.route_segments import Kinematics, leg_energy
+from estimator.physics.route_segments import leg_energy
 from estimator.physics.vehicle import load_vehicle
 from estimator.sitl.px4 import (
     Px4Options,
@@ -89,16 +89,12 @@ def main(argv: list[str]) -> int:
     flights = int(argv[0]) if argv else 8
     vehicle = load_vehicle(VEHICLE)
     settings = px4_rtl(ReturnSettings())
-    kin = Kinematics(
-        settings.accel_mps2, settings.jerk_mps3,
-        settings.vertical_accel_mps2, settings.vertical_jerk_mps3,
-    )  # fmt: skip
     returning = ReturnHome(vehicle, settings)
     still = Conditions()
     leg_m = math.hypot(*REPOSITION_NE_M) - THERE_M
     leg = leg_energy(
         RouteVehicle.from_vehicle(vehicle), still, distance_m=leg_m, track_deg=0.0,
-        ground_speed_mps=PX4_XY_CRUISE_MPS, kinematics=kin,
+        ground_speed_mps=PX4_XY_CRUISE_MPS, kinematics=settings.kinematics,
     )  # fmt: skip
     print(
         f"profile: ramp {PX4_FLOWN_ACCEL_MPS2} m/s², touchdown {PX4_TOUCHDOWN_S} s; "
@@ -108,7 +104,7 @@ def main(argv: list[str]) -> int:
     with tempfile.TemporaryDirectory() as tmp:
         for i in range(flights):
             reposition_s, height_m, landing_s = fly_once(root, Path(tmp) / str(i))
-            model_s = sum(p.time_s for p in returning.landing(still, height_m, kin))
+            model_s = sum(p.time_s for p in returning.landing(still, height_m))
             reposition_err.append(reposition_s - leg.time_s)
             landing_err.append(landing_s - model_s)
             print(

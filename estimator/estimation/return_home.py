@@ -168,6 +168,13 @@ class ReturnSettings:
     untracked_wind_sigma_mps: float = 1.0
     untracked_mass_sigma_fraction: float = 0.05
 
+    @property
+    def kinematics(self) -> Kinematics:
+        """How the autopilot changes speed, from the four settings above."""
+        return Kinematics(
+            self.accel_mps2, self.jerk_mps3, self.vertical_accel_mps2, self.vertical_jerk_mps3
+        )
+
 
 @dataclass(frozen=True, slots=True)
 class ReturnInputs:
@@ -481,7 +488,7 @@ class ReturnHome:
         loiter height (PX4), the loiter over home, the landing; and the leg's cruise ground
         speed (m/s)."""
         s = self.settings
-        k = Kinematics(s.accel_mps2, s.jerk_mps3, s.vertical_accel_mps2, s.vertical_jerk_mps3)
+        k = s.kinematics
         rv = self._vehicle
         height_m = max(alt_m, s.return_alt_m)
         vn, ve = velocity_ne_mps
@@ -517,12 +524,12 @@ class ReturnHome:
                     rv, conditions, loiter_m - height_m, s.descent_rate_mps, kinematics=k
                 ),
                 hover_energy(rv, conditions, s.loiter_s),
-                *self.landing(conditions, loiter_m, k),
+                *self.landing(conditions, loiter_m),
             ]
         )
         return total, leg.ground_speed_mps
 
-    def landing(self, conditions: Conditions, height_m: float, k: Kinematics) -> list[RouteEnergy]:
+    def landing(self, conditions: Conditions, height_m: float) -> list[RouteEnergy]:
         """The landing from ``height_m`` (m over home): fast, (PX4) blended, slow, and the
         crawl over a distance sensor when set, then the touchdown."""
         s, rv = self.settings, self._vehicle
@@ -531,7 +538,7 @@ class ReturnHome:
             rv, conditions, height_m - crawl_m, s.descent_rate_mps,
             final_height_m=s.land_alt_low_m - crawl_m, final_rate_mps=s.land_speed_mps,
             blend_height_m=None if s.blend_alt_m is None else s.blend_alt_m - crawl_m,
-            touchdown_s=0.0 if crawl_m else s.touchdown_s, kinematics=k,
+            touchdown_s=0.0 if crawl_m else s.touchdown_s, kinematics=s.kinematics,
         )  # fmt: skip
         if not crawl_m:
             return [above]
