@@ -59,11 +59,11 @@ def period_end_reading(
         return latest
 
     def mean(values: list[float | None]) -> float | None:
-        if any(v is None for v in values):
+        """The hold-weighted mean of one field, None when a weighted reading lacks it."""
+        known = [v for v in values if v is not None]
+        if len(known) < len(values):
             return None
-        return sum(w * v for (w, _), v in zip(weighted, values, strict=True) if v is not None) / (
-            total_s
-        )
+        return sum(w * v for (w, _), v in zip(weighted, known, strict=True)) / total_s
 
     current_a = mean([r.current_a for _, r in weighted])
     if current_a is None and latest.current_a is not None:

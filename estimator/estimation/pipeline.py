@@ -166,7 +166,7 @@ class Pipeline:
         self._armed: bool | None = None
         self._on_ground: bool | None = None  # the autopilot's landed detector (PX4)
         self._battery: BatterySample | None = None
-        self._held: BatterySample | None = None  # the reading the last period ended on
+        self._held: BatterySample | None = None  # the last reading before the open period
         self._resistance_time_s: float | None = None
         # the open period: power-changing samples and battery readings (with the number of
         # events before each), and when it ends
