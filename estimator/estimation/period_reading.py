@@ -33,15 +33,15 @@ def period_end_reading(
     held: BatterySample | None,
     readings: Sequence[BatterySample],
     end_s: float,
-    window_s: float = STAMP_WINDOW_S,
 ) -> BatterySample:
     """The reading a period ending at ``end_s`` (s) ends with: ``readings`` are the period's
     (in time order, at least one), ``held`` the last one before them (None: none on this
     clock). Its time, voltage, current and consumed charge are the hold-weighted means over
-    ``[end_s − window_s, end_s]``; a value one of the weighted readings lacks (None) is the
-    latest reading's, as is everything when the latest came before the window."""
+    the last :data:`STAMP_WINDOW_S` before ``end_s``; a value one of the weighted readings
+    lacks (None) is the latest reading's, as is everything when the latest came before that
+    window."""
     latest = readings[-1]
-    low_s = end_s - window_s
+    low_s = end_s - STAMP_WINDOW_S
     if latest.time_s <= low_s:
         return latest
     chain = [held, *readings] if held is not None else list(readings)
