@@ -27,11 +27,15 @@ from estimator.telemetry.samples import (
 )
 
 VEHICLE = default_vehicle()
-FULL_V = float(PackModel(VEHICLE.battery).ocv_v(1.0))
+PACK = PackModel(VEHICLE.battery)
+FULL_V = float(PACK.ocv_v(1.0))
+#: The flights' pack resistance (Ω): the filters' prior, 4 mΩ per cell.
+RESISTANCE_OHM = 0.004 * VEHICLE.battery.cells
 
 
 def flight(seconds: float, speed_mps: float = 8.0, current: bool = True, t0: float = 0.0):
-    """Rest, arm, then level flight at ``speed_mps``: 10 Hz velocity, 2 Hz battery."""
+    """Rest on a full pack, arm, then level flight at ``speed_mps``: 10 Hz velocity, 2 Hz
+    battery, the voltage the pack's resting curve less I·R at the charge drawn so far."""
     samples: list[Sample] = [BatterySample(t0, FULL_V, 0.0, 0.0), ArmedSample(t0, True)]
     power_w = float(VEHICLE.model.power_w(speed_mps))
     consumed = 0.0
@@ -39,7 +43,8 @@ def flight(seconds: float, speed_mps: float = 8.0, current: bool = True, t0: flo
         t = t0 + k * 0.1
         samples.append(VelocitySample(t, speed_mps, 0.0, 0.0, 20.0))
         if k % 5 == 0:
-            v = FULL_V - 0.6 - 0.001 * k
+            ocv_v = float(PACK.ocv_v(1.0 - consumed / 1000.0 / VEHICLE.battery.capacity_ah))
+            v = ocv_v - power_w / ocv_v * RESISTANCE_OHM
             consumed += power_w / v * 0.5 / 3.6
             samples.append(
                 BatterySample(t, v, power_w / v if current else None, consumed if current else None)
@@ -343,3 +348,36 @@ def test_the_autopilot_wind_reaches_the_tracker_and_the_return() -> None:
     assert pipeline.counts["autopilot_wind"] == 1
     assert pipeline.returning.autopilot_wind == report
     assert pipeline.online is not None and pipeline.online.autopilot.report == report
+
+
+def test_a_current_sensor_that_falls_silent_leaves_the_energy_falling() -> None:
+    """The pack filter learns while there is a current; once the readings come without one
+    the energy is the model's, still falling, not pinned to the pack's last estimate."""
+    samples = flight(120.0)
+    silent = [
+        replace(s, current_a=None, consumed_mah=None)
+        if isinstance(s, BatterySample) and s.time_s > 60.0
+        else s
+        for s in samples
+    ]
+    estimates = run(Pipeline(VEHICLE), silent)
+    at_60, last = (next(e for e in estimates if e.time_s >= 60.0), estimates[-1])
+    drawn_wh = at_60.energy_remaining_wh - last.energy_remaining_wh
+    expected_wh = float(VEHICLE.model.power_w(8.0)) * (last.time_s - at_60.time_s) / 3600.0
+    assert drawn_wh == pytest.approx(expected_wh, rel=0.1)
+
+
+def test_the_first_estimate_rests_on_the_pack_even_from_one_reading() -> None:
+    """A first period that closes with no reading but the one that started the fusion (PX4
+    at 0.5 Hz before the daemon's rate is in) gives an estimate on the pack filter, with
+    the σ the next one has, not the fusion's own start (which takes the label as exact)."""
+    p = Pipeline(VEHICLE)
+    assert p.process(BatterySample(0.1, FULL_V, 0.5, 0.0)) is None
+    first = p.process(VelocitySample(1.05, 0.0, 0.0, 0.0))
+    assert p.process(BatterySample(1.5, FULL_V, 0.5, 0.1)) is None
+    second = p.process(VelocitySample(2.05, 0.0, 0.0, 0.0))
+    assert first is not None and second is not None
+    assert math.isfinite(first.pack_soc) and math.isfinite(first.capacity_sigma_ah)
+    assert first.energy_remaining_sigma_wh == pytest.approx(
+        second.energy_remaining_sigma_wh, rel=0.1
+    )

@@ -121,7 +121,8 @@ OFF_GROUND_S = 2.0
 #: latest reading that each transport puts on another side of the end (0.48-1.11 % in those
 #: runs before it: docs/daemon.md).
 ULOG_ENERGY_PCT = 1.0
-#: The same, in the live estimate's energy σ (8-13 % this early in the pack).
+#: The same, in the live estimate's energy σ (11-25 % this early in the pack: the first
+#: estimate rests on the pack filter, docs/daemon.md).
 ULOG_ENERGY_SIGMAS = 0.05
 #: PX4 seconds on the ground before arming, with the test's pack: the link carries
 #: BATTERY_STATUS at PX4's 0.5 Hz until the daemon's request is in, so a take-off straight

@@ -365,9 +365,10 @@ class Pipeline:
         )
 
     def _initialize(self, sample: BatterySample) -> None:
-        """First valid battery sample: start the energy state at the model power now, or
-        continue from a snapshot (:meth:`resume`): the time since it is drawn at this
-        sample's power, and the charge counter then corrects it."""
+        """First valid battery sample: start the energy state at the model power now (and
+        the pack filter from the sample, when it has a current), or continue from a snapshot
+        (:meth:`resume`): the time since it is drawn at this sample's power, and the charge
+        counter then corrects it."""
         resume, self._resume = self._resume, None
         resumed = resume is not None and resume.energy.time_s <= sample.time_s
         if resumed:
@@ -399,6 +400,9 @@ class Pipeline:
         else:
             self.energy.initialize(sample, self._power_model_w)
             self.counts["energy_initialized"] += 1
+            # the first estimate rests on the pack filter as every later one does, not on
+            # the fusion's own start (whose σ knows nothing of the pack's capacity prior)
+            self._learn_pack(sample, sample.consumed_mah)
         self._resistance_time_s = sample.time_s
         self._start_period(sample.time_s)
 
@@ -580,7 +584,6 @@ class Pipeline:
             current_a, voltage_v = latest.current_a, latest.voltage_v
             self.pack_state.take(latest.time_s, voltage_v, current_a, consumed_mah)
             self._pack_estimate = self.pack_state.estimate()
-        if self._pack_estimate is not None:
             self.energy.anchor(self._pack_estimate)
 
     def _track_effects(self, time_s: float) -> None:
