@@ -15,7 +15,8 @@ Each ``<!-- figures:NAME -->`` … ``<!-- /figures:NAME -->`` block of those doc
 - ``experiments-*``: ``uav-energy experiments`` (generated flights, seed 0).
 - ``residuals-sim-*``: ``uav-energy residuals`` on simulated flights, each with an effect
   hidden from the built-in vehicle (``scripts/residual_figures.py``; ``residuals-iris-*``:
-  the IRIS+ logs against the March vehicle file); the slower
+  the IRIS+ logs against the March vehicle file, and with ``residuals-cmu-*`` the real-log
+  figures beyond its table, ``scripts/real_residual_figures.py``); the slower
   ``residuals-sim-changing`` (effects that change in flight) is checked by
   ``tests/test_residual_figures.py``.
 - ``sitl-recordings-table``, ``sitl-effects-*``: the recordings of ``replay/sitl`` replayed,
@@ -542,6 +543,11 @@ generator("residuals-iris-table", reads=IRIS)(lambda: residual_figures.iris_tabl
 generator("residuals-iris-summer", reads=IRIS)(
     lambda: residual_figures.iris_summer(iris_residuals())
 )
+_real_blocks = script_module("real_residual_figures").generators(
+    _cli, IRIS, tracker_cmu.DATA, lambda: iris_residuals()["June–August"]
+)
+for _name, _print in _real_blocks.items():
+    generator(_name, reads=SHARED_DATA)(_print)
 generator("residuals-sim-changing", checked_by="tests/test_residual_figures.py")(
     lambda: residual_figures.changing_table(changing_residuals())
 )
