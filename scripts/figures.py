@@ -602,6 +602,15 @@ def sitl_effects_floors() -> str:
     return sitl.effects_floors(sitl.effect_checks())
 
 
+for _name, _summary in (
+    ("sitl-effects-wind", sitl.effects_wind),
+    ("sitl-effects-payload", sitl.effects_payload),
+    ("sitl-effects-turn", sitl.effects_turn),
+    ("sitl-effects-heavy", sitl.effects_heavy),
+):
+    generator(_name, checked_by=_SITL_EFFECTS_TEST)(lambda f=_summary: f(sitl.effect_checks()))
+
+
 @generator("tracked-wind-sitl", checked_by=_SITL_RECORDINGS_TEST)
 def tracked_wind_sitl() -> str:
     """``python scripts/tracked_wind_sitl.py``'s table (20 s of CPU; its check shares the

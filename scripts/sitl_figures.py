@@ -17,7 +17,7 @@ from typing import Any
 
 from estimator.analysis.replay import FlightReplay, summarize
 from estimator.physics.vehicle import load_vehicle
-from estimator.sitl.truth_check import RecordingCheck, score_recording
+from estimator.sitl.truth_check import Match, RecordingCheck, angle_deg, score_recording, span_s
 
 REPO = Path(__file__).resolve().parent.parent
 SITL_RECORDINGS = REPO / "replay" / "sitl"
@@ -26,6 +26,12 @@ SITL_VEHICLE = REPO / "config" / "vehicles" / "ardupilot_sitl_quad.toml"
 CLEAN_RECORDINGS = ("clean_legs", "clean_circles", "clean_mission")
 #: Recordings of ``replay/sitl`` flown for something else than effects.
 NOT_EFFECT_RECORDINGS = {"battery_reserve"}
+#: README.md's wind bullet: a wind all flight, switched on (also during circles), stopped.
+STEADY_WINDS = ("wind_constant", "wind_onset", "wind_onset_circles", "wind_stop")
+#: README.md's payload bullet: carried from take-off, released, with a wind.
+PAYLOADS = ("payload_takeoff", "payload_release", "payload_wind")
+#: README.md's turning wind and its missed airframe.
+TURNING_WIND, HEAVY_AIRFRAME = "wind_turn", "heavy_quad"
 
 
 def recordings() -> list[str]:
@@ -107,3 +113,60 @@ def effects_floors(checks: Mapping[str, RecordingCheck]) -> str:
         ]
         spans.append(f"{min(ratios):.2f}–{max(ratios):.2f}")
     return f"clean flights at {spans[0]}× their noise floor, the others at {spans[1]}×"
+
+
+def _wind_misfit(check: RecordingCheck, match: Match) -> tuple[float, float, float]:
+    """A named wind against the true one it matched: speed (m/s), direction (°) and the
+    larger of the start and end errors (s, within the analysed span)."""
+    truth, effect, params = check.score.truth, match.matched, match.params
+    assert effect is not None
+    named = span_s(truth, params.get("at_s"), params.get("until_s"))
+    true = span_s(truth, effect.start_s, effect.end_s)
+    return (
+        abs(params["speed_mps"] - effect.values["speed_mps"]),
+        angle_deg(params["from_deg"], effect.values["from_deg"]),
+        max(abs(a - b) for a, b in zip(named, true, strict=True)),
+    )
+
+
+def effects_wind(checks: Mapping[str, RecordingCheck]) -> str:
+    """README.md: the first named wind of each :data:`STEADY_WINDS` recording against the
+    truth, the largest error of each kind."""
+    right = [checks[n] for n in STEADY_WINDS if checks[n].score.first_right]
+    misfits = [_wind_misfit(c, c.score.matches[0]) for c in right]
+    speed, angle, time = (max(m[i] for m in misfits) for i in range(3))
+    named = "" if len(right) == len(STEADY_WINDS) else f"{len(right)} of {len(STEADY_WINDS)} "
+    return f"{named}within {speed:.1f} m/s, {angle:.0f}° and {time:.0f} s of the truth"
+
+
+def effects_payload(checks: Mapping[str, RecordingCheck]) -> str:
+    """README.md: the mass named on each :data:`PAYLOADS` recording, for the true payload."""
+    masses, truths = [], set()
+    for name in PAYLOADS:
+        for match in checks[name].score.matches:
+            if match.matched is not None and match.matched.kind == "payload":
+                masses.append(match.params["delta_kg"])
+                truths.add(match.matched.values["mass_kg"])
+    [truth] = truths
+    return f"{min(masses):+.2f}–{max(masses):.2f} kg for {truth:g} kg"
+
+
+def effects_turn(checks: Mapping[str, RecordingCheck]) -> str:
+    """README.md: the turning wind named through the autopilot's estimate, against the truth
+    (its speed and the time it turns)."""
+    check = checks[TURNING_WIND]
+    first, second = (m.params for m in check.score.matches[:2])
+    until = f"until {first['until_s']:.0f} s"
+    legs = [f"{p['speed_mps']:.1f} m/s from {p['from_deg']:.0f}°" for p in (first, second)]
+    turned_s = min(e.start_s for e in check.score.truth.effects if e.start_s)
+    speeds = "/".join(
+        f"{v:g}" for v in sorted({e.values["speed_mps"] for e in check.score.truth.effects})
+    )
+    truth = f"truth {speeds} m/s, {turned_s:.1f} s"
+    return f"scaled by {first['scale']:.2f} ({legs[0]} {until}, then {legs[1]}; {truth})"
+
+
+def effects_heavy(checks: Mapping[str, RecordingCheck]) -> str:
+    """README.md: what the other airframe's extra weight was read as."""
+    [match] = checks[HEAVY_AIRFRAME].score.matches
+    return f"{match.params['delta_kg']:+.2f} kg"

@@ -35,6 +35,7 @@ from pathlib import Path
 from statistics import median
 
 import pytest
+from doc_rows import DocRows
 from pymavlink.dialects.v20 import common as mavlink
 from test_sitl import EXE, GroundStation
 
@@ -62,7 +63,8 @@ pytestmark = pytest.mark.needs(
 )
 REPO = Path(__file__).resolve().parent.parent
 VEHICLE = REPO / "config/vehicles/px4_sih_quad.toml"
-DOC = (REPO / "docs/daemon.md").read_text()
+#: The PX4 table of docs/daemon.md: each figure lies in its row's range.
+doc_figure = DocRows("docs/daemon.md").check
 #: Lockstep speed factor: PX4 SIH kept it on a 2-core machine with the daemon beside it.
 SPEED = 10.0
 ON_GROUND = mavlink.MAV_LANDED_STATE_ON_GROUND
@@ -243,15 +245,6 @@ def drawn_at_changes(pilot: Px4Pilot, drawn_wh: list[float]) -> None:
     """The energy the test's pack had given (Wh) at each change of PX4's landed state."""
     if len(pilot.state.landed_changes) > len(drawn_wh):
         drawn_wh.append(math.nan if pilot.pack is None else pilot.pack.used_wh)
-
-
-def doc_figure(name: str, value: float) -> None:
-    """``value`` lies in the range docs/daemon.md gives for ``name`` (its PX4 table row
-    ``| name | low–high unit |``): a figure that drifts fails here."""
-    print(f"{name}: {value:.2f}")
-    row = re.search(rf"^\| {re.escape(name)} \| ([-+\d.]+)–([-+\d.]+)\b", DOC, re.MULTILINE)
-    assert row is not None, f"docs/daemon.md has no row for {name!r}"
-    assert float(row[1]) <= value <= float(row[2]), (name, value, row[0])
 
 
 def voltage_against_load(estimates: list[dict]) -> LoadResponse:

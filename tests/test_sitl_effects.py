@@ -100,6 +100,10 @@ def test_the_docs_give_the_results_as_measured() -> None:
         "sitl-effects-table": figures.sitl.effects_table(checks),
         "sitl-effects-right": figures.sitl.effects_right(checks),
         "sitl-effects-floors": figures.sitl.effects_floors(checks),
+        "sitl-effects-wind": figures.sitl.effects_wind(checks),
+        "sitl-effects-payload": figures.sitl.effects_payload(checks),
+        "sitl-effects-turn": figures.sitl.effects_turn(checks),
+        "sitl-effects-heavy": figures.sitl.effects_heavy(checks),
     }
     assert set(now) == {n for n, test in figures.CHECKED_BY.items() if test == THIS_FILE}
     blocks = [b for b in figures.all_blocks() if b.name in now]

@@ -113,8 +113,16 @@ class FlightScore:
         return self.rmse_after_w / self.noise_floor_w if self.noise_floor_w > 0 else math.inf
 
 
-def _angle_deg(a: float, b: float) -> float:
+def angle_deg(a: float, b: float) -> float:
+    """The angle between two directions, ° (0–180)."""
     return abs((a - b + 180.0) % 360.0 - 180.0)
+
+
+def span_s(truth: FlightTruth, start_s: float | None, end_s: float | None) -> tuple[float, float]:
+    """An effect's start and end within the truth's span (None: take-off / landing), s."""
+    start = truth.takeoff_s if start_s is None else max(start_s, truth.takeoff_s)
+    end = truth.landed_s if end_s is None else min(end_s, truth.landed_s)
+    return start, end
 
 
 def _time_misses(
@@ -122,12 +130,10 @@ def _time_misses(
 ) -> list[str]:
     """Start and end of a named effect against the true ones (None: start / end of flight)."""
     misses = []
-    true_start = truth.takeoff_s if effect.start_s is None else max(effect.start_s, truth.takeoff_s)
-    start = truth.takeoff_s if at_s is None else max(at_s, truth.takeoff_s)
+    true_start, true_end = span_s(truth, effect.start_s, effect.end_s)
+    start, end = span_s(truth, at_s, until_s)
     if abs(start - true_start) > tol:
         misses.append(f"starts at {start:.0f} s, truth {true_start:.0f} s")
-    true_end = truth.landed_s if effect.end_s is None else min(effect.end_s, truth.landed_s)
-    end = truth.landed_s if until_s is None else min(until_s, truth.landed_s)
     if abs(end - true_end) > tol:
         misses.append(f"ends at {end:.0f} s, truth {true_end:.0f} s")
     return misses
@@ -139,7 +145,7 @@ def _value_misses(kind: str, effect: TruthEffect, p: dict[str, Any], tol: Tolera
         out = []
         if abs(p["speed_mps"] - v["speed_mps"]) > tol.wind_mps:
             out.append(f"wind {p['speed_mps']:.1f} m/s, truth {v['speed_mps']:g}")
-        if _angle_deg(p["from_deg"], v["from_deg"]) > tol.wind_deg:
+        if angle_deg(p["from_deg"], v["from_deg"]) > tol.wind_deg:
             out.append(f"from {p['from_deg']:.0f}°, truth {v['from_deg']:g}°")
         return out
     if kind == "payload":
