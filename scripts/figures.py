@@ -444,6 +444,22 @@ generator("fit-real-details", reads=SHARED_DATA)(lambda: fits.details_table(real
 generator("fit-real-folds", reads=SHARED_DATA)(
     lambda: ", ".join(fits.fold_difference(f, "polynomial") for f in real_fits().values())
 )
+
+
+@cache
+def no_priors_fit() -> dict[str, Any]:
+    """``uav-energy fit`` of the IRIS+ March flights with ``--no-priors`` (the data alone)."""
+    pattern, mass_kg, capacity_ah, cells = fits.REAL_FITS["IRIS+ March 2016"]
+    logs = [str(p) for p in sorted(SHARED_DATA.glob(pattern))]
+    options = ("--mass-kg", f"{mass_kg}", "--capacity-ah", f"{capacity_ah}", "--cells", f"{cells}")
+    return dict(json.loads(_cli("fit", *logs, *options, "--no-priors", "--json")))
+
+
+generator("fit-no-priors", reads=SHARED_DATA)(lambda: fits.no_priors(no_priors_fit()))
+generator("fit-no-priors-values", reads=SHARED_DATA)(lambda: fits.no_priors_values(no_priors_fit()))
+generator("fit-cmu-residual", reads=SHARED_DATA)(
+    lambda: fits.residual_noise(real_fits()["CMU DJI M100"])
+)
 generator("sitl-quad-fit")(lambda: fits.sitl_quad_summary(sitl_quad_fit()))
 generator("sitl-quad-fit-data")(lambda: fits.sitl_quad_data(sitl_quad_fit()))
 generator("sitl-quad-fit-errors")(lambda: fits.sitl_quad_errors(sitl_quad_fit()))

@@ -136,3 +136,24 @@ def sitl_quad_errors(fit: Fit) -> str:
         f"{models['polynomial']['rmse_w']:.2f} W, network {models['dnn']['rmse_w']:.2f} W) at a "
         f"noise floor of {fit['noise_sigma_w']:.2f} W"
     )
+
+
+def no_priors(fit: Fit) -> str:
+    """``fit --no-priors``: how c1 and c3 correlate and how wide each is (W, to 100 W)."""
+    corr = fit["correlation"][0][2]
+    sigma_w = max(fit["stderr"]["c1"], fit["stderr"]["c3"])
+    return f"correlate at {number(corr, '.2f')} (±{round(sigma_w, -2):.0f} W each)"
+
+
+def no_priors_values(fit: Fit) -> str:
+    """docs/fit.md's version of :func:`no_priors`: c1 ± its 1σ."""
+    return f"{fit['params']['c1']:.3f} ± {round(fit['stderr']['c1'], -2):.0f} W"
+
+
+def residual_noise(fit: Fit) -> str:
+    """The residual σ (W) and the held-out RMSE range of the three models."""
+    rmse = [s["rmse_w"] for s in fit["models"].values()]
+    return (
+        f"σ {fit['noise_sigma_w']:.0f} W; held-out RMSE {min(rmse):.1f}–{max(rmse):.1f} W "
+        f"for every model"
+    )
