@@ -55,6 +55,10 @@ UNTRACKED = "[vehicle]\ntrack_effects = false\n"
 SETTLED_FROM = 0.5
 #: The online wind "agrees" with the anemometer's when their speeds differ by at most this.
 WIND_AGREES_MPS = 1.0
+#: The online tracker's late mass is "on the payload" within this (kg).
+MASS_AGREES_KG = 0.10
+#: An online wind this far (m/s) from the anemometer's is named apart from the others.
+WIND_APART_MPS = 3.0
 _NO_TRUTH = (math.nan, math.nan, math.nan)
 
 
@@ -274,6 +278,61 @@ def readme(runs: list[Flight]) -> str:
     )
 
 
+def _short(run: Flight) -> str:
+    return run.name.removeprefix("cmu-")
+
+
+def online_mass(runs: list[Flight]) -> str:
+    """docs/residuals.md: the online tracker's late mass against the payload."""
+    errors = {_short(r): _late(r)["mass_delta_kg"] - r.truth.mass_delta_kg for r in runs}
+    off = [
+        f"on {_short(r)} it reads {_late(r)['mass_delta_kg']:+.2f} kg for "
+        f"{r.truth.mass_delta_kg:.2f} kg"
+        for r in runs
+        if abs(errors[_short(r)]) > MASS_AGREES_KG
+    ]
+    near = len(runs) - len(off)
+    mean_kg = float(np.mean(np.abs(list(errors.values()))))
+    return (
+        f"within {MASS_AGREES_KG:.2f} kg of the payload on {near} of {len(runs)} flights; "
+        + ", ".join(off)
+        + f"; mean absolute error {mean_kg:.2f} kg"
+    )
+
+
+def online_wind(runs: list[Flight]) -> str:
+    """docs/residuals.md: the online tracker's late wind speed against the anemometer's, the
+    flights far from it named apart."""
+    pairs = {_short(r): (_late(r)["wind_speed_mps"], _truth_wind(r.truth)[0]) for r in runs}
+    apart = {k: v for k, v in pairs.items() if abs(v[0] - v[1]) > WIND_APART_MPS}
+    close = [v for k, v in pairs.items() if k not in apart]
+    tracked, measured = ([v[i] for v in close] for i in (0, 1))
+    text = (
+        f"{min(tracked):.1f}–{max(tracked):.1f} m/s on {len(close)} flights against "
+        f"{min(measured):.1f}–{max(measured):.1f} m/s measured"
+    )
+    for name, (online_mps, anemometer_mps) in apart.items():
+        text += f", and {online_mps:.1f} m/s on {name} ({anemometer_mps:.1f} measured)"
+    return text
+
+
+def unselected(runs: list[Flight]) -> str:
+    """docs/residuals.md: each payload flight that selects nothing, with its best candidate
+    of step 1 (its gain and z, short of the rule)."""
+    parts = []
+    for run in runs:
+        if run.every["effects"] or run.truth.mass_delta_kg == 0.0:
+            continue
+        rows = [row for row in run.every["selection"] if row["step"] == 1]
+        best = max(rows, key=lambda row: row["gain_pct"])
+        value = ", ".join(f"{k} {v:+.2f}" for k, v in best["params"].items() if v is not None)
+        parts.append(
+            f"{_short(run)}'s best candidate, `{best['candidate']}` ({value}), cuts the "
+            f"held-out error by {best['gain_pct']:.0f} % at z {best['z']:.1f} only"
+        )
+    return "; ".join(parts) or "every payload flight selects an effect"
+
+
 def _channels(analysis: Json) -> tuple[Json, float]:
     """The channel that best predicts the residual left, and the next best R²."""
     ranked = sorted(analysis["attribution"]["channels"], key=lambda c: -c["r2"])
@@ -325,4 +384,7 @@ def generators(
         "residuals-cmu-pooled-replay": lambda: replay_change(together()),
         "residuals-cmu-table": lambda: table(each()),
         "residuals-cmu-readme": lambda: readme(each()),
+        "residuals-cmu-online-mass": lambda: online_mass(each()),
+        "residuals-cmu-online-wind": lambda: online_wind(each()),
+        "residuals-cmu-unselected": lambda: unselected(each()),
     }
