@@ -12,6 +12,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Sequence
+from dataclasses import dataclass
 
 import numpy as np
 
@@ -38,6 +39,17 @@ _TRACKED_MASS_SIGMA_FRACTION = 0.05
 _CHANGING_SPEED_MPS2 = 1.0
 #: Gain of the moving averages that score tracked against vehicle-file effects (per update).
 _SCORE_GAIN = 1.0 / 30.0
+
+
+@dataclass(frozen=True, slots=True)
+class PowerEvent:
+    """A sample that changes the model power: a new kinematic state (None after a reboot),
+    the armed state then (None = unknown) and the battery voltage then (V, NaN unknown)."""
+
+    time_s: float
+    state: KinematicState | None
+    armed: bool | None
+    voltage_v: float
 
 
 class FlightPower:
@@ -122,6 +134,40 @@ class FlightPower:
             effects = self.effects
         power = predict_power_w(self.vehicle.model, self.vehicle.mass_kg, flight, effects)
         return np.maximum(power, 0.0)
+
+    def event_powers_w(
+        self,
+        events: Sequence[PowerEvent],
+        state: KinematicState | None,
+        armed: bool | None,
+        latest_v: float,
+        time_s: float,
+    ) -> tuple[list[float], float]:
+        """Model power after each of ``events`` (W), in one prediction, and the steady power
+        of ``state``, the latest kinematic state (W, at ``time_s``; ``armed`` then, ``latest_v``
+        the newest battery voltage). Disarmed: 0; armed with no kinematic state yet: hover."""
+        rows = [e for e in events if e.state is not None and e.armed is not False]
+        steady = state is not None and armed is not False
+        predicted: list[float] = []
+        if rows or steady:
+            self.follow_track(state)
+            predicted = self.predict(
+                [e.state for e in rows if e.state is not None],
+                np.array([state.speed_mps] if steady and state is not None else []),
+                latest_v,
+                self.held_accel_mps2,
+                voltages_v=[e.voltage_v for e in rows],
+                time_s=time_s,
+            ).tolist()
+        idle_w = 0.0 if armed is False else self.p_hover_w
+        steady_w = predicted.pop() if steady else idle_w
+        rows_w = iter(predicted)
+        hover_w = self.p_hover_w
+        powers_w = [
+            0.0 if e.armed is False else hover_w if e.state is None else next(rows_w)
+            for e in events
+        ]
+        return powers_w, steady_w
 
     def steady_w(self, speed_mps: float, time_s: float, latest_v: float) -> float:
         """Model power (W) in steady level flight at ``speed_mps`` along the course, in the

@@ -49,12 +49,12 @@ import numpy as np
 
 from estimator.estimation.airborne import AirborneGate, Phase
 from estimator.estimation.estimate import Estimate, PowerReading
-from estimator.estimation.flight_power import FlightPower
+from estimator.estimation.flight_power import FlightPower, PowerEvent
 from estimator.estimation.fusion import EnergyEstimate, EnergyFilter
 from estimator.estimation.online_effects import OnlineEffects, TrackerReading
 from estimator.estimation.pack_bank import PackBank
-from estimator.estimation.pack_state import PackEstimate, PackPrior
-from estimator.estimation.period_reading import period_end_reading
+from estimator.estimation.pack_learning import PackLearning
+from estimator.estimation.pack_state import PackPrior
 from estimator.estimation.pipeline_settings import PipelineSettings
 from estimator.estimation.pipeline_snapshot import Resume, parse_snapshot, take_snapshot
 from estimator.estimation.return_home import (
@@ -104,17 +104,6 @@ class _Reading:
     on_ground: bool | None = None
 
 
-@dataclass(frozen=True, slots=True)
-class _Event:
-    """A sample that changes the model power: a new kinematic state (None after a reboot),
-    the armed state then (None = unknown) and the battery voltage then (V, NaN unknown)."""
-
-    time_s: float
-    state: KinematicState | None
-    armed: bool | None
-    voltage_v: float
-
-
 class Pipeline:
     """Samples in (:meth:`process`), estimates out; ``counts`` says what it did and skipped.
 
@@ -147,10 +136,8 @@ class Pipeline:
         self.pack = PackModel(vehicle.battery)
         self.kinematics = KinematicsFilter(self.settings.kinematics)
         self.energy = EnergyFilter(self.pack, self.settings.fusion)
-        self.pack_prior = pack_prior
-        #: The pack learned in flight (started at the first battery reading with a current).
-        self.pack_state: PackBank | None = None
-        self._pack_estimate: PackEstimate | None = None  # the pack filter's, last period
+        #: The pack filter and the voltage model (:mod:`estimator.estimation.pack_learning`).
+        self.packs = PackLearning(self.pack, self.settings.pack, pack_prior)
         self._gate = AirborneGate(vehicle.model.hover_power_w)
         self._phase = Phase.GROUND  # of the latest battery reading
         self._phases: dict[int, Phase] = {}  # of the open period's readings, by id
@@ -166,11 +153,9 @@ class Pipeline:
         self._armed: bool | None = None
         self._on_ground: bool | None = None  # the autopilot's landed detector (PX4)
         self._battery: BatterySample | None = None
-        self._held: BatterySample | None = None  # the last reading before the open period
-        self._resistance_time_s: float | None = None
         # the open period: power-changing samples and battery readings (with the number of
         # events before each), and when it ends
-        self._events: list[_Event] = []
+        self._events: list[PowerEvent] = []
         self._pending: list[_Reading] = []
         self._period_end_s = math.inf
         self._power_model_w = 0.0  # in force after the last closed period's last event
@@ -194,6 +179,20 @@ class Pipeline:
         """The effects in use: the vehicle file's, or the tracked wind and mass."""
         return self.power.effects
 
+    @property
+    def pack_state(self) -> PackBank | None:
+        """The pack learned in flight (:attr:`PackLearning.state`)."""
+        return self.packs.state
+
+    @property
+    def pack_prior(self) -> PackPrior | None:
+        """What is known of this pack before the flight (:attr:`PackLearning.prior`)."""
+        return self.packs.prior
+
+    @pack_prior.setter
+    def pack_prior(self, prior: PackPrior | None) -> None:
+        self.packs.prior = prior
+
     def _latest_v(self) -> float:
         """The newest battery voltage (V; NaN before any)."""
         return math.nan if self._battery is None else self._battery.voltage_v
@@ -201,34 +200,13 @@ class Pipeline:
     def _refresh_speeds(self) -> None:
         self.power.refresh_speeds(self._time_s or 0.0, self._latest_v())
 
-    def _event_powers_w(self, events: Sequence[_Event], time_s: float) -> list[float]:
-        """Model power after each of ``events`` (W), in one prediction; also sets the steady
-        power of the latest state (at ``time_s``). Disarmed: 0; armed with no kinematic state
-        yet: hover."""
-        rows = [e for e in events if e.state is not None and e.armed is not False]
-        state = self._state
-        steady = state is not None and self._armed is not False
-        predicted: list[float] = []
-        if rows or steady:
-            self.power.follow_track(state)
-            predicted = self.power.predict(
-                [e.state for e in rows if e.state is not None],
-                np.array([state.speed_mps] if steady and state is not None else []),
-                self._latest_v(),
-                self.power.held_accel_mps2,
-                voltages_v=[e.voltage_v for e in rows],
-                time_s=time_s,
-            ).tolist()
-        if steady:
-            self._steady_power_w = predicted.pop()
-        else:
-            self._steady_power_w = 0.0 if self._armed is False else self.power.p_hover_w
-        rows_w = iter(predicted)
-        hover_w = self.power.p_hover_w
-        return [
-            0.0 if e.armed is False else hover_w if e.state is None else next(rows_w)
-            for e in events
-        ]
+    def _event_powers_w(self, events: Sequence[PowerEvent], time_s: float) -> list[float]:
+        """Model power after each of ``events`` (W); also sets the steady power of the latest
+        state (:meth:`FlightPower.event_powers_w`)."""
+        powers_w, self._steady_power_w = self.power.event_powers_w(
+            events, self._state, self._armed, self._latest_v(), time_s
+        )
+        return powers_w
 
     def _kinetic_sigma_w(self) -> float:
         """1σ of the kinetic term m vᵀa from the filtered acceleration's uncertainty, W."""
@@ -331,7 +309,7 @@ class Pipeline:
 
     def _queue_event(self, time_s: float) -> None:
         voltage_v = math.nan if self._battery is None else self._battery.voltage_v
-        self._events.append(_Event(time_s, self._state, self._armed, voltage_v))
+        self._events.append(PowerEvent(time_s, self._state, self._armed, voltage_v))
 
     # -- continuing after a restart ---------------------------------------------------------------
 
@@ -357,7 +335,7 @@ class Pipeline:
         return parse_snapshot(
             snapshot,
             lambda: EnergyFilter(self.pack, self.settings.fusion),
-            lambda: PackBank(self.pack, self.settings.pack, self.pack_prior),
+            self.packs.new_bank,
             lambda effects: float(
                 self.power.predict((), np.zeros(1), self._latest_v(), effects=effects)[0]
             ),
@@ -380,15 +358,12 @@ class Pipeline:
             )
             self.power.tracked_sq_w2 = resume.tracked_sq_w2
             self.power.file_sq_w2 = resume.file_sq_w2
-            self.pack_state = resume.pack
-            if resume.pack is not None:
-                resume.pack.last_time_s = sample.time_s
-                self._pack_estimate = resume.pack.estimate()
             self.tracking.renew(self.power.effects)
             self._refresh_speeds()
-        self._battery = self._held = sample
+        self.packs.begin(sample, resume.pack if resumed and resume is not None else None)
+        self._battery = sample
         self._time_s = sample.time_s
-        now = _Event(sample.time_s, self._state, self._armed, sample.voltage_v)
+        now = PowerEvent(sample.time_s, self._state, self._armed, sample.voltage_v)
         self._power_model_w = self._event_powers_w([now], sample.time_s)[0]
         if resumed:
             power_w = sample.power_w
@@ -402,8 +377,7 @@ class Pipeline:
             self.counts["energy_initialized"] += 1
             # the first estimate rests on the pack filter as every later one does, not on
             # the fusion's own start (whose σ knows nothing of the pack's capacity prior)
-            self._learn_pack(sample, sample.consumed_mah)
-        self._resistance_time_s = sample.time_s
+            self.packs.first(sample, self.energy)
         self._start_period(sample.time_s)
 
     def _start_period(self, time_s: float) -> None:
@@ -422,13 +396,12 @@ class Pipeline:
         self._phase, self._flying_since_s = Phase.GROUND, None
         self._state = None
         self._armed = self._on_ground = None
-        self._battery = self._held = None
+        self._battery = None
         self.returning.restart()
-        if self.pack_state is not None:
-            self.pack_state.rebase()
-        if self.energy.initialized:
+        initialized = self.energy.initialized
+        self.packs.reboot(sample.time_s if initialized else None)
+        if initialized:
             self.energy.rebase(sample.time_s)
-            self._resistance_time_s = sample.time_s
             self._queue_event(sample.time_s)
             self._start_period(sample.time_s)
         if self._time_s is not None:
@@ -542,22 +515,8 @@ class Pipeline:
                 self._flying_since_s = latest.time_s
             flown_s = latest.time_s - self._flying_since_s
             self.endurance_valid |= flown_s >= self.settings.endurance_valid_after_s
-        end = period_end_reading(self._held, [r.sample for r in pending], self._period_end_s)
-        self._held = latest
-        consumed_mah = end.consumed_mah
-        if consumed_mah is None:  # the period's last counter value, if any reading had one
-            charge = [r.sample.consumed_mah for r in pending if r.sample.consumed_mah is not None]
-            consumed_mah = charge[-1] if charge else None
-        if consumed_mah is not None and self.pack_state is None:
-            self.energy.update_charge(consumed_mah)
-        current_a = end.current_a
-        if current_a is None:
-            current_a = self.energy.bias * model_w[-1] / end.voltage_v
-        assert self.energy.voltage is not None and self._resistance_time_s is not None
-        dt = max(end.time_s - self._resistance_time_s, 0.0)
-        self._resistance_time_s = end.time_s
-        self.energy.voltage.update(dt, self.energy.soc, end.voltage_v, current_a)
-        self._learn_pack(end, consumed_mah)
+        readings = [r.sample for r in pending]
+        self.packs.period_end(self.energy, readings, self._period_end_s, model_w[-1])
         self._loss_factor = self.energy.loss_factor(self.energy.bias * self._power_model_w)
 
     def adopt_pack_prior(self, prior: PackPrior) -> bool:
@@ -567,24 +526,8 @@ class Pipeline:
         flight goes on with what it has learnt)."""
         if self._flying_since_s is not None:
             return False
-        self.pack_prior, self.pack_state, self._pack_estimate = prior, None, None
+        self.packs.adopt(prior)
         return True
-
-    def _learn_pack(self, latest: BatterySample, consumed_mah: float | None) -> None:
-        """The reading the period ends with (:mod:`estimator.estimation.period_reading`),
-        when it has a current, into the pack filter (with the counter's value then); the
-        fusion's energy rests on the pack's. A voltage that does not follow the load teaches
-        it nothing: no pack is learnt."""
-        if not self.energy.voltage_follows_load:
-            self.pack_state = self._pack_estimate = None
-            return
-        if latest.current_a is not None:
-            if self.pack_state is None:
-                self.pack_state = PackBank(self.pack, self.settings.pack, self.pack_prior)
-            current_a, voltage_v = latest.current_a, latest.voltage_v
-            self.pack_state.take(latest.time_s, voltage_v, current_a, consumed_mah)
-            self._pack_estimate = self.pack_state.estimate()
-            self.energy.anchor(self._pack_estimate)
 
     def _track_effects(self, time_s: float) -> None:
         """A step of the tracker (:mod:`estimator.estimation.tracker_steps`); when it changes
@@ -654,7 +597,7 @@ class Pipeline:
         stale = battery is None or time_s - battery.time_s > self.settings.battery_stale_s
         voltage = self.energy.voltage
         back = self.returning.figures(time_s, self._return_inputs(est, steady_w))
-        pack = self._pack_estimate
+        pack = self.packs.estimate
         estimate = Estimate(
             time_s=time_s,
             speed_mps=0.0 if state is None else state.speed_mps,
