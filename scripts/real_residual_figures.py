@@ -233,6 +233,10 @@ def _late(flight: Flight) -> Json:
     return flight.every["online"][0]["late_median"]
 
 
+def _short(run: Flight) -> str:
+    return run.name.removeprefix("cmu-")
+
+
 def table(runs: list[Flight]) -> str:
     """One row per flight: payload, held-out RMSE, what was selected, the wind+mass mass,
     the online tracker's late mass and wind, the anemometer's wind."""
@@ -248,7 +252,7 @@ def table(runs: list[Flight]) -> str:
         selected = "; then ".join(effects) or "none"
         mass = _mass_kg(run.wind_mass)
         lines.append(
-            f"| {run.name.removeprefix('cmu-')} | {run.truth.mass_delta_kg:.2f} "
+            f"| {_short(run)} | {run.truth.mass_delta_kg:.2f} "
             f"| {every['rmse_before_w']:.1f} → {every['rmse_after_w']:.1f} | {selected} "
             f"| {'—' if mass is None else f'{mass:+.2f}'} | {late['mass_delta_kg']:+.2f} "
             f"| {_wind(late['wind_speed_mps'], late['wind_from_deg'])} "
@@ -276,10 +280,6 @@ def readme(runs: list[Flight]) -> str:
         f"nothing. The online wind's speed agrees with the anemometer's within "
         f"{WIND_AGREES_MPS:.1f} m/s on {_wind_agrees(runs)} of {len(runs)} flights"
     )
-
-
-def _short(run: Flight) -> str:
-    return run.name.removeprefix("cmu-")
 
 
 def online_mass(runs: list[Flight]) -> str:

@@ -14,9 +14,9 @@ next period's first), and then, once for the whole period:
 2. the energy filter integrates that power over the period (each power holds until the next
    sample);
 3. the period's battery readings update the fusion (:mod:`estimator.estimation.fusion`): their mean
-   measured power against the mean model power in force when each arrived; the consumed
-   charge and terminal voltage of the reading the period ends with
-   (:mod:`estimator.estimation.period_reading`) into the voltage model and the pack filter;
+   measured power against the mean model power in force when each arrived; the reading the
+   period ends with (:mod:`estimator.estimation.period_reading`) into the charge counter, the
+   voltage model and the pack filter (:mod:`estimator.estimation.pack_learning`);
 4. the online wind/mass tracker takes the readings queued since its last step (every
    ``track_period_s``);
 5. one :class:`Estimate` is published.
