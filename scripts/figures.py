@@ -422,12 +422,15 @@ def sitl_run1_builtin() -> str:
 def real_fits() -> dict[str, dict[str, Any]]:
     """``uav-energy fit LOG… --mass-kg M --capacity-ah C --cells N --json`` of each dataset as
     ``make fit-real`` runs it (without writing the vehicle files)."""
-    out = {}
-    for title, (pattern, mass_kg, capacity_ah, cells) in fits.REAL_FITS.items():
-        logs = [str(p) for p in sorted(SHARED_DATA.glob(pattern))]
-        options = ("--mass-kg", f"{mass_kg}", "--capacity-ah", f"{capacity_ah}")
-        out[title] = json.loads(_cli("fit", *logs, *options, "--cells", f"{cells}", "--json"))
-    return out
+    return {title: _fit(title) for title in fits.REAL_FITS}
+
+
+def _fit(title: str, *extra: str) -> dict[str, Any]:
+    """``uav-energy fit`` of one dataset of :data:`fits.REAL_FITS`, with ``extra`` options."""
+    pattern, mass_kg, capacity_ah, cells = fits.REAL_FITS[title]
+    logs = [str(p) for p in sorted(SHARED_DATA.glob(pattern))]
+    options = ("--mass-kg", f"{mass_kg}", "--capacity-ah", f"{capacity_ah}", "--cells", f"{cells}")
+    return dict(json.loads(_cli("fit", *logs, *options, *extra, "--json")))
 
 
 @cache
@@ -449,10 +452,7 @@ generator("fit-real-folds", reads=SHARED_DATA)(
 @cache
 def no_priors_fit() -> dict[str, Any]:
     """``uav-energy fit`` of the IRIS+ March flights with ``--no-priors`` (the data alone)."""
-    pattern, mass_kg, capacity_ah, cells = fits.REAL_FITS["IRIS+ March 2016"]
-    logs = [str(p) for p in sorted(SHARED_DATA.glob(pattern))]
-    options = ("--mass-kg", f"{mass_kg}", "--capacity-ah", f"{capacity_ah}", "--cells", f"{cells}")
-    return dict(json.loads(_cli("fit", *logs, *options, "--no-priors", "--json")))
+    return _fit("IRIS+ March 2016", "--no-priors")
 
 
 generator("fit-no-priors", reads=SHARED_DATA)(lambda: fits.no_priors(no_priors_fit()))

@@ -349,8 +349,10 @@ class Pipeline:
         counter then corrects it."""
         resume, self._resume = self._resume, None
         resumed = resume is not None and resume.energy.time_s <= sample.time_s
+        resumed_pack = None
         if resumed:
             assert resume is not None
+            resumed_pack = resume.pack
             self.energy, self.power.effects, self.endurance_valid = (
                 resume.energy,
                 resume.effects,
@@ -360,7 +362,7 @@ class Pipeline:
             self.power.file_sq_w2 = resume.file_sq_w2
             self.tracking.renew(self.power.effects)
             self._refresh_speeds()
-        self.packs.begin(sample, resume.pack if resumed and resume is not None else None)
+        self.packs.begin(sample, resumed_pack)
         self._battery = sample
         self._time_s = sample.time_s
         now = PowerEvent(sample.time_s, self._state, self._armed, sample.voltage_v)
