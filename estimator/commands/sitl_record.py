@@ -1,7 +1,8 @@
 """``uav-energy sitl-record SCENARIO… --out DIR``: fly scenarios in ArduCopter SITL, record them.
 
 Each scenario (estimator/sitl/scenarios.py; ``all`` for every one of ``replay/sitl``,
-``packs`` for every ``pack_*`` flight of ``replay/sitl_packs``) is flown in a fresh SITL
+``held`` for every flight of ``replay/sitl_held``, ``packs`` for every ``pack_*`` flight of
+``replay/sitl_packs``) is flown in a fresh SITL
 (scratch directory, free instance) and written to ``DIR/<scenario>/``: ``flight.tlog``,
 ``truth.json`` and, for the scenarios that log it, ``flight.BIN``. ``--mission FILE`` flies
 a mission file (.plan or .waypoints) in AUTO instead, optionally in a wind (``--wind``) and
@@ -31,8 +32,8 @@ def register(subparsers: argparse._SubParsersAction[argparse.ArgumentParser]) ->
         nargs="*",
         metavar="SCENARIO",
         help="scenario names (the effects of replay/sitl, pack_* packs of replay/sitl_packs), "
-        "or all (every effect scenario), or packs / packs2 / ... / packs7 (the first "
-        "to seventh set of pack_* scenarios)",
+        "or all (every effect scenario), held (the held-out effect flights), or packs / "
+        "packs2 / ... / packs7 (the first to seventh set of pack_* scenarios)",
     )
     p.add_argument("--mission", metavar="FILE", help="fly this mission file in AUTO instead")
     p.add_argument(
@@ -48,6 +49,7 @@ def register(subparsers: argparse._SubParsersAction[argparse.ArgumentParser]) ->
 def run(args: argparse.Namespace) -> int:
     from estimator.commands.sim import _pair
     from estimator.logs.mission_files import load_mission
+    from estimator.sitl.held_scenarios import HELD_SCENARIOS
     from estimator.sitl.recorder import record
     from estimator.sitl.scenarios import (
         PACK_SETS,
@@ -70,8 +72,9 @@ def run(args: argparse.Namespace) -> int:
             raise UserError("--wind and --gripper go with --mission")
         if not args.scenarios:
             raise UserError("name a scenario (or all), or give --mission FILE")
-        groups = {"all": list(SCENARIOS)} | {g: list(s) for g, s in PACK_SETS.items()}
-        known = SCENARIOS.copy()
+        groups = {"all": list(SCENARIOS), "held": list(HELD_SCENARIOS)}
+        groups |= {g: list(s) for g, s in PACK_SETS.items()}
+        known = SCENARIOS | HELD_SCENARIOS
         for pack_set in PACK_SETS.values():
             known |= pack_set
         names = [n for name in args.scenarios for n in groups.get(name, [name])]

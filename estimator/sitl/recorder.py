@@ -155,7 +155,8 @@ class Flight:
             here = (p.state.north_m, p.state.east_m, -p.state.alt_m)
             p.hold(step.duration_s, p.every(1.0, lambda: p.send_target(here)))
         elif isinstance(step, Leg):
-            p.hold(step.duration_s, p.every(0.5, lambda: p.send_velocity(step.vn_mps, step.ve_mps)))
+            velocity = (step.vn_mps, step.ve_mps, step.vd_mps)
+            p.hold(step.duration_s, p.every(0.5, lambda: p.send_velocity(*velocity)))
         elif isinstance(step, Goto):
             self._goto(step)
         elif isinstance(step, Circle):
