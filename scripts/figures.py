@@ -24,6 +24,8 @@ Each ``<!-- figures:NAME -->`` … ``<!-- /figures:NAME -->`` block of those doc
   (``scripts/sitl_figures.py``; checked by ``tests/test_sitl_recordings.py`` and
   ``tests/test_sitl_effects.py``, which compute the same results anyway, not by
   ``tests/test_figures.py``).
+- ``sitl-held-*``, ``tracker-sitl-held``: the same analysis, and the online tracker, on the
+  held-out flights of ``replay/sitl_held`` (checked by ``tests/test_sitl_held_out.py``).
 - ``state-restart-table``: ``python -m bench.trust``'s restart mid-flight (docs/daemon.md).
 - ``tracker-cmu``: ``python scripts/tracker_cmu.py`` (the online tracker on the CMU M100
   flights against their payload and anemometer).
@@ -627,6 +629,15 @@ for _name, _summary in (
     generator(_name, checked_by=_SITL_EFFECTS_TEST)(lambda f=_summary: f(sitl.effect_checks()))
 
 
+_SITL_HELD_TEST = "tests/test_sitl_held_out.py"
+generator("sitl-held-table", checked_by=_SITL_HELD_TEST)(
+    lambda: sitl.effects_table(sitl.held_checks(), sitl.HELD_RECORDINGS)
+)
+generator("sitl-held-summary", checked_by=_SITL_HELD_TEST)(
+    lambda: sitl.held_summary(sitl.held_checks())
+)
+
+
 @generator("tracked-wind-sitl", checked_by=_SITL_RECORDINGS_TEST)
 def tracked_wind_sitl() -> str:
     """``python scripts/tracked_wind_sitl.py``'s table (20 s of CPU; its check shares the
@@ -646,6 +657,13 @@ def tracker_on_sitl() -> str:
     ``tests/test_tracker_sitl.py``)."""
     script = script_module("tracker_sitl")
     return str(script.report(script.runs()))
+
+
+@generator("tracker-sitl-held", checked_by=_SITL_HELD_TEST)
+def tracker_on_sitl_held() -> str:
+    """``python scripts/tracker_sitl.py replay/sitl_held``'s table."""
+    script = script_module("tracker_sitl")
+    return str(script.report(script.runs(sitl.HELD_RECORDINGS)))
 
 
 for _name, _print in script_module("pack_figures").generators(pack_table).items():

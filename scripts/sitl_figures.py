@@ -1,6 +1,7 @@
 """The figures of the ArduCopter SITL recordings of ``replay/sitl`` in docs/sitl.md,
 docs/residuals.md and README.md: each recording replayed with the SITL vehicle file, and what
-``uav-energy residuals`` names on the effect recordings against their truth.
+``uav-energy residuals`` names on the effect recordings against their truth; the same for the
+held-out flights of ``replay/sitl_held``.
 
 The tables are functions of results the tests compute anyway (``tests/test_sitl_recordings.py``
 replays every recording, ``tests/test_sitl_effects.py`` analyses and scores every effect
@@ -22,6 +23,10 @@ from estimator.sitl.truth_check import Match, RecordingCheck, angle_deg, score_r
 REPO = Path(__file__).resolve().parent.parent
 SITL_RECORDINGS = REPO / "replay" / "sitl"
 SITL_VEHICLE = REPO / "config" / "vehicles" / "ardupilot_sitl_quad.toml"
+#: The held-out effect flights, recorded after the rules were frozen (docs/residuals.md).
+HELD_RECORDINGS = REPO / "replay" / "sitl_held"
+#: The issue's limit for the held-out RMSE after selection, in noise floors.
+HELD_FLOOR_LIMIT = 2.5
 #: The clean recordings the SITL vehicle file was fitted on.
 CLEAN_RECORDINGS = ("clean_legs", "clean_circles", "clean_mission")
 #: Recordings of ``replay/sitl`` flown for something else than effects.
@@ -39,8 +44,8 @@ def recordings() -> list[str]:
     return sorted(p.name for p in SITL_RECORDINGS.iterdir() if (p / "truth.json").is_file())
 
 
-def _truth(name: str) -> dict[str, Any]:
-    return dict(json.loads((SITL_RECORDINGS / name / "truth.json").read_text()))
+def _truth(name: str, recordings: Path = SITL_RECORDINGS) -> dict[str, Any]:
+    return dict(json.loads((recordings / name / "truth.json").read_text()))
 
 
 def recordings_table(replays: Mapping[str, FlightReplay]) -> str:
@@ -79,9 +84,34 @@ def effect_checks() -> dict[str, RecordingCheck]:
     return {s: score_recording(SITL_RECORDINGS / s, vehicle) for s in effect_scenarios()}
 
 
-def effects_table(checks: Mapping[str, RecordingCheck]) -> str:
-    """docs/residuals.md's table: per recording its truth (the recording's own description),
-    what was named, whether the first named is right, held-out RMSE and its noise floor (W)."""
+def held_scenarios() -> list[str]:
+    """The held-out flights of ``replay/sitl_held``."""
+    return sorted(p.parent.name for p in HELD_RECORDINGS.glob("*/truth.json"))
+
+
+@cache
+def held_checks() -> dict[str, RecordingCheck]:
+    """:func:`effect_checks` for the held-out flights."""
+    vehicle = load_vehicle(SITL_VEHICLE)
+    return {s: score_recording(HELD_RECORDINGS / s, vehicle) for s in held_scenarios()}
+
+
+def held_summary(checks: Mapping[str, RecordingCheck]) -> str:
+    """How many held-out flights name a true effect first, and end within the limit."""
+    scores = [c.score for c in checks.values()]
+    within = sum(s.rmse_to_floor <= HELD_FLOOR_LIMIT for s in scores)
+    ratios = [s.rmse_to_floor for s in scores]
+    return (
+        f"the first named effect is right on {sum(s.first_right for s in scores)} of "
+        f"{len(scores)}; the held-out RMSE after ends within {HELD_FLOOR_LIMIT:g} noise "
+        f"floors on {within} of {len(scores)} ({min(ratios):.2f}–{max(ratios):.2f}×)"
+    )
+
+
+def effects_table(checks: Mapping[str, RecordingCheck], recordings: Path = SITL_RECORDINGS) -> str:
+    """docs/residuals.md's table: per recording of ``recordings`` its truth (the recording's
+    own description), what was named, whether the first named is right, held-out RMSE and its
+    noise floor (W)."""
     lines = [
         "| flight | truth | named | right? | held-out RMSE before → after (W) "
         "| noise floor (W) | × floor |",
@@ -91,7 +121,7 @@ def effects_table(checks: Mapping[str, RecordingCheck]) -> str:
         score, summary = check.score, check.summary
         named = "; then ".join(e["description"] for e in summary["effects"]) or "nothing"
         lines.append(
-            f"| {name} | {_truth(name)['description']} | {named} "
+            f"| {name} | {_truth(name, recordings)['description']} | {named} "
             f"| {'yes' if score.first_right else '**no**'} "
             f"| {score.rmse_before_w:.1f} → {score.rmse_after_w:.1f} "
             f"| {score.noise_floor_w:.1f} | {score.rmse_to_floor:.2f} |"

@@ -126,7 +126,8 @@ def pooled(runs_: list[TrackerRun], sigmas: float) -> tuple[float, float]:
 
 
 def summary_lines(flights: list[tuple[RecordingTruth, TrackerRun]]) -> list[str]:
-    """Pooled over the steps of all flights, of the held-out ones, and of those fitted on."""
+    """Pooled over the steps of all flights, of the held-out ones, and of those fitted on
+    (a group without flights has no line)."""
     out = []
     groups = (
         ("all", [r for _, r in flights]),
@@ -134,6 +135,8 @@ def summary_lines(flights: list[tuple[RecordingTruth, TrackerRun]]) -> list[str]
         ("fit", [r for t, r in flights if flight_set(t) == "fit"]),
     )
     for label, group in groups:
+        if not group:
+            continue
         m2, w2 = pooled(group, 2.0)
         m3, w3 = pooled(group, 3.0)
         steps = sum(len(r.time_s) for r in group)
