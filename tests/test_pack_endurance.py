@@ -42,11 +42,6 @@ SCORED = [n for n in NAMES if n not in UNSCORED]
 
 #: Flights that miss 3 % median / 8 % worst, and why.
 MISSES = {
-    "pack_c100_r2_soc70_wind": "worst 10.9 %, median 2.6 % (held-out 6, as first scored): in "
-    "the 9 m/s wind the quad flies the box's upwind legs at 4.6 m/s; in the first box, before "
-    "the flight has repeated itself (a pattern needs two periods, about 160 s here), the "
-    "endurance averages the courses flown at 6 m/s, none of them upwind: +6 to +11 % from 62 "
-    "to 88 s after take-off, −5 % on the upwind leg",
     "pack_c90_r1_wind": "worst 8.2 %, median 1.9 % (held-out 4, rescored after a period came "
     "to end with the readings held over its last 50 ms; 7.9 % and 1.6 % before): this "
     "recording's readings sit within 50 ms of the second, so the pack filter takes each "

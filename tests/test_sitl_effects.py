@@ -16,7 +16,9 @@ from types import ModuleType
 
 import pytest
 
-from estimator.logs import iter_samples
+from estimator.analysis.residuals import analyze
+from estimator.analysis.slow_error import slow_error_fraction
+from estimator.logs import iter_samples, load_flights
 from estimator.physics.vehicle import Vehicle, load_vehicle
 from estimator.sitl.truth_check import (
     FlightScore,
@@ -88,6 +90,20 @@ def test_clean_flights_name_nothing() -> None:
 def test_the_held_out_error_ends_within_twice_the_noise_floor(scenario: str) -> None:
     score = scored(scenario)
     assert score.rmse_to_floor <= 2.0, [(m.label, m.params) for m in score.matches]
+
+
+def test_the_vehicle_files_slow_error_is_the_one_its_fit_flights_show() -> None:
+    """``[model] slow_error_fraction`` of the SITL vehicle file: the 1σ of the residual's 10 s
+    means on the three clean flights it was fitted on, over its hover power, to 0.001."""
+    vehicle = sitl_vehicle()
+    flights = []
+    for name in ("clean_legs", "clean_circles", "clean_mission"):
+        result = analyze(load_flights([RECORDINGS / name / "flight.tlog"]), vehicle)
+        assert not result.selected  # the vehicle file describes them: nothing to add
+        residual_w = result.samples.power_w - result.predicted_final_w
+        flights.append((result.samples.state.time_s, residual_w))
+    measured = slow_error_fraction(flights, vehicle.model.hover_power_w)
+    assert vehicle.slow_error_fraction == pytest.approx(measured, abs=0.0005)
 
 
 def test_the_docs_give_the_results_as_measured() -> None:

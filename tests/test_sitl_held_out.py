@@ -67,22 +67,21 @@ ABOVE_FLOOR = {
 #: reads as a mass drop of 0.6-1.4 kg; the wind follows the autopilot's WIND, which lags a
 #: gust's start by ~30 s and holds after its end.
 TRACKER_SHORT = {
-    "held_clean_climbing_legs": "mass 5.8σ (-0.59 kg) as a climbing leg stops at 36 s, "
-    "85 % within 2σ",
-    "held_clean_vertical": "mass 9.2σ (-1.16 kg) as a 5 m/s climb stops at 73 s",
-    "held_gust_30s_hover": "wind 11.8σ (5.9 m/s off) as the gust starts; mass 11.6σ "
-    "(-1.06 kg) as the landing descent starts",
-    "held_gust_60s": "wind 60 % within 2σ, 22.7σ (8.5 m/s off) 10 s into the gust",
-    "held_gust_90s_circles": "wind 82 % within 2σ, 18.2σ at the gust's end; mass 8.2σ",
+    "held_clean_climbing_legs": "mass 5.7σ (-0.60 kg) as a climbing leg stops at 36 s",
+    "held_clean_vertical": "mass 9.1σ (-1.16 kg) as a 5 m/s climb stops at 73 s",
+    "held_gust_30s_hover": "wind 11.5σ (5.9 m/s off) as the gust starts; mass 11.2σ "
+    "(-1.07 kg) as the landing descent starts",
+    "held_gust_60s": "wind 60 % within 2σ, 22.2σ (8.6 m/s off) 14 s into the gust",
+    "held_gust_90s_circles": "wind 73 % within 2σ, 16.2σ at the gust's end; mass 7.5σ",
     "held_gust_vertical": "wind 53 % within 2σ: beyond 2σ for 75 s after the gust",
-    "held_onset_vertical": "mass 10.8σ (-1.10 kg) as the landing descent starts; wind 6.5σ "
+    "held_onset_vertical": "mass 10.5σ (-1.10 kg) as the landing descent starts; wind 6.5σ "
     "after the onset",
-    "held_payload_gust": "mass 52 % within 2σ (1 kg read 0.045 kg heavy at 1σ 0.023 kg); wind 74 %",
-    "held_release_aloft": "mass 79 % within 2σ, 3.4σ (+0.06 kg at 1σ 0.017 kg)",
-    "held_tall_legs": "mass 4.9σ during the 1 m/s climb (-0.08 kg at 1σ 0.016 kg)",
-    "held_two_gusts": "wind 64 % within 2σ, 10.8σ as the second gust starts",
-    "held_wind_climb_payload": "mass 6.8σ (-1.14 kg) as a 3 m/s descent starts, 87 % within 2σ",
-    "held_wind_vertical": "mass 12.3σ (-1.39 kg) as a 6 m/s climb stops",
+    "held_payload_gust": "mass 69 % within 2σ (1 kg read 0.043 kg heavy at 1σ 0.028 kg); wind 74 %",
+    "held_release_aloft": "mass 87 % within 2σ (+0.06 kg at 1σ 0.023 kg)",
+    "held_tall_legs": "mass 4.1σ at the end of the 1 m/s climb (-0.09 kg at 1σ 0.022 kg)",
+    "held_two_gusts": "wind 58 % within 2σ, 10.8σ as the second gust starts",
+    "held_wind_climb_payload": "mass 6.8σ (-1.14 kg) as a 3 m/s descent starts",
+    "held_wind_vertical": "mass 12.1σ (-1.39 kg) as a 6 m/s climb stops",
 }
 
 

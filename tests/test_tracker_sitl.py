@@ -53,41 +53,35 @@ def _meets_the_aim(runs: list[TrackerRun]) -> bool:
 #: The flights the SITL vehicle file was fitted on (the others are held out from the fit; all
 #: scenarios, not the missions, are the ones the tracker's settings were tuned on).
 FITTED_ON = SCRIPT.FITTED_ON
-#: Why each flight misses the aim. Mass: the SITL vehicle file states no slow model error, so
-#: the mass's 1σ shrinks to 0.014-0.04 kg while the fitted model reads SITL's mass 0.03-0.13 kg
-#: off; and the first step after the airborne gate (the take-off climb's end) and the start of
-#: a descent read a mass drop of 0.2-0.5 kg: the power falls as the vehicle accelerates
-#: downwards below the 1 m/s vertical gate. Wind (medians from 30 s after take-off): the power
-#: channel pulls the wind 2-5 times farther off than the autopilot's WIND it takes, and a
-#: change arrives with the EKF's ~10 s lag plus the three-step change test.
+#: Why each flight misses the aim (times from take-off). Mass: the take-off climb's end reads
+#: a mass drop of 0.2-0.45 kg at 3-5σ in the first steps (9-14 s: the power falls as the climb
+#: stops), and so does the start of a landing descent; with the vehicle file's slow model
+#: error (0.6 % of hover, measured on its fit flights) a payload read 0.04-0.05 kg heavy
+#: still sits outside 2σ on a third to a half of the steps. Wind: the power channel pulls the
+#: wind 2-5 times farther off than the autopilot's WIND it takes, and a change arrives with
+#: the EKF's ~10 s lag plus the three-step change test.
 SHORT = {
-    "clean_circles": "mass 56 % within 2σ (-0.035 kg at 1σ 0.014 kg); first step 5.1σ",
-    "clean_legs": "wind 79 % within 2σ (still air read 0.75 m/s off, the autopilot's WIND "
-    "0.33 m/s, at 1σ 0.41 m/s); first step's mass 4.6σ",
-    "clean_mission": "mass 89 % within 2σ (-0.033 kg at 1σ 0.014 kg); first step 5.1σ",
-    "payload_release": "mass 71 % within 2σ (1 kg read 0.05 kg heavy at 1σ 0.017 kg); "
-    "wind 79 % (still air read 0.76 m/s off, the autopilot's WIND 0.15 m/s)",
-    "payload_takeoff": "mass 31 % within 2σ (1 kg read 0.04 kg heavy at 1σ 0.015 kg); "
-    "wind 59 % (still air read 0.92 m/s off, the autopilot's WIND 0.18 m/s)",
-    "payload_wind": "wind 11σ after the onset (4.9 m/s off), 1.23 m/s off in the median (the "
-    "autopilot's WIND 0.27 m/s); mass 46 % within 2σ (0.05 kg heavy at 1σ 0.019 kg)",
-    "wind_constant": "wind 62 % within 2σ (0.83 m/s off, the autopilot's WIND 0.49 m/s, at "
-    "1σ 0.40 m/s); first step's mass 4.2σ",
-    "wind_onset": "wind 13σ 4 s after the onset (5.5 m/s off); first step's mass 4.9σ",
-    "wind_onset_circles": "wind 25 % within 2σ: 29 steps behind the onset, then 1.24 m/s "
-    "off (the autopilot's WIND 0.43 m/s) at 1σ 0.35 m/s",
-    "wind_stop": "wind 18σ 6 s after the stop (6.6 m/s off); mass 14 steps beyond 2σ after it",
-    "wind_turn": "wind 21σ 4 s after the turn (7.9 m/s off), 77 % within 2σ",
-    "climbs_wind6": "mass 3 % within 2σ (-0.08 kg at 1σ 0.025 kg); wind 39 % (1.41 m/s off, "
-    "the autopilot's WIND 0.60 m/s)",
-    "fast_wind3": "mass 82 % within 2σ (-0.07 kg at 1σ 0.023 kg)",
-    "outback_wind8": "mass 86 % within 2σ; the landing descent's start read as -0.42 kg (5.5σ)",
-    "payload_wind4": "mass 30 % within 2σ (1 kg read 0.05 kg heavy at 1σ 0.017 kg)",
-    "release_wind2": "mass 8.5σ for 4 s after the mission's release: an alarm moves 1.06 to "
-    "0.51 kg at 1σ 0.060 kg, the next step is gated out, a second alarm reaches 0.03 kg",
-    "square_wind5": "mass 71 % within 2σ (-0.036 kg at 1σ 0.017 kg)",
-    "tall_wind4": "mass 50 % within 2σ (-0.04 kg at 1σ 0.019 kg); wind 74 %",
-    "zigzag_wind7": "mass 85 % within 2σ; the landing descent's start read as -0.48 kg (5.8σ)",
+    "clean_circles": "mass 4.7σ (-0.28 kg) at the take-off climb's end, 87 % within 2σ",
+    "clean_legs": "wind 79 % within 2σ (still air read 1.0 m/s off); mass 4.4σ at the "
+    "take-off climb's end",
+    "clean_mission": "mass 4.8σ (-0.39 kg) at the take-off climb's end",
+    "payload_release": "mass 89 % within 2σ, 3.4σ at the take-off climb's end; wind 80 %",
+    "payload_takeoff": "mass 56 % within 2σ (1 kg read 0.04 kg heavy at 1σ 0.020 kg); wind 59 %",
+    "payload_wind": "wind 10.7σ after the onset (4.9 m/s off), 58 % within 2σ; mass 67 %",
+    "wind_constant": "wind 67 % within 2σ (1.1 m/s off at 3σ); mass 4.0σ at the take-off "
+    "climb's end",
+    "wind_onset": "wind 12.6σ after the onset (5.4 m/s off); mass 84 % within 2σ, 4.7σ",
+    "wind_onset_circles": "wind 25 % within 2σ: the steps after the onset, 3.1 m/s off at most",
+    "wind_stop": "wind 17.6σ after the stop (6.7 m/s off)",
+    "wind_turn": "wind 20.5σ after the turn (7.9 m/s off), 79 % within 2σ",
+    "climbs_wind6": "mass 3 % within 2σ (-0.09 kg at 1σ 0.025-0.030 kg); wind 43 %",
+    "fast_wind3": "mass 82 % within 2σ, 3.2σ",
+    "outback_wind8": "mass 5.2σ (-0.42 kg) at the landing descent's start",
+    "payload_wind4": "mass 53 % within 2σ (1 kg read 0.04 kg heavy at 1σ 0.022 kg)",
+    "release_wind2": "mass 8.0σ (+0.51 kg) 2 s after the mission's release",
+    "square_wind5": "mass 3.1σ at the take-off climb's end",
+    "tall_wind4": "mass 3.3σ (-0.27 kg) at the take-off climb's end",
+    "zigzag_wind7": "mass 5.5σ (-0.47 kg) at the landing descent's start, 85 % within 2σ",
 }
 SCENARIOS = [
     "clean_circles", "clean_legs", "clean_mission", "payload_release", "payload_takeoff",
@@ -127,8 +121,8 @@ def test_the_running_mass_and_wind_hold_90_percent_within_2_sigma_and_3_sigma_al
 
 @pytest.mark.xfail(
     strict=True,
-    reason="pooled mass 73 % within 2σ, wind 79 %: with no slow model error stated the mass's "
-    "1σ shrinks to 0.5 % of the vehicle's and the power pulls the wind off the autopilot's",
+    reason="pooled mass 83 % within 2σ and 97 % within 3σ, wind 80 % and 95 %: the vertical "
+    "transients read as mass, and the power pulls the wind off the autopilot's",
 )
 @pytest.mark.parametrize("group", ["all", "held out"])
 def test_pooled_the_steps_hold_90_percent_within_2_sigma_and_3_sigma_always(
@@ -141,8 +135,10 @@ def test_pooled_the_steps_hold_90_percent_within_2_sigma_and_3_sigma_always(
 def test_told_the_model_error_is_slow_the_mass_holds_its_sigma_and_the_wind_gains() -> None:
     """The cause named for the mass misses: the same flights with ``[model]
     slow_error_fraction = 0.02`` (``scripts/tracker_sitl.py --slow-error-fraction 0.02``) hold
-    the mass within 2σ on 99 % of the steps pooled and the wind on 87 % (73 % and 79 % as
-    committed); what is left beyond 3σ is the transients above and the wind changes."""
+    the mass within 2σ on 99 % of the steps pooled and the wind on 87 % (83 % and 80 % with
+    the 0.6 % the file states, measured on its fit flights: the slow error that would cover
+    these flights is not the one the fit flights show); what is left beyond 3σ is the
+    transients above and the wind changes."""
     runs = [r for _, r in SCRIPT.runs(slow_error_fraction=0.02)]
     mass_2, wind_2 = SCRIPT.pooled(runs, 2.0)
     assert mass_2 >= 0.95 and wind_2 >= 0.85

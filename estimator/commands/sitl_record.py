@@ -1,7 +1,8 @@
 """``uav-energy sitl-record SCENARIO… --out DIR``: fly scenarios in ArduCopter SITL, record them.
 
 Each scenario (estimator/sitl/scenarios.py; ``all`` for every one of ``replay/sitl``,
-``held`` for every flight of ``replay/sitl_held``, ``packs`` for every ``pack_*`` flight of
+``held`` and ``held2`` for the held-out flights of ``replay/sitl_held``, ``episodes`` for
+those of ``replay/sitl_episodes``, ``packs`` for every ``pack_*`` flight of
 ``replay/sitl_packs``) is flown in a fresh SITL
 (scratch directory, free instance) and written to ``DIR/<scenario>/``: ``flight.tlog``,
 ``truth.json`` and, for the scenarios that log it, ``flight.BIN``. ``--mission FILE`` flies
@@ -32,7 +33,8 @@ def register(subparsers: argparse._SubParsersAction[argparse.ArgumentParser]) ->
         nargs="*",
         metavar="SCENARIO",
         help="scenario names (the effects of replay/sitl, pack_* packs of replay/sitl_packs), "
-        "or all (every effect scenario), held (the held-out effect flights), or packs / "
+        "or all (every effect scenario), held / held2 (the held-out effect flights), "
+        "episodes (wind episodes to tune on), or packs / "
         "packs2 / ... / packs7 (the first to seventh set of pack_* scenarios)",
     )
     p.add_argument("--mission", metavar="FILE", help="fly this mission file in AUTO instead")
@@ -49,7 +51,11 @@ def register(subparsers: argparse._SubParsersAction[argparse.ArgumentParser]) ->
 def run(args: argparse.Namespace) -> int:
     from estimator.commands.sim import _pair
     from estimator.logs.mission_files import load_mission
-    from estimator.sitl.held_scenarios import HELD_SCENARIOS
+    from estimator.sitl.held_scenarios import (
+        EPISODE_SCENARIOS,
+        HELD_SCENARIOS,
+        HELD_SCENARIOS_2,
+    )
     from estimator.sitl.recorder import record
     from estimator.sitl.scenarios import (
         PACK_SETS,
@@ -72,9 +78,14 @@ def run(args: argparse.Namespace) -> int:
             raise UserError("--wind and --gripper go with --mission")
         if not args.scenarios:
             raise UserError("name a scenario (or all), or give --mission FILE")
-        groups = {"all": list(SCENARIOS), "held": list(HELD_SCENARIOS)}
+        groups = {
+            "all": list(SCENARIOS),
+            "held": list(HELD_SCENARIOS),
+            "held2": list(HELD_SCENARIOS_2),
+            "episodes": list(EPISODE_SCENARIOS),
+        }
         groups |= {g: list(s) for g, s in PACK_SETS.items()}
-        known = SCENARIOS | HELD_SCENARIOS
+        known = SCENARIOS | HELD_SCENARIOS | HELD_SCENARIOS_2 | EPISODE_SCENARIOS
         for pack_set in PACK_SETS.values():
             known |= pack_set
         names = [n for name in args.scenarios for n in groups.get(name, [name])]
