@@ -97,15 +97,23 @@ def held_checks() -> dict[str, RecordingCheck]:
 
 
 def held_summary(checks: Mapping[str, RecordingCheck]) -> str:
-    """How many held-out flights name a true effect first, and end within the limit."""
-    scores = [c.score for c in checks.values()]
-    within = sum(s.rmse_to_floor <= HELD_FLOOR_LIMIT for s in scores)
-    ratios = [s.rmse_to_floor for s in scores]
-    return (
-        f"the first named effect is right on {sum(s.first_right for s in scores)} of "
-        f"{len(scores)}; the held-out RMSE after ends within {HELD_FLOOR_LIMIT:g} noise "
-        f"floors on {within} of {len(scores)} ({min(ratios):.2f}–{max(ratios):.2f}×)"
-    )
+    """Per held-out set (the flights' name before the first "_": ``held``, ``held2``), how
+    many name a true effect first and end within the limit."""
+    sets: dict[str, list[RecordingCheck]] = {}
+    for name, check in checks.items():
+        sets.setdefault(name.split("_")[0], []).append(check)
+    parts = []
+    for label, group in sorted(sets.items(), key=lambda kv: (len(kv[0]), kv[0])):
+        scores = [c.score for c in group]
+        within = sum(s.rmse_to_floor <= HELD_FLOOR_LIMIT for s in scores)
+        ratios = [s.rmse_to_floor for s in scores]
+        parts.append(
+            f"{label}_*: the first named effect is right on "
+            f"{sum(s.first_right for s in scores)} of {len(scores)}, the held-out RMSE after "
+            f"within {HELD_FLOOR_LIMIT:g} noise floors on {within} of {len(scores)} "
+            f"({min(ratios):.2f}–{max(ratios):.2f}×)"
+        )
+    return "; ".join(parts)
 
 
 def effects_table(checks: Mapping[str, RecordingCheck], recordings: Path = SITL_RECORDINGS) -> str:
