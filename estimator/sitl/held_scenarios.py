@@ -1,10 +1,12 @@
-"""The held-out effect flights of ``replay/sitl_held`` (``uav-energy sitl-record held``), and
-the development flights of wind episodes of ``replay/sitl_episodes`` (``sitl-record
-episodes``: flown to tune the window search on, after the held-out ones had shown the miss).
+"""The held-out effect flights of ``replay/sitl_held`` (``uav-energy sitl-record held`` and
+``held2``), and the development flights of wind episodes of ``replay/sitl_episodes``
+(``sitl-record episodes``: flown to tune the window search on, after the first held-out set
+had shown the miss).
 
-Recorded after the residual analysis, the online tracker and the scoring of
-:mod:`estimator.sitl.truth_check` were frozen in the commit that added this set; none of it
-was tuned on (docs/residuals.md, "Held-out SITL flights"). Vertical legs at 1-9 m/s over
+Each held-out set was recorded right after the commit that defined it froze the residual
+analysis, the online tracker, the SITL vehicle file and the scoring of
+:mod:`estimator.sitl.truth_check` (the first after 870ed85, the second after 7e98e75); none of
+it was tuned on (docs/residuals.md, "Held-out SITL flights"). Vertical legs at 1-9 m/s over
 10-60 m of altitude, wind episodes of 30-90 s inside longer flights, and both with the
 gripper's payload. Every flight takes off to 20 m and stays between 10 and 65 m; steps as in
 :mod:`estimator.sitl.scenarios` (positions and velocities NED, m and m/s; durations s).
@@ -51,6 +53,7 @@ def _held(name: str, description: str, *steps: Step) -> Scenario:
 
 
 # fmt: off
+#: The first held-out set (recorded after commit 870ed85).
 HELD_SCENARIOS: dict[str, Scenario] = by_name(
     _held(
         "held_clean_vertical",
