@@ -39,9 +39,9 @@ PAYLOADS = ("payload_takeoff", "payload_release", "payload_wind")
 TURNING_WIND, HEAVY_AIRFRAME = "wind_turn", "heavy_quad"
 
 
-def recordings() -> list[str]:
-    """The recordings of ``replay/sitl`` (each flown once, with its truth)."""
-    return sorted(p.name for p in SITL_RECORDINGS.iterdir() if (p / "truth.json").is_file())
+def recordings(folder: Path = SITL_RECORDINGS) -> list[str]:
+    """The recordings of ``folder`` (each flown once, with its truth)."""
+    return sorted(p.parent.name for p in folder.glob("*/truth.json"))
 
 
 def _truth(name: str, recordings: Path = SITL_RECORDINGS) -> dict[str, Any]:
@@ -76,24 +76,23 @@ def effect_scenarios() -> list[str]:
     return [s for s in recordings() if s not in NOT_EFFECT_RECORDINGS]
 
 
+def _checks(folder: Path, names: list[str]) -> dict[str, RecordingCheck]:
+    """``uav-energy residuals`` on each recording ``names`` of ``folder``, scored against its
+    truth (≈ 5 s of CPU a recording)."""
+    vehicle = load_vehicle(SITL_VEHICLE)
+    return {s: score_recording(folder / s, vehicle) for s in names}
+
+
 @cache
 def effect_checks() -> dict[str, RecordingCheck]:
-    """``uav-energy residuals`` on each effect recording, scored against its truth (≈ 5 s of
-    CPU a recording)."""
-    vehicle = load_vehicle(SITL_VEHICLE)
-    return {s: score_recording(SITL_RECORDINGS / s, vehicle) for s in effect_scenarios()}
-
-
-def held_scenarios() -> list[str]:
-    """The held-out flights of ``replay/sitl_held``."""
-    return sorted(p.parent.name for p in HELD_RECORDINGS.glob("*/truth.json"))
+    """:func:`_checks` of the effect recordings of ``replay/sitl``."""
+    return _checks(SITL_RECORDINGS, effect_scenarios())
 
 
 @cache
 def held_checks() -> dict[str, RecordingCheck]:
-    """:func:`effect_checks` for the held-out flights."""
-    vehicle = load_vehicle(SITL_VEHICLE)
-    return {s: score_recording(HELD_RECORDINGS / s, vehicle) for s in held_scenarios()}
+    """:func:`_checks` of the held-out flights of ``replay/sitl_held``."""
+    return _checks(HELD_RECORDINGS, recordings(HELD_RECORDINGS))
 
 
 def held_summary(checks: Mapping[str, RecordingCheck]) -> str:

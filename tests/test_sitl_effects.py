@@ -16,9 +16,8 @@ from types import ModuleType
 
 import pytest
 
-from estimator.analysis.residuals import analyze
 from estimator.analysis.slow_error import slow_error_fraction
-from estimator.logs import iter_samples, load_flights
+from estimator.logs import iter_samples
 from estimator.physics.vehicle import Vehicle, load_vehicle
 from estimator.sitl.truth_check import (
     FlightScore,
@@ -98,7 +97,7 @@ def test_the_vehicle_files_slow_error_is_the_one_its_fit_flights_show() -> None:
     vehicle = sitl_vehicle()
     flights = []
     for name in ("clean_legs", "clean_circles", "clean_mission"):
-        result = analyze(load_flights([RECORDINGS / name / "flight.tlog"]), vehicle)
+        result = checked(name).result
         assert not result.selected  # the vehicle file describes them: nothing to add
         residual_w = result.samples.power_w - result.predicted_final_w
         flights.append((result.samples.state.time_s, residual_w))

@@ -27,17 +27,17 @@ REPO = Path(__file__).resolve().parent.parent
 THIS_FILE = "tests/test_sitl_held_out.py"
 
 
-def _script(name: str) -> ModuleType:
-    spec = importlib.util.spec_from_file_location(name, REPO / "scripts" / f"{name}.py")
+def _figures_script() -> ModuleType:
+    spec = importlib.util.spec_from_file_location("figures", REPO / "scripts" / "figures.py")
     assert spec is not None and spec.loader is not None
     module = importlib.util.module_from_spec(spec)
     spec.loader.exec_module(module)
     return module
 
 
-FIGURES = _script("figures")
+FIGURES = _figures_script()
 SITL = FIGURES.sitl
-TRACKER = _script("tracker_sitl")
+TRACKER = FIGURES.script_module("tracker_sitl")
 FLIGHTS = sorted(HELD_SCENARIOS | HELD_SCENARIOS_2)
 #: SITL's vertical power (drag and thrust, not momentum theory) is not in its vehicle file.
 VERTICAL = "SITL's vertical power is not in the SITL vehicle file"
@@ -130,7 +130,7 @@ def scored(flight: str) -> FlightScore:
 
 
 def test_every_held_out_flight_is_recorded_with_its_truth() -> None:
-    assert SITL.held_scenarios() == FLIGHTS
+    assert SITL.recordings(SITL.HELD_RECORDINGS) == FLIGHTS
     assert len(HELD_SCENARIOS) >= 12 and len(HELD_SCENARIOS_2) >= 12
     kinds = [{e.kind for e in scored(f).truth.effects} for f in FLIGHTS]
     assert sum(not k for k in kinds) >= 4

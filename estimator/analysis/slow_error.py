@@ -5,8 +5,8 @@ tracker takes it as a correlated error (:mod:`estimator.estimation.online_effect
 mass and wind do not claim a precision the model does not have.
 
 Measured here as the standard deviation of the residual's (measured − predicted power, W)
-means over consecutive windows of ``window_s`` seconds of each flight (windows with fewer than
-``min_samples`` samples are left out), pooled over the flights.
+means over consecutive windows of :data:`WINDOW_S` seconds of each flight (windows with fewer
+than :data:`MIN_SAMPLES` samples are left out), pooled over the flights.
 """
 
 from __future__ import annotations

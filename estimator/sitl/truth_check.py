@@ -13,10 +13,11 @@ from __future__ import annotations
 import json
 import math
 from dataclasses import dataclass, field
+from functools import cached_property
 from pathlib import Path
 from typing import Any
 
-from estimator.analysis.residuals import analyze
+from estimator.analysis.residuals import ResidualResult, analyze
 from estimator.logs import load_flights
 from estimator.physics.vehicle import Vehicle
 
@@ -191,11 +192,15 @@ def score_summary(
 
 @dataclass
 class RecordingCheck:
-    """``uav-energy residuals`` on one recording (``summary``: its ``--json`` object) and the
-    score of what it named against the recording's truth."""
+    """``uav-energy residuals`` on one recording (``result``; ``summary``: its ``--json``
+    object) and the score of what it named against the recording's truth."""
 
-    summary: dict[str, Any]
+    result: ResidualResult
     score: FlightScore
+
+    @cached_property
+    def summary(self) -> dict[str, Any]:
+        return self.result.summary()
 
 
 def score_recording(folder: Path, vehicle: Vehicle) -> RecordingCheck:
@@ -204,6 +209,5 @@ def score_recording(folder: Path, vehicle: Vehicle) -> RecordingCheck:
     truth = FlightTruth.load(folder / "truth.json", vehicle.mass_kg)
     result = analyze(load_flights([folder / "flight.tlog"]), vehicle)
     time_s = result.samples.state.time_s
-    summary = result.summary()
     span = truth.within(float(time_s.min()), float(time_s.max()))
-    return RecordingCheck(summary, score_summary(span, summary))
+    return RecordingCheck(result, score_summary(span, result.summary()))
