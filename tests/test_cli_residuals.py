@@ -11,7 +11,8 @@ import pytest
 from estimator import cli
 from estimator.analysis.replay import replay_log, summarize
 from estimator.estimation.pipeline_settings import PipelineSettings
-from estimator.physics.effects import Wind, effects_from_tables
+from estimator.physics.effect_tables import effects_from_tables
+from estimator.physics.effects import Wind
 from estimator.physics.vehicle import default_vehicle, load_vehicle
 from estimator.sim.files import write_tlog
 from estimator.sim.run import SimConfig

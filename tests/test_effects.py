@@ -8,6 +8,11 @@ import numpy as np
 import pytest
 
 from estimator.errors import UserError
+from estimator.physics.effect_tables import (
+    effect_from_params,
+    effects_from_tables,
+    effects_to_tables,
+)
 from estimator.physics.effects import (
     EFFECT_TYPES,
     Acceleration,
@@ -15,14 +20,12 @@ from estimator.physics.effects import (
     Avionics,
     Climb,
     FlightState,
+    Heave,
     Mass,
     ReportedWind,
     Turn,
     Voltage,
     Wind,
-    effect_from_params,
-    effects_from_tables,
-    effects_to_tables,
     predict_power_w,
 )
 from estimator.physics.model import G_MPS2, SEA_LEVEL_DENSITY_KGPM3
@@ -143,6 +146,49 @@ def test_climb_power_rises_with_climb_rate_and_descent_needs_less_than_hover() -
     # a descent saves at most hover's induced share m g v0 / η: v_c + v_i is held at ≥ 0
     weight_v0 = MASS_KG * G_MPS2 * v0
     assert descending.min() == pytest.approx(MODEL.hover_power_w - weight_v0 / eff)
+
+
+def with_vertical_accel(st: FlightState, ad_mps2: list[float]) -> FlightState:
+    return FlightState(
+        *(getattr(st, k) for k in ("time_s", "vn_mps", "ve_mps", "vd_mps")),
+        st.an_mps2,
+        st.ae_mps2,
+        st.alt_m,
+        st.voltage_v,
+        np.asarray(ad_mps2),
+    )
+
+
+def test_heave_is_the_load_factor_of_a_vertical_acceleration() -> None:
+    """Hovering while accelerating up at a: the rotors carry m (g + a), so the induced term of
+    eq. (2) goes as n^1.5 with n = 1 + a/g; a downward one lightens them, down to no thrust."""
+    accel_up = np.array([0.0, 2.0, -2.0, -G_MPS2, -2.0 * G_MPS2])
+    st = with_vertical_accel(state(n=5), list(-accel_up))
+    extra = power(st, Heave(gain=1.0)) - MODEL.hover_power_w
+    n = np.maximum(1.0 + accel_up / G_MPS2, 0.0)
+    assert extra == pytest.approx(MODEL.c3 * (n**1.5 - 1.0))
+    assert extra[0] == 0.0
+    assert extra[1] > 0 > extra[2]
+    assert extra[3] == extra[4] == pytest.approx(-MODEL.c3)  # free fall: no induced power
+    assert power(st, Heave(gain=2.0)) - MODEL.hover_power_w == pytest.approx(2.0 * extra)
+
+
+def test_heave_in_forward_flight_and_turns_uses_the_whole_load_factor() -> None:
+    """At speed and in a turn the vertical acceleration adds to the thrust the turn needs:
+    n² = (1 + a_up/g)² + (a⊥/g)²."""
+    turn = state(vn=8.0, ae=3.0, n=2)
+    st = with_vertical_accel(turn, [0.0, -1.5])
+    a_perp = 3.0 * 8.0 / math.sqrt(64.0 + 0.25)  # the kinematics' low-speed floor
+    got = power(st, Heave()) - power(turn)
+    assert got[0] == 0.0
+    load2 = (1.0 + 1.5 / G_MPS2) ** 2 + (a_perp / G_MPS2) ** 2
+    level2 = 1.0 + (a_perp / G_MPS2) ** 2
+    expected = MODEL.induced_w(8.0, load2) - MODEL.induced_w(8.0, level2)
+    assert got[1] == pytest.approx(float(expected))
+    # what eq. (2) gives at that load factor, its a⊥ standing for the whole thrust change
+    # (no kinetic term: the speed does not change)
+    equivalent_a = G_MPS2 * math.sqrt(load2 - 1.0)
+    assert float(power(st, Heave())[1]) == pytest.approx(float(MODEL.power_w(8.0, equivalent_a)))
 
 
 def test_avionics_adds_a_constant_load_from_at_s() -> None:

@@ -92,3 +92,17 @@ def test_acceleration_step_is_followed_within_a_second() -> None:
         if t >= 6.0:
             assert state.an_mps2 == pytest.approx(2.0, abs=0.3)
     assert state is not None
+
+
+def test_vertical_acceleration_is_followed_like_the_horizontal() -> None:
+    """A climb that starts at 2 m/s² (vd falling): the state's ad_mps2 (down positive) follows
+    it within a second, and is 0 while the climb rate holds."""
+    kf = KinematicsFilter()
+    for k in range(150):  # 10 Hz: hover 5 s, climb rate building for 1.5 s, then 3 m/s up
+        t = k * 0.1
+        climb = 0.0 if t < 5.0 else min(2.0 * (t - 5.0), 3.0)
+        state = kf.update(VelocitySample(t, 0.0, 0.0, -climb))
+        if 6.0 <= t < 6.5:
+            assert state.ad_mps2 == pytest.approx(-2.0, abs=0.4)
+        if t < 5.0 or t >= 12.0:
+            assert state.ad_mps2 == pytest.approx(0.0, abs=0.1)

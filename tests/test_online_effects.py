@@ -17,15 +17,8 @@ from estimator.estimation.airborne import TAKEOFF_SETTLE_S
 from estimator.estimation.online_effects import OnlineEffects
 from estimator.estimation.track_runner import TrackPoint, track_samples
 from estimator.logs import iter_samples
-from estimator.physics.effects import (
-    Climb,
-    Effect,
-    Mass,
-    PowerContext,
-    Wind,
-    effects_to_tables,
-    wind_from_vector,
-)
+from estimator.physics.effect_tables import effects_to_tables
+from estimator.physics.effects import Climb, Effect, Mass, PowerContext, Wind, wind_from_vector
 from estimator.physics.vehicle import Vehicle, default_vehicle, load_vehicle
 from estimator.sim.files import write_tlog
 from estimator.sim.plans import Leg, Plan

@@ -16,6 +16,7 @@ from estimator.analysis.residual_fit import best_switch, best_window
 from estimator.analysis.residual_samples import ResidualOptions, Samples, prepare
 from estimator.analysis.residuals import ResidualResult, _block_gain_z, analyze
 from estimator.logs import FlightSeries, load_flights
+from estimator.physics.effect_tables import effects_to_tables
 from estimator.physics.effects import (
     EFFECT_TYPES,
     Acceleration,
@@ -28,7 +29,6 @@ from estimator.physics.effects import (
     Turn,
     Voltage,
     Wind,
-    effects_to_tables,
     predict_power_w,
 )
 from estimator.physics.vehicle import Vehicle, default_vehicle

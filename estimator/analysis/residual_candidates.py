@@ -18,6 +18,7 @@ from estimator.physics.effects import (
     Avionics,
     Climb,
     Effect,
+    Heave,
     Mass,
     ReportedWind,
     Turn,
@@ -154,6 +155,7 @@ def candidates_for(vehicle: Vehicle, samples: Samples, names: Sequence[str]) -> 
     rho_lo, rho_hi = AirDensity.bounds["rho_kgpm3"]
     avi_lo, avi_hi = Avionics.bounds["power_w"]
     turn_lo, turn_hi = Turn.bounds["power_w_per_g2"]
+    heave_lo, heave_hi = ((bound,) for bound in Heave.bounds["gain"])
     wind_max = Wind.bounds["speed_mps"][1]
     wind = Candidate(
         "wind",
@@ -183,6 +185,7 @@ def candidates_for(vehicle: Vehicle, samples: Samples, names: Sequence[str]) -> 
             lambda x, _at, _until: AirDensity(float(x[0])),
         ),
         Candidate("climb", (0.6,), (0.2,), (1.0,), lambda x, _at, _until: Climb(float(x[0]))),
+        Candidate("heave", (1.0,), heave_lo, heave_hi, lambda x, _at, _until: Heave(float(x[0]))),
         *_constant_and_windowed(
             Candidate(
                 "avionics",

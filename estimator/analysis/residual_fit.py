@@ -14,11 +14,8 @@ from scipy.optimize import least_squares
 
 from estimator.analysis.residual_candidates import Candidate
 from estimator.analysis.residual_samples import Samples
-from estimator.physics.effects import (
-    Effect,
-    effects_from_tables,
-    predict_power_w,
-)
+from estimator.physics.effect_tables import effects_from_tables
+from estimator.physics.effects import Effect, predict_power_w
 from estimator.physics.model import FloatArray
 from estimator.physics.vehicle import Vehicle
 

@@ -97,6 +97,7 @@ class Samples:
             s.ae_mps2[rows],
             s.alt_m[rows],
             s.voltage_v[rows],
+            None if s.ad_mps2 is None else s.ad_mps2[rows],
         )
 
     def train_rows(self, fold: int, guard_s: float) -> NDArray[np.bool_]:
@@ -155,6 +156,7 @@ def prepare(flights: Sequence[FlightSeries], options: ResidualOptions | None = N
         cols["ae_mps2"],
         cols["alt_m"],
         cols["voltage_v"],
+        cols["ad_mps2"],
     )
     channels = {
         "time_s": cols["time_s"],
@@ -195,7 +197,8 @@ def prepare(flights: Sequence[FlightSeries], options: ResidualOptions | None = N
 
 
 _PART_KEYS = (
-    *("time_s", "vn_mps", "ve_mps", "vd_mps", "an_mps2", "ae_mps2", "alt_m", "voltage_v"),
+    *("time_s", "vn_mps", "ve_mps", "vd_mps", "an_mps2", "ae_mps2", "ad_mps2", "alt_m"),
+    "voltage_v",
     *("power_w", "energy_used_wh", "fold", "chunk", "block", "flight"),
 )
 
@@ -247,6 +250,7 @@ def _flight_rows(f: FlightSeries, opt: ResidualOptions) -> dict[str, FloatArray]
     ve = _smooth(t, f.ve_mps[rows], seg, opt.smooth_s)
     vd = np.nan_to_num(f.vd_mps[rows])
     an, ae = _gradient(vn, t, seg), _gradient(ve, t, seg)
+    ad = _gradient(_smooth(t, vd, seg, opt.smooth_s), t, seg)
     power = f.power_w[rows]
     dt = np.diff(t, prepend=t[0])
     dt[np.r_[True, seg[1:] != seg[:-1]]] = 0.0
@@ -258,6 +262,7 @@ def _flight_rows(f: FlightSeries, opt: ResidualOptions) -> dict[str, FloatArray]
         "vd_mps": vd,
         "an_mps2": an,
         "ae_mps2": ae,
+        "ad_mps2": ad,
         "alt_m": f.alt_m[rows],
         "voltage_v": f.voltage_v[rows],
         "power_w": power,

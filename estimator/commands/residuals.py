@@ -26,7 +26,8 @@ from estimator.estimation.online_effects import OnlineEffects
 from estimator.estimation.track_runner import track_series
 from estimator.logs import FORMATS, FlightSeries, load_flights
 from estimator.logs.sanity import flight_warnings
-from estimator.physics.effects import EFFECT_TYPES, Climb, effects_to_tables
+from estimator.physics.effect_tables import effects_to_tables
+from estimator.physics.effects import EFFECT_TYPES, Climb
 from estimator.physics.vehicle import Vehicle, load_vehicle
 
 

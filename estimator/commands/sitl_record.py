@@ -1,7 +1,7 @@
 """``uav-energy sitl-record SCENARIO… --out DIR``: fly scenarios in ArduCopter SITL, record them.
 
 Each scenario (estimator/sitl/scenarios.py; ``all`` for every one of ``replay/sitl``,
-``held`` and ``held2`` for the held-out flights of ``replay/sitl_held``, ``episodes`` for
+``held``, ``held2`` and ``held3`` for the held-out flights of ``replay/sitl_held``, ``episodes`` for
 those of ``replay/sitl_episodes``, ``packs`` for every ``pack_*`` flight of
 ``replay/sitl_packs``) is flown in a fresh SITL
 (scratch directory, free instance) and written to ``DIR/<scenario>/``: ``flight.tlog``,
@@ -33,7 +33,7 @@ def register(subparsers: argparse._SubParsersAction[argparse.ArgumentParser]) ->
         nargs="*",
         metavar="SCENARIO",
         help="scenario names (the effects of replay/sitl, pack_* packs of replay/sitl_packs), "
-        "or all (every effect scenario), held / held2 (the held-out effect flights), "
+        "or all (every effect scenario), held / held2 / held3 (the held-out effect flights), "
         "episodes (wind episodes to tune on), or packs / "
         "packs2 / ... / packs7 (the first to seventh set of pack_* scenarios)",
     )
@@ -55,6 +55,7 @@ def run(args: argparse.Namespace) -> int:
         EPISODE_SCENARIOS,
         HELD_SCENARIOS,
         HELD_SCENARIOS_2,
+        HELD_SCENARIOS_3,
     )
     from estimator.sitl.recorder import record
     from estimator.sitl.scenarios import (
@@ -82,10 +83,11 @@ def run(args: argparse.Namespace) -> int:
             "all": list(SCENARIOS),
             "held": list(HELD_SCENARIOS),
             "held2": list(HELD_SCENARIOS_2),
+            "held3": list(HELD_SCENARIOS_3),
             "episodes": list(EPISODE_SCENARIOS),
         }
         groups |= {g: list(s) for g, s in PACK_SETS.items()}
-        known = SCENARIOS | HELD_SCENARIOS | HELD_SCENARIOS_2 | EPISODE_SCENARIOS
+        known = SCENARIOS | HELD_SCENARIOS | HELD_SCENARIOS_2 | HELD_SCENARIOS_3 | EPISODE_SCENARIOS
         for pack_set in PACK_SETS.values():
             known |= pack_set
         names = [n for name in args.scenarios for n in groups.get(name, [name])]

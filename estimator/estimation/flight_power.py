@@ -111,20 +111,20 @@ class FlightPower:
         ``time_s`` and ``latest_v``; with ``effects`` (default: those in use); along
         ``tracks_rad`` (one course per steady speed, rad from north) instead."""
         k = len(states)
-        rows = np.empty((k + len(steady_speeds_mps), 8))
+        rows = np.empty((k + len(steady_speeds_mps), 9))
         if k:
             rows[:k] = [
-                (s.time_s, s.vn_mps, s.ve_mps, s.vd_mps, s.an_mps2, s.ae_mps2, 0.0, v)
+                (s.time_s, s.vn_mps, s.ve_mps, s.vd_mps, s.an_mps2, s.ae_mps2, 0.0, v, s.ad_mps2)
                 for s, v in zip(states, voltages_v or [latest_v] * k, strict=True)
             ]
         # steady rows: level, along the track, a⊥ across it
         if tracks_rad is None:  # one course for all (scalars: the per-sample path)
             north, east = math.cos(self.track_rad), math.sin(self.track_rad)
             a = accel_centripetal_mps2
-            rows[k:] = (time_s, 0.0, 0.0, 0.0, -east * a, north * a, 0.0, latest_v)
+            rows[k:] = (time_s, 0.0, 0.0, 0.0, -east * a, north * a, 0.0, latest_v, 0.0)
         else:
             north, east = np.cos(tracks_rad), np.sin(tracks_rad)
-            rows[k:] = (time_s, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, latest_v)
+            rows[k:] = (time_s, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, latest_v, 0.0)
             rows[k:, 4] = -east * accel_centripetal_mps2
             rows[k:, 5] = north * accel_centripetal_mps2
         rows[k:, 1] = north * steady_speeds_mps

@@ -37,10 +37,12 @@ squared innovations' surplus over their predicted variance, followed with gain
 model error looks like noise to the filter); an innovation beyond ``gate_sigma`` standard
 deviations is not used (counted in ``rejected``) unless it starts a detected change (below),
 nor are samples in fast vertical motion (|v_z| > ``max_vertical_speed_mps``: take-off,
-landing, where the climb term is the least certain part of the model; counted in
-``vertical``) and readings below ``min_power_fraction_of_hover`` of the model's hover power
-(idle motors, ``idle``). Readings from the ground and the take-off transient never reach the
-filter: its callers gate them (:class:`~estimator.estimation.airborne.AirborneGate`).
+landing, where the climb term is the least certain part of the model) or in a vertical
+acceleration beyond ``max_vertical_accel_mps2`` (a climb that starts or stops: the power
+leads the filtered state, so the ``heave`` term is late), counted in ``vertical``, and readings
+below ``min_power_fraction_of_hover`` of the model's hover power (idle motors, ``idle``).
+Readings from the ground and the take-off transient never reach the filter: its callers gate
+them (:class:`~estimator.estimation.airborne.AirborneGate`).
 
 Steps (payload picked up or released, wind setting in): a random walk slow enough to keep
 the estimate quiet follows a step only at its own pace (a 1 kg release took about a minute).
@@ -95,13 +97,13 @@ import numpy as np
 from estimator.estimation.autopilot_wind import AutopilotWind, mahalanobis2
 from estimator.estimation.kalman import MerweSigmaPoints
 from estimator.estimation.online_settings import OnlineSettings
+from estimator.physics.effect_tables import effects_from_tables
 from estimator.physics.effects import (
     Effect,
     FlightState,
     Mass,
     SampleMass,
     Wind,
-    effects_from_tables,
     predict_power_w,
     wind_from_vector,
 )
@@ -117,7 +119,7 @@ _HELD_VARIANCE = 1e-9
 
 
 class _Step(NamedTuple):
-    """One filter step's data: readings' flight-state rows (k × 8, the FlightState fields),
+    """One filter step's data: readings' flight-state rows (k × 9, the FlightState fields),
     their mean measured power (W) and its noise variance (W²), and whether the vehicle moves
     (else hovers)."""
 
@@ -307,13 +309,13 @@ class OnlineEffects:
     # -- filter --------------------------------------------------------------------------------
 
     def _powers_w(self, points: np.ndarray, rows: np.ndarray) -> np.ndarray:
-        """Model power (W) at each flight state of ``rows`` (k × 8, the FlightState fields)
+        """Model power (W) at each flight state of ``rows`` (k × 9, the FlightState fields)
         for each hypothesis [w_n, w_e, δm] or [w_n, w_e, δm, b] of ``points`` (m rows): an
         m × k array, from one prediction, plus the hypothesis' model error b. The wind is
         taken out of the velocity (what :class:`Wind` does), the mass goes in as
         :class:`SampleMass`."""
         m, k = len(points), len(rows)
-        columns = np.tile(rows.T, m)  # 8 × (m·k), hypothesis-major
+        columns = np.tile(rows.T, m)  # 9 × (m·k), hypothesis-major
         columns[1] -= np.repeat(points[:, 0], k)
         columns[2] -= np.repeat(points[:, 1], k)
         floor_kg = (self.settings.min_mass_fraction - 1.0) * self.mass_kg
@@ -372,7 +374,8 @@ class OnlineEffects:
         flight state, with the noise of a mean. While the estimate moves little between
         the readings this carries what they would carry one by one, at the cost of one step.
         Readings that are not finite or go back in time (``rejected``), in fast vertical
-        motion (``vertical``) or below the idle power (``idle``) are left out.
+        motion or vertical acceleration (``vertical``) or below the idle power (``idle``) are
+        left out.
 
         Returns :attr:`effects` after the update.
         """
@@ -385,7 +388,10 @@ class OnlineEffects:
                 self._time_s is not None and st.time_s < self._time_s
             ):
                 self.rejected += 1
-            elif abs(st.vd_mps) > s.max_vertical_speed_mps:
+            elif (
+                abs(st.vd_mps) > s.max_vertical_speed_mps
+                or abs(st.ad_mps2) > s.max_vertical_accel_mps2
+            ):
                 self.vertical += 1
             elif r.measured_power_w < s.min_power_fraction_of_hover * self._hover_w:
                 self.idle += 1
@@ -409,7 +415,9 @@ class OnlineEffects:
             ][:n]
         )
         decay = np.array([1.0, 1.0, 1.0, kept_b][:n])
-        rows = np.array([(*motion, 0.0, r.voltage_v) for r, motion in kept], dtype=float)
+        rows = np.array(
+            [(*motion, 0.0, r.voltage_v, r.state.ad_mps2) for r, motion in kept], dtype=float
+        )
         measured = np.array([r.measured_power_w for r, _ in kept])
         kinetic_sd = self.mass_kg * np.array(
             [r.state.speed_mps * r.state.accel_sigma_mps2 for r, _ in kept]

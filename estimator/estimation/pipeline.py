@@ -65,11 +65,8 @@ from estimator.estimation.return_home import (
 )
 from estimator.estimation.tracker_steps import TrackerSteps
 from estimator.physics.battery import PackModel
-from estimator.physics.effects import (
-    Climb,
-    Effect,
-    effects_from_tables,
-)
+from estimator.physics.effect_tables import effects_from_tables
+from estimator.physics.effects import Climb, Effect
 from estimator.physics.kinematics import KinematicsFilter, KinematicState
 from estimator.physics.vehicle import Vehicle
 from estimator.telemetry.samples import (

@@ -18,7 +18,8 @@ from estimator.errors import UserError
 from estimator.estimation.flight_power import FlightPower
 from estimator.estimation.fusion import EnergyFilter
 from estimator.estimation.pack_bank import PackBank
-from estimator.physics.effects import Effect, effects_from_tables, effects_to_tables
+from estimator.physics.effect_tables import effects_from_tables, effects_to_tables
+from estimator.physics.effects import Effect
 from estimator.telemetry.plausibility import MAX_POWER_PER_HOVER
 
 

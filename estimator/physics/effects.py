@@ -9,7 +9,8 @@ on whole arrays (vectorized numpy) in this order:
    :meth:`PowerModel.rescaled`);
 2. eq. (2) of the seed paper at horizontal airspeed V with centripetal acceleration a⊥ (both
    in the air-mass frame), plus the kinetic term m vᵀa;
-3. *propulsion* effects add power the rotors need: ``climb``, ``acceleration``, ``turn``;
+3. *propulsion* effects add power the rotors need: ``climb``, ``heave``, ``acceleration``,
+   ``turn``;
 4. *electrical* effects act at the battery: ``voltage`` (wiring/ESC losses that grow as the
    pack sags), ``avionics`` (a constant or stepped load).
 
@@ -24,7 +25,7 @@ from __future__ import annotations
 
 import itertools
 import math
-from collections.abc import Mapping, Sequence
+from collections.abc import Sequence
 from dataclasses import asdict, dataclass, field, fields, replace
 from functools import cached_property
 from typing import Any, ClassVar
@@ -32,7 +33,6 @@ from typing import Any, ClassVar
 import numpy as np
 from numpy.typing import ArrayLike
 
-from estimator.errors import UserError
 from estimator.physics.axial import axial_induced_power_ratio
 from estimator.physics.kinematics import centripetal_accel_mps2
 from estimator.physics.model import G_MPS2, SEA_LEVEL_DENSITY_KGPM3, FloatArray, PowerModel
@@ -49,6 +49,8 @@ class FlightState:
     time_s: flight clock (autopilot time), s.  vn/ve/vd_mps: velocity over ground, NED, m/s.
     an/ae_mps2: horizontal acceleration over ground, NED, m/s².  alt_m: altitude above home, m.
     voltage_v: battery terminal voltage, V (NaN where unknown; only ``voltage`` uses it).
+    ad_mps2: vertical acceleration, NED (down positive), m/s² (None: zero; only ``heave`` uses
+    it).
     """
 
     time_s: FloatArray
@@ -59,9 +61,12 @@ class FlightState:
     ae_mps2: FloatArray
     alt_m: FloatArray
     voltage_v: FloatArray
+    ad_mps2: FloatArray | None = None
 
     def __post_init__(self) -> None:
         n = len(self.time_s)
+        if self.ad_mps2 is None:
+            object.__setattr__(self, "ad_mps2", np.zeros(n))
         for name in _FLIGHT_STATE_FIELDS:
             value = _arr(getattr(self, name))
             if value.shape != (n,):
@@ -98,6 +103,7 @@ class FlightState:
             ae_mps2=np.gradient(ve, t),
             alt_m=nan if alt_m is None else _arr(alt_m),
             voltage_v=nan if voltage_v is None else _arr(voltage_v),
+            ad_mps2=np.gradient(_arr(vd_mps), t),
         )
 
 
@@ -391,6 +397,36 @@ class Climb(Effect):
 
 
 @dataclass(frozen=True)
+class Heave(Effect):
+    """The thrust of a vertical acceleration, which eq. (2)'s load factor leaves out.
+
+    The rotors carry the weight and accelerate the vehicle (Newton in 3-D): thrust over weight
+    n with n² = (1 + a_up/g)² + (a⊥/g)², a_up = −a_d the vertical acceleration (m/s², up
+    positive, held ≥ −g: rotors do not pull down), where eq. (2) has n² = 1 + (a⊥/g)². The
+    rotor power changes by ``gain`` × (P_i(n) − P_i(n₂)), P_i eq. (2)'s induced term
+    (:meth:`PowerModel.induced_w`): gain 1 for eq. (2)'s rotor, whose profile power does not
+    follow thrust; more where it does (ArduPilot SITL, whose current is linear in thrust:
+    hover power / (1.5 × its induced share), as P_i ∝ n^1.5 near hover). A climb that starts
+    costs more power for as long as it accelerates; one that stops, or a descent that starts,
+    less.
+    """
+
+    name: ClassVar[str] = "heave"
+    bounds: ClassVar[dict[str, tuple[float, float]]] = {"gain": (0.0, 3.0)}
+    gain: float = 1.0
+
+    def propulsion_w(self, ctx: PowerContext) -> FloatArray:
+        assert ctx.speed_mps is not None and ctx.accel_centripetal_mps2 is not None
+        assert ctx.state.ad_mps2 is not None
+        turn2 = np.square(ctx.accel_centripetal_mps2 / G_MPS2)
+        vertical = np.maximum(1.0 - ctx.state.ad_mps2 / G_MPS2, 0.0)
+        model, v = ctx.model, ctx.speed_mps
+        with_heave = model.induced_w(v, vertical**2 + turn2, ctx.mass_ratio, ctx.density_ratio)
+        level = model.induced_w(v, 1.0 + turn2, ctx.mass_ratio, ctx.density_ratio)
+        return self.gain * (with_heave - level)
+
+
+@dataclass(frozen=True)
 class Avionics(Effect):
     """A constant electrical load ``power_w`` (W; may be negative) switched on at ``at_s`` and
     off at ``until_s`` (s; None: on from the start / until the end).
@@ -471,7 +507,8 @@ class Turn(Effect):
 
 #: Every effect type by its name (the vehicle file's ``[effects.NAME]`` tables).
 EFFECT_TYPES: dict[str, type[Effect]] = {
-    cls.name: cls for cls in (Wind, Mass, AirDensity, Climb, Avionics, Voltage, Acceleration, Turn)
+    cls.name: cls
+    for cls in (Wind, Mass, AirDensity, Climb, Heave, Avionics, Voltage, Acceleration, Turn)
 }
 
 
@@ -523,69 +560,3 @@ def predict_context(
         if extra is not None:
             total_w += extra
     return ctx, total_w
-
-
-# -- (de)serialisation ------------------------------------------------------------------------
-
-
-def effect_from_params(name: str, params: Mapping[str, Any], where: str = "effects") -> Effect:
-    """Build an effect from its name and parameter table; UserError on unknown names/values."""
-    cls = EFFECT_TYPES.get(name)
-    if cls is None:
-        known = ", ".join(EFFECT_TYPES)
-        raise UserError(f"{where}: unknown effect '{name}' (known: {known})")
-    allowed = {f.name for f in fields(cls)}
-    unknown = set(params) - allowed
-    if unknown:
-        raise UserError(
-            f"{where}.{name}: unknown parameter(s) {', '.join(sorted(unknown))} "
-            f"(allowed: {', '.join(sorted(allowed))})"
-        )
-    values: dict[str, Any] = {}
-    for key, value in params.items():
-        if value is None and key in _TIME_KEYS:
-            values[key] = None
-            continue
-        number = isinstance(value, int | float) and not isinstance(value, bool)
-        if not number or not math.isfinite(value):
-            raise UserError(f"{where}.{name}.{key} must be a finite number, got {value!r}")
-        values[key] = float(value)
-    effect = cls(**values)
-    _validate(effect, f"{where}.{name}")
-    return effect
-
-
-_TIME_KEYS = ("at_s", "until_s")
-
-
-def _validate(effect: Effect, where: str) -> None:
-    checks = {
-        "speed_mps": lambda v: v >= 0,
-        "rho_kgpm3": lambda v: v > 0,
-        "efficiency": lambda v: 0 < v <= 1,
-        "recovery": lambda v: 0 <= v <= 1,
-        "resistance_ohm": lambda v: v >= 0,
-        "reference_v": lambda v: v > 0,
-    }
-    for key, value in effect.params.items():
-        check = checks.get(key)
-        if check is not None and not check(value):
-            raise UserError(f"{where}.{key} is out of range: {value!r}")
-    at_s, until_s = effect.params.get("at_s"), effect.params.get("until_s")
-    if at_s is not None and until_s is not None and until_s <= at_s:
-        raise UserError(f"{where}.until_s ({until_s!r}) must be after at_s ({at_s!r})")
-
-
-def effects_from_tables(tables: Mapping[str, Mapping[str, Any]]) -> list[Effect]:
-    """Effects from a vehicle file's ``[effects.NAME]`` tables (``Vehicle.effects``), in order."""
-    return [effect_from_params(name, params) for name, params in tables.items()]
-
-
-def effects_to_tables(effects: Sequence[Effect]) -> dict[str, dict[str, Any]]:
-    """The ``Vehicle.effects`` dict for ``effects`` (one table per name; None values kept)."""
-    tables: dict[str, dict[str, Any]] = {}
-    for effect in effects:
-        if effect.name in tables:
-            raise ValueError(f"effect '{effect.name}' given twice")
-        tables[effect.name] = effect.params
-    return tables

@@ -1,6 +1,6 @@
 """Flight-state kinematics: speed, tangential and centripetal acceleration (horizontal plane).
 
-Frames: velocity and acceleration are horizontal NED components (north, east), m/s and m/s².
+Frames: velocity and acceleration are NED components (north, east, down), m/s and m/s².
 The pure functions work on floats and arrays alike; :class:`KinematicsFilter` is the causal,
 noise-robust estimator the pipeline runs on each velocity sample.
 """
@@ -60,7 +60,8 @@ class KinematicState:
     acceleration, m/s².  speed_mps: horizontal speed.  accel_tangential/centripetal_mps2: along
     and across the horizontal velocity (low-speed treatment of the functions above).
     climb_mps: −vd, m/s (up positive).  alt_m: altitude above home, m (None if unknown).
-    accel_sigma_mps2: 1σ of each horizontal acceleration component, m/s².
+    accel_sigma_mps2: 1σ of each horizontal acceleration component, m/s².  ad_mps2: vertical
+    acceleration, m/s² (down positive).
     """
 
     time_s: float
@@ -75,6 +76,7 @@ class KinematicState:
     climb_mps: float
     alt_m: float | None
     accel_sigma_mps2: float = 0.0
+    ad_mps2: float = 0.0
 
     @classmethod
     def of_motion(
@@ -84,9 +86,11 @@ class KinematicState:
         a_ne_mps2: tuple[float, float],
         alt_m: float | None = None,
         accel_sigma_mps2: float = 0.0,
+        ad_mps2: float = 0.0,
     ) -> KinematicState:
-        """The state with velocity (north, east, down) and horizontal acceleration (north,
-        east); speed, tangential and centripetal acceleration and climb derived from them."""
+        """The state with velocity (north, east, down), horizontal acceleration (north, east)
+        and vertical acceleration ``ad_mps2`` (down); speed, tangential and centripetal
+        acceleration and climb derived from them."""
         (vn, ve, vd), (an, ae) = v_ned_mps, a_ne_mps2
         return cls(
             time_s,
@@ -101,6 +105,7 @@ class KinematicState:
             climb_mps=-vd,
             alt_m=alt_m,
             accel_sigma_mps2=accel_sigma_mps2,
+            ad_mps2=ad_mps2,
         )
 
 
@@ -191,4 +196,5 @@ class KinematicsFilter:
             (north.a, east.a),
             sample.alt_m,
             math.sqrt(0.5 * (north.p_aa + east.p_aa)),
+            down.a,
         )

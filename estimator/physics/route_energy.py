@@ -43,6 +43,7 @@ from typing import NamedTuple
 
 import numpy as np
 
+from estimator.physics.effect_tables import effects_from_tables
 from estimator.physics.effects import (
     Climb,
     Effect,
@@ -50,7 +51,6 @@ from estimator.physics.effects import (
     Mass,
     SampleMass,
     Wind,
-    effects_from_tables,
     predict_power_w,
 )
 from estimator.physics.model import COEFFICIENT_NAMES, G_MPS2, FloatArray, PowerModel

@@ -13,11 +13,8 @@ import numpy as np
 from pymavlink.dialects.v20 import common as mavlink
 
 from estimator.physics.battery import PackModel
-from estimator.physics.effects import (
-    Effect,
-    FlightState,
-    effects_from_tables,
-)
+from estimator.physics.effect_tables import effects_from_tables
+from estimator.physics.effects import Effect, FlightState
 from estimator.physics.model import FloatArray
 from estimator.physics.vehicle import BatterySpec, Vehicle, default_vehicle
 from estimator.sim.plans import Plan, resolve_plan
