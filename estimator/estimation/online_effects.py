@@ -38,9 +38,10 @@ model error looks like noise to the filter); an innovation beyond ``gate_sigma``
 deviations is not used (counted in ``rejected``) unless it starts a detected change (below),
 nor are samples in fast vertical motion (|v_z| > ``max_vertical_speed_mps``: take-off,
 landing, where the climb term is the least certain part of the model) or in a vertical
-acceleration beyond ``max_vertical_accel_mps2`` (a climb that starts or stops: the power
-leads the filtered state, so the ``heave`` term is late), counted in ``vertical``, and readings
-below ``min_power_fraction_of_hover`` of the model's hover power (idle motors, ``idle``).
+acceleration beyond ``max_vertical_accel_mps2`` where the model has the ``heave`` term (a
+climb that starts or stops: the power leads the filtered state, so the term is late),
+counted in ``vertical``, and readings below ``min_power_fraction_of_hover`` of the model's
+hover power (idle motors, ``idle``).
 Readings from the ground and the take-off transient never reach the filter: its callers gate
 them (:class:`~estimator.estimation.airborne.AirborneGate`).
 
@@ -101,6 +102,7 @@ from estimator.physics.effect_tables import effects_from_tables
 from estimator.physics.effects import (
     Effect,
     FlightState,
+    Heave,
     Mass,
     SampleMass,
     Wind,
@@ -174,6 +176,13 @@ class OnlineEffects:
         wind = next((e for e in effects if isinstance(e, Wind)), Wind())
         mass = next((e for e in effects if isinstance(e, Mass)), Mass())
         self.others = tuple(e for e in effects if not isinstance(e, Wind | Mass))
+        # the vertical-acceleration gate guards the heave term's timing: without the term,
+        # a noisy vertical velocity (real logs) would gate out readings for nothing
+        self._max_vertical_accel_mps2 = (
+            s.max_vertical_accel_mps2
+            if any(isinstance(e, Heave) for e in self.others)
+            else math.inf
+        )
         wn, we = wind.vector_ne_mps()
         self._file_wind_ne_mps, self._file_mass = (wn, we), mass
         # a stepped mass from the file has not happened yet at take-off
@@ -390,7 +399,7 @@ class OnlineEffects:
                 self.rejected += 1
             elif (
                 abs(st.vd_mps) > s.max_vertical_speed_mps
-                or abs(st.ad_mps2) > s.max_vertical_accel_mps2
+                or abs(st.ad_mps2) > self._max_vertical_accel_mps2
             ):
                 self.vertical += 1
             elif r.measured_power_w < s.min_power_fraction_of_hover * self._hover_w:

@@ -26,10 +26,10 @@ class OnlineSettings:
     model_error_time_s: float = 30.0
     power_noise_fraction: float = 0.03
     gate_sigma: float = 5.0
-    #: Readings in vertical motion are left out: beyond this climb or descent rate (m/s), or
-    #: beyond this vertical acceleration (m/s²: 7 % of g, a thrust 7 % off hover), where the
-    #: power leads the filtered kinematic state by about half a second (the thrust changes
-    #: first, the velocity after), so the ``heave`` the model predicts is late.
+    #: Readings in vertical motion are left out: beyond this climb or descent rate (m/s), or,
+    #: where the model has the ``heave`` term, beyond this vertical acceleration (m/s²: 7 % of
+    #: g, a thrust 7 % off hover), where the power leads the filtered kinematic state by about
+    #: half a second (the thrust changes first, the velocity after), so the term is late.
     max_vertical_speed_mps: float = 1.0
     max_vertical_accel_mps2: float = 0.7
     #: Power below this fraction of the model's hover power is not flight (idle motors).
