@@ -125,14 +125,31 @@ def pooled(runs_: list[TrackerRun], sigmas: float) -> tuple[float, float]:
     return float(np.mean(z[:, 2] <= sigmas)), float(np.mean(z[:, :2].max(axis=1) <= sigmas))
 
 
+def meets_aim(runs_: list[TrackerRun]) -> bool:
+    """The issue's aim over the steps of ``runs_``: mass and wind within 2σ on at least 90 %
+    of them, within 3σ on all."""
+    z = np.vstack([r.z() for r in runs_])
+    return min(pooled(runs_, 2.0)) >= 0.90 and float(z.max()) <= 3.0
+
+
 def summary_lines(flights: list[tuple[RecordingTruth, TrackerRun]]) -> list[str]:
-    """Pooled over the steps of all flights, of the held-out ones, and of those fitted on
-    (a group without flights has no line)."""
+    """Pooled over the steps of all flights, of the held-out ones, of those fitted on, and of
+    each held-out set of ``replay/sitl_held`` (``held_*``, ``held2_*``, …, by the flights'
+    name before the first "_"); with how many flights meet the aim alone (a group without
+    flights has no line)."""
     out = []
+    sets = sorted(
+        {r.name.split("_")[0] for _, r in flights if r.name.startswith("held")},
+        key=lambda label: (len(label), label),
+    )
     groups = (
         ("all", [r for _, r in flights]),
         ("held out", [r for t, r in flights if flight_set(t) == "held out"]),
         ("fit", [r for t, r in flights if flight_set(t) == "fit"]),
+        *(
+            (f"{label}_*", [r for _, r in flights if r.name.split("_")[0] == label])
+            for label in sets
+        ),
     )
     for label, group in groups:
         if not group:
@@ -144,7 +161,8 @@ def summary_lines(flights: list[tuple[RecordingTruth, TrackerRun]]) -> list[str]
         out.append(
             f"{label} ({len(group)} flights, {steps} steps): mass {100 * m2:.0f} % within 2σ, "
             f"{100 * m3:.0f} % within 3σ; wind {100 * w2:.0f} %, {100 * w3:.0f} %; "
-            f"not applied {100 * unapplied:.0f} %"
+            f"not applied {100 * unapplied:.0f} %; the aim met on "
+            f"{sum(meets_aim([r]) for r in group)} of {len(group)}"
         )
     return out
 

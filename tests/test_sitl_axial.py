@@ -20,12 +20,11 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from scipy.optimize import minimize_scalar
+import vertical_fit
 
 from estimator.analysis.residual_samples import ResidualOptions, Samples, prepare
 from estimator.logs import load_flights
-from estimator.physics.effect_tables import effects_from_tables
-from estimator.physics.effects import Climb, Effect, Heave, predict_power_w
+from estimator.physics.effects import Climb, Effect, Heave
 from estimator.physics.model import G_MPS2
 from estimator.physics.vehicle import Vehicle, load_vehicle
 
@@ -37,8 +36,6 @@ FLIGHTS = ("axial_rates", "axial_rates_held")
 MOVING_MPS = 0.5
 #: Vertical acceleration (m/s²) beyond which a sample starts or stops a climb or descent.
 ACCELERATING_MPS2 = 0.5
-#: The vehicle file's effects for vertical flight, fitted on these flights.
-VERTICAL = ("climb", "heave")
 
 
 @cache
@@ -51,18 +48,10 @@ def samples(name: str) -> Samples:
     return prepare(load_flights([RECORDINGS / name / "flight.tlog"], "tlog"), ResidualOptions())
 
 
-def level_effects() -> list[Effect]:
-    """The vehicle file's effects but its vertical ones: its level-flight model."""
-    tables = {k: v for k, v in sitl_vehicle().effects.items() if k not in VERTICAL}
-    return effects_from_tables(tables)
-
-
 def residual_w(name: str, extra: tuple[Effect, ...] = ()) -> np.ndarray:
     """Measured minus predicted power (W) on the flight's analysed samples, with the
     level-flight model and ``extra``."""
-    s, v = samples(name), sitl_vehicle()
-    effects = [*level_effects(), *extra]
-    return np.asarray(s.power_w - predict_power_w(v.model, v.mass_kg, s.state, effects))
+    return vertical_fit.residual_w(samples(name), sitl_vehicle(), extra)
 
 
 def rms(r: np.ndarray) -> float:
@@ -70,30 +59,15 @@ def rms(r: np.ndarray) -> float:
 
 
 def fitted_climb(name: str) -> Climb:
-    """The climb efficiency of least squares on this flight, within the loop's bounds."""
-    lo, hi = Climb.bounds["efficiency"]
-    fit = minimize_scalar(
-        lambda eff: float(np.mean(residual_w(name, (Climb(eff),)) ** 2)),
-        bounds=(lo, hi),
-        method="bounded",
-    )
-    return Climb(float(fit.x))
+    return vertical_fit.fitted_climb(samples(name), sitl_vehicle())
 
 
 def fitted_heave(name: str, climb: Climb) -> Heave:
-    """The heave gain of least squares on this flight with ``climb``, within its bounds."""
-    lo, hi = Heave.bounds["gain"]
-    fit = minimize_scalar(
-        lambda gain: float(np.mean(residual_w(name, (climb, Heave(gain))) ** 2)),
-        bounds=(lo, hi),
-        method="bounded",
-    )
-    return Heave(float(fit.x))
+    return vertical_fit.fitted_heave(samples(name), sitl_vehicle(), climb)
 
 
 def file_effect(name: str) -> Effect:
-    (effect,) = [e for e in effects_from_tables(sitl_vehicle().effects) if e.name == name]
-    return effect
+    return vertical_fit.file_effect(sitl_vehicle(), name)
 
 
 def vertical_response(name: str) -> np.ndarray:

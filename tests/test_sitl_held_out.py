@@ -1,12 +1,14 @@
 """The held-out ArduCopter SITL flights of ``replay/sitl_held``, recorded after the rules
-were frozen (``held_*`` after commit 870ed85, ``held2_*`` after 7e98e75; docs/residuals.md,
-"Held-out SITL flights"): what ``uav-energy residuals`` names against their truth, and the
-online tracker step by step.
+were frozen (``held_*`` after commit 870ed85, ``held2_*`` after 7e98e75, ``held3_*`` after
+0882b25; docs/residuals.md, "Held-out SITL flights"): what ``uav-energy residuals`` names
+against their truth, and the online tracker step by step.
 
-Nothing was tuned on these flights. Each flight is held to the issue's aims: the first
-named effect is a true one, the held-out RMSE after ends within 2.5 noise floors, and the
-running mass and wind hold 90 % of the steps within 2σ and all within 3σ. A flight that
-misses stays here as a strict xfail with its cause, read off its candidates.
+Nothing was tuned on these flights; the first two sets were looked at before the vertical
+effects of 0882b25 were chosen, so for those rules only ``held3_*`` is held out. Each flight
+is held to the issue's aims: the first named effect is a true one, the held-out RMSE after
+ends within 2.5 noise floors, and the running mass and wind hold 90 % of the steps within 2σ
+and all within 3σ. A flight that misses stays here as a strict xfail with its cause, read off
+its candidates.
 """
 
 from __future__ import annotations
@@ -15,12 +17,16 @@ import importlib.util
 from pathlib import Path
 from types import ModuleType
 
-import numpy as np
 import pytest
+import vertical_fit
 
+from estimator.analysis.residual_samples import prepare
 from estimator.analysis.sitl_truth import RecordingTruth
 from estimator.analysis.tracker_truth import TrackerRun
-from estimator.sitl.held_scenarios import HELD_SCENARIOS, HELD_SCENARIOS_2
+from estimator.logs import load_flights
+from estimator.physics.effects import Climb, Heave
+from estimator.physics.vehicle import load_vehicle
+from estimator.sitl.held_scenarios import HELD_SCENARIOS, HELD_SCENARIOS_2, HELD_SCENARIOS_3
 from estimator.sitl.truth_check import FlightScore
 
 REPO = Path(__file__).resolve().parent.parent
@@ -38,81 +44,83 @@ def _figures_script() -> ModuleType:
 FIGURES = _figures_script()
 SITL = FIGURES.sitl
 TRACKER = FIGURES.script_module("tracker_sitl")
-FLIGHTS = sorted(HELD_SCENARIOS | HELD_SCENARIOS_2)
-#: SITL's vertical power (drag and thrust, not momentum theory) is not in its vehicle file.
-VERTICAL = "SITL's vertical power is not in the SITL vehicle file"
-#: Flights whose first named effect is wrong, and why.
+FLIGHTS = sorted(HELD_SCENARIOS | HELD_SCENARIOS_2 | HELD_SCENARIOS_3)
+#: The windowed rank test: n blocks of 5 s that all gain reach z = sqrt(3n(n+1)/(2(2n+1)))
+#: at most, below 3 for episodes under a minute (tests/test_residuals.py).
+SHORT_EPISODE = "an episode under a minute cannot reach z 3 in the windowed rank test"
+#: Flights whose first named effect is wrong, and why (each read off its candidates).
 NOT_RIGHT = {
     "held_gust_30s_hover": "30 s of wind in a hover changes SITL's power little; no "
-    "candidate gains (and 6 blocks of 5 s reach z 2.2 at most)",
-    "held_gust_60s": "the windowed wind is right and gains 15 %, at rank-test z 0.9 (13 "
-    "blocks of 5 s in the window: z 3.2 at most)",
+    "candidate gains at z above 1.7",
+    "held_gust_60s": "the windowed wind is right and gains 15 %, at z 0.9; a windowed load "
+    "gains as much at z 1.8",
     "held_gust_90s_circles": "the windowed wind gains 13 % at z 2.1; a windowed load as well",
-    "held_gust_vertical": f"{VERTICAL}: its residual hides a 50 s wind episode",
-    "held_onset_vertical": f"{VERTICAL}: climb (z 2.7) and the autopilot's wind (z 2.98) "
-    "both just short of z 3",
-    "held_two_gusts": "two episodes from opposite directions: one window holds neither",
-    "held_wind_vertical": f"{VERTICAL}: climb named first, then the wind gains 9.8 % < 10 %",
-    "held2_gust_70s_circles": "the autopilot's wind gains 37 % at z 0.4 (it lags the gust), "
-    "the windowed wind (right) 11 % at z 1.1",
-    "held2_gust_85s_legs": "the autopilot's wind gains 46 % at z 1.4, the windowed wind 24 % "
-    "at z 2.5 (its end 36 s late)",
-    "held2_gust_90s_hovers": "the windowed wind is right and gains 42 %, at z 2.6 (18 blocks: "
+    "held_gust_vertical": "a 50 s episode among climbs: the best candidate, a steady wind of "
+    f"1.5 m/s, gains 4.8 % at z 2.4 ({SHORT_EPISODE})",
+    "held_onset_vertical": "the onset is right, windowed or as the autopilot's wind, and "
+    "gains 36 %, at z 2.6-2.85: just short of z 3",
+    "held_two_gusts": "two episodes from opposite directions: no candidate gains",
+    "held2_gust_70s_circles": "the autopilot's wind gains 38 % at z 0.6 (it lags the gust), "
+    "the windowed wind (right) 11 % at z 1.3",
+    "held2_gust_85s_legs": "the autopilot's wind gains 46 % at z 1.5, the windowed wind 24 % "
+    "at z 2.5 (its end 48 s late)",
+    "held2_gust_90s_hovers": "the windowed wind is right and gains 43 %, at z 2.6 (18 blocks: "
     "z 3.6 at most)",
-    "held2_onset_climbing_legs": "no candidate gains more than 7.5 % (a windowed load, z 1.6): "
-    "the climbing legs' residual hides the onset",
-    "held2_payload_wind_vertical": "a load of +123 W first: it predicts the held-out power "
-    "better than the 1 kg mass (46.8 vs 47.7 W), as SITL's payload costs alike in every state",
-    "held2_wind_stop_vertical": f"{VERTICAL}: the wind that stops is right (z 4.2) but gains "
-    "7 % < 10 %",
+    "held3_gust_45s_legs": f"no candidate gains more than 9.4 % nor reaches z 1.7 "
+    f"({SHORT_EPISODE})",
+    "held3_gust_75s_vertical": "the windowed wind gains 25 % at z 2.2 (its start 20 s early, "
+    "its speed 5.4 of 7 m/s), the autopilot's wind 23 % at z 0.7",
 }
 #: Flights whose held-out RMSE after ends above 2.5 noise floors, and why.
 ABOVE_FLOOR = {
-    "held_clean_vertical": f"{VERTICAL}: 3.1 floors, climb cuts 19 % at z 1.5",
     "held_gust_60s": "the wind episode not named (above): 3.5 floors",
     "held_gust_90s_circles": "the wind episode not named (above): 4.2 floors",
-    "held_gust_vertical": "the wind episode not named (above): 2.6 floors",
-    "held_onset_vertical": "the wind onset not named (above): 2.7 floors",
     "held_two_gusts": "the wind episodes not named (above): 2.8 floors",
-    "held2_clean_fast_vertical": f"{VERTICAL}: 3.0 floors, climb cuts 20 % at z 0.4",
     "held2_gust_85s_legs": "the wind episode not named (above): 3.6 floors",
     "held2_gust_90s_hovers": "the wind episode not named (above): 4.0 floors",
-    "held2_payload_wind_vertical": f"{VERTICAL}, and the wind not named: 2.7 floors",
-    "held2_wind_stop_vertical": f"{VERTICAL}, and the wind not named: 2.8 floors",
+    "held3_gust_45s_legs": "the wind episode not named (above): 3.8 floors",
 }
 #: Flights whose running mass or wind misses the tracker's aim, and why (times from take-off).
-#: A vertical stop or start (the power falls as the vehicle decelerates upwards or starts down)
-#: reads as a mass drop of 0.6-1.4 kg; the wind follows the autopilot's WIND, which lags a
-#: gust's start by ~30 s and holds after its end.
+#: The wind follows the autopilot's WIND, which lags a gust's start by ~30 s and holds after
+#: its end; the landing descent's start, or a release in a hover, reads as a mass step for a
+#: step or two; and with the vehicle file's slow model error a payload read a few tens of
+#: grams heavy sits outside 2σ on a fifth to two thirds of the steps.
 TRACKER_SHORT = {
-    "held_clean_climbing_legs": "mass 5.7σ (-0.60 kg) as a climbing leg stops at 36 s",
-    "held_clean_vertical": "mass 9.1σ (-1.16 kg) as a 5 m/s climb stops at 73 s",
-    "held_gust_30s_hover": "wind 11.5σ (5.9 m/s off) as the gust starts; mass 11.2σ "
-    "(-1.07 kg) as the landing descent starts",
-    "held_gust_60s": "wind 60 % within 2σ, 22.2σ (8.6 m/s off) 14 s into the gust",
-    "held_gust_90s_circles": "wind 73 % within 2σ, 16.2σ at the gust's end; mass 7.5σ",
-    "held_gust_vertical": "wind 53 % within 2σ: beyond 2σ for 75 s after the gust",
-    "held_onset_vertical": "mass 10.5σ (-1.10 kg) as the landing descent starts; wind 6.5σ "
+    "held_clean_climbing_legs": "mass 75 % within 2σ (-0.03 kg median at 1σ 0.022 kg)",
+    "held_gust_30s_hover": "wind 8.4σ (5.4 m/s off) as the gust starts; mass 9.0σ "
+    "(-0.94 kg) as the landing descent starts",
+    "held_gust_60s": "wind 59 % within 2σ, 21.7σ (8.7 m/s off) 14 s into the gust",
+    "held_gust_90s_circles": "wind 73 % within 2σ, 16.2σ at the gust's end; mass 4.2σ",
+    "held_gust_vertical": "wind 53 % within 2σ: beyond 2σ for a minute after the gust",
+    "held_onset_vertical": "mass 9.3σ (-0.98 kg) as the landing descent starts; wind 6.5σ "
     "after the onset",
-    "held_payload_gust": "mass 69 % within 2σ (1 kg read 0.043 kg heavy at 1σ 0.028 kg); wind 74 %",
-    "held_release_aloft": "mass 87 % within 2σ (+0.06 kg at 1σ 0.023 kg)",
-    "held_tall_legs": "mass 4.1σ at the end of the 1 m/s climb (-0.09 kg at 1σ 0.022 kg)",
-    "held_two_gusts": "wind 58 % within 2σ, 10.8σ as the second gust starts",
-    "held_wind_climb_payload": "mass 6.8σ (-1.14 kg) as a 3 m/s descent starts",
-    "held_wind_vertical": "mass 12.1σ (-1.39 kg) as a 6 m/s climb stops",
-    "held2_clean_fast_vertical": "mass 17.5σ (-1.38 kg) as a 7 m/s climb stops",
-    "held2_clean_slow_climbs": "mass 3.9σ (-0.32 kg) as a climb stops",
-    "held2_gust_70s_circles": "wind 88 % within 2σ, 13.7σ at the gust's start; mass 7.6σ as "
+    "held_payload_gust": "wind 76 % within 2σ, 7.2σ in the gust; mass 87 % (3.6σ)",
+    "held_two_gusts": "wind 57 % within 2σ, 10.7σ as the second gust starts",
+    "held2_gust_70s_circles": "wind 88 % within 2σ, 13.7σ at the gust's start; mass 4.1σ as "
     "the landing descent starts",
-    "held2_gust_85s_legs": "wind 82 % within 2σ, 9.7σ at the gust's start",
-    "held2_gust_90s_hovers": "wind 58 % within 2σ, 13.0σ",
-    "held2_gust_payload_circles": "wind 21 % within 2σ: 4.2 m/s off through the gust, 13.1σ",
-    "held2_onset_climbing_legs": "wind 13.0σ at the onset; mass 8.7σ as the landing descent starts",
-    "held2_payload_climbing_legs": "mass 89 % within 2σ, 5.4σ (-0.76 kg) at a climbing leg's end",
-    "held2_payload_wind_vertical": "mass 14.1σ (+0.88 kg) at the landing",
-    "held2_release_low": "mass 48σ (+1.04 kg at 1σ 0.022 kg) for the step after the release",
-    "held2_turn_climbs": "mass 12.8σ (-1.43 kg) as a 5 m/s climb stops; wind 8.7σ after the turn",
-    "held2_wind_stop_vertical": "wind 15.7σ after the stop (6.8 m/s off); mass 3.3σ",
+    "held2_gust_85s_legs": "wind 85 % within 2σ, 8.3σ at the gust's start",
+    "held2_gust_90s_hovers": "wind 58 % within 2σ, 13.0σ at the gust's end; mass 5.3σ then",
+    "held2_gust_payload_circles": "wind 21 % within 2σ: 4.2 m/s off through the gust, 11.9σ; "
+    "mass 8.0σ (-0.91 kg) as the landing descent starts",
+    "held2_onset_climbing_legs": "wind 57 % within 2σ, 9.6σ at the onset; mass 8.2σ as the "
+    "landing descent starts",
+    "held2_payload_wind_vertical": "mass 60 % within 2σ (+0.05 kg median at 1σ 0.027 kg)",
+    "held2_release_low": "mass 6.5σ (+0.48 kg) for the step after the release",
+    "held2_turn_climbs": "wind 10.3σ (6.9 m/s off) after the turn",
+    "held2_wind_stop_vertical": "wind 15.7σ after the stop (6.8 m/s off)",
+    "held3_clean_tall_slow": "wind 85 % within 2σ (still air read up to 1 m/s off)",
+    "held3_gust_45s_legs": "wind 75 % within 2σ, 12.9σ (7.2 m/s off) after the gust; mass "
+    "80 %, 5.3σ",
+    "held3_gust_75s_vertical": "wind 81 % within 2σ, 6.9σ (7.2 m/s off) at the gust's start",
+    "held3_gust_payload_vertical": "wind 31 % within 2σ, 7.6σ (4.5 m/s off) in the gust; "
+    "mass 35 % (+0.08 kg at 3.3σ)",
+    "held3_onset_climbing_circles": "wind 74 % within 2σ, 18.4σ (6.0 m/s off) at the onset",
+    "held3_payload_fast_vertical": "mass 80 % within 2σ (+0.05 kg median at 1σ 0.027 kg)",
+    "held3_payload_wind_climbing_legs": "mass 77 % within 2σ (+0.03 kg median at 1σ 0.036 kg)",
+    "held3_release_high": "mass 5.4σ (-0.67 kg) after the release, 84 % within 2σ; wind 78 %",
+    "held3_two_turns_vertical": "wind 11.2σ (6.7 m/s off) after the turn",
+    "held3_wind_stop_climbing_legs": "wind 18.4σ (6.6 m/s off) after the stop; mass 9.2σ "
+    "(-0.75 kg) then",
 }
 
 
@@ -131,7 +139,7 @@ def scored(flight: str) -> FlightScore:
 
 def test_every_held_out_flight_is_recorded_with_its_truth() -> None:
     assert SITL.recordings(SITL.HELD_RECORDINGS) == FLIGHTS
-    assert len(HELD_SCENARIOS) >= 12 and len(HELD_SCENARIOS_2) >= 12
+    assert all(len(s) >= 12 for s in (HELD_SCENARIOS, HELD_SCENARIOS_2, HELD_SCENARIOS_3))
     kinds = [{e.kind for e in scored(f).truth.effects} for f in FLIGHTS]
     assert sum(not k for k in kinds) >= 4
     assert sum("wind" in k for k in kinds) >= 16
@@ -159,8 +167,7 @@ def tracked() -> dict[str, tuple[RecordingTruth, TrackerRun]]:
 def test_the_running_mass_and_wind_hold_90_percent_within_2_sigma_and_3_sigma_always(
     tracked: dict[str, tuple[RecordingTruth, TrackerRun]], flight: str
 ) -> None:
-    run = tracked[flight][1]
-    assert min(TRACKER.pooled([run], 2.0)) >= 0.90 and float(np.max(run.z())) <= 3.0
+    assert TRACKER.meets_aim([tracked[flight][1]])
 
 
 def test_the_docs_give_the_results_as_measured(
@@ -179,3 +186,47 @@ def test_the_docs_give_the_results_as_measured(
     assert {b.name for b in blocks} == set(now)
     stale = [b.name for b in blocks if b.text != now[b.name]]
     assert not stale, f"{stale}: run `make figures` and review the diff"
+
+
+#: The clean held-out flights with vertical legs, and the SITL vehicle file's heave gain
+#: against each one's own least-squares fit (with its own climb efficiency).
+CLEAN_VERTICAL = (
+    "held_clean_climbing_legs", "held_clean_vertical", "held2_clean_fast_vertical",
+    "held2_clean_slow_climbs", "held3_clean_mixed_vertical", "held3_clean_tall_slow",
+)  # fmt: skip
+#: Why the file's gain (1.295, fitted on the in-place climbs of replay/sitl_axial) misses a
+#: flight's: the axial flights accelerate vertically at 1 m/s² at most (AUTO's WPNAV_ACCEL_Z
+#: default), these GUIDED flights at up to 5 m/s² (WPNAV_ACCEL_Z 500), and the sharper the
+#: transient, the more of the power's lead on the filtered state the gain takes up; a flight
+#: that hardly accelerates vertically (held3_clean_tall_slow: 90 % of its samples under
+#: 0.03 m/s²) fits its gain on a few samples.
+HEAVE_APART = {
+    "held_clean_vertical": "gain 1.52 on this flight, 18 % above the file's",
+    "held2_clean_fast_vertical": "gain 1.49 on this flight, 15 % above the file's",
+    "held2_clean_slow_climbs": "gain 1.44 on this flight, 11 % above the file's",
+    "held3_clean_tall_slow": "gain 1.57 on this flight, 22 % above the file's",
+}
+
+
+@pytest.mark.parametrize(
+    "flight",
+    [
+        pytest.param(f, marks=pytest.mark.xfail(strict=True, reason=HEAVE_APART[f]))
+        if f in HEAVE_APART
+        else f
+        for f in CLEAN_VERTICAL
+    ],
+)
+def test_the_files_vertical_effects_agree_with_a_fit_on_the_flight(flight: str) -> None:
+    """The issue's aim for the climb and descent parameters: the vehicle file's, fitted on
+    pure vertical legs, agree with a fit on each clean held-out flight (climb efficiency within
+    0.1, heave gain within 10 %)."""
+    vehicle = load_vehicle(SITL.SITL_VEHICLE)
+    samples = prepare(load_flights([SITL.HELD_RECORDINGS / flight / "flight.tlog"], "tlog"))
+    climb = vertical_fit.fitted_climb(samples, vehicle)
+    heave = vertical_fit.fitted_heave(samples, vehicle, climb)
+    file_climb = vertical_fit.file_effect(vehicle, "climb")
+    file_heave = vertical_fit.file_effect(vehicle, "heave")
+    assert isinstance(file_climb, Climb) and isinstance(file_heave, Heave)
+    assert climb.efficiency == pytest.approx(file_climb.efficiency, abs=0.1)
+    assert heave.gain == pytest.approx(file_heave.gain, rel=0.1)

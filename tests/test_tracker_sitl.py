@@ -45,43 +45,32 @@ def _run(flights: Flights, name: str) -> TrackerRun:
     return next(r for _, r in flights if r.name == name)
 
 
-def _meets_the_aim(runs: list[TrackerRun]) -> bool:
-    z = np.vstack([r.z() for r in runs])
-    return min(SCRIPT.pooled(runs, 2.0)) >= 0.90 and float(z.max()) <= 3.0
-
-
 #: The flights the SITL vehicle file was fitted on (the others are held out from the fit; all
 #: scenarios, not the missions, are the ones the tracker's settings were tuned on).
 FITTED_ON = SCRIPT.FITTED_ON
-#: Why each flight misses the aim (times from take-off). Mass: the take-off climb's end reads
-#: a mass drop of 0.2-0.45 kg at 3-5σ in the first steps (9-14 s: the power falls as the climb
-#: stops), and so does the start of a landing descent; with the vehicle file's slow model
-#: error (0.6 % of hover, measured on its fit flights) a payload read 0.04-0.05 kg heavy
-#: still sits outside 2σ on a third to a half of the steps. Wind: the power channel pulls the
-#: wind 2-5 times farther off than the autopilot's WIND it takes, and a change arrives with
-#: the EKF's ~10 s lag plus the three-step change test.
+#: Why each flight misses the aim (times from take-off). With SITL's vertical power in the
+#: vehicle file (``climb`` and ``heave``) and readings in vertical acceleration left out, the
+#: take-off climb's end and the landing no longer read as a mass drop; what is left: with the
+#: vehicle file's slow model error (0.6 % of hover, measured on its fit flights) a payload
+#: read 0.02-0.06 kg heavy still sits outside 2σ on a sixth to two fifths of the steps; a
+#: release the mission commanded is taken one step late; the wind is pulled 1 m/s off in
+#: still or steady air, and a change arrives with the EKF's ~10 s lag plus the three-step
+#: change test.
 SHORT = {
-    "clean_circles": "mass 4.7σ (-0.28 kg) at the take-off climb's end, 87 % within 2σ",
-    "clean_legs": "wind 79 % within 2σ (still air read 1.0 m/s off); mass 4.4σ at the "
-    "take-off climb's end",
-    "clean_mission": "mass 4.8σ (-0.39 kg) at the take-off climb's end",
-    "payload_release": "mass 89 % within 2σ, 3.4σ at the take-off climb's end; wind 80 %",
-    "payload_takeoff": "mass 56 % within 2σ (1 kg read 0.04 kg heavy at 1σ 0.020 kg); wind 59 %",
-    "payload_wind": "wind 10.7σ after the onset (4.9 m/s off), 58 % within 2σ; mass 67 %",
-    "wind_constant": "wind 67 % within 2σ (1.1 m/s off at 3σ); mass 4.0σ at the take-off "
-    "climb's end",
-    "wind_onset": "wind 12.6σ after the onset (5.4 m/s off); mass 84 % within 2σ, 4.7σ",
-    "wind_onset_circles": "wind 25 % within 2σ: the steps after the onset, 3.1 m/s off at most",
+    "clean_legs": "wind 79 % within 2σ (still air read up to 1 m/s off)",
+    "payload_release": "mass 87 % within 2σ (+0.02 kg median at 1σ 0.022 kg); wind 79 %",
+    "payload_takeoff": "mass 60 % within 2σ (+0.04 kg median at 1σ 0.020 kg); wind 62 %",
+    "payload_wind": "wind 10.7σ after the onset (4.9 m/s off), 59 % within 2σ; mass 64 %",
+    "wind_constant": "wind 66 % within 2σ",
+    "wind_onset": "wind 12.6σ after the onset (5.4 m/s off); mass 87 % within 2σ",
+    "wind_onset_circles": "wind 26 % within 2σ: the steps after the onset, 3.1 m/s off at most",
     "wind_stop": "wind 17.6σ after the stop (6.7 m/s off)",
-    "wind_turn": "wind 20.5σ after the turn (7.9 m/s off), 79 % within 2σ",
-    "climbs_wind6": "mass 3 % within 2σ (-0.09 kg at 1σ 0.025-0.030 kg); wind 43 %",
-    "fast_wind3": "mass 82 % within 2σ, 3.2σ",
-    "outback_wind8": "mass 5.2σ (-0.42 kg) at the landing descent's start",
-    "payload_wind4": "mass 53 % within 2σ (1 kg read 0.04 kg heavy at 1σ 0.022 kg)",
-    "release_wind2": "mass 8.0σ (+0.51 kg) 2 s after the mission's release",
-    "square_wind5": "mass 3.1σ at the take-off climb's end",
-    "tall_wind4": "mass 3.3σ (-0.27 kg) at the take-off climb's end",
-    "zigzag_wind7": "mass 5.5σ (-0.47 kg) at the landing descent's start, 85 % within 2σ",
+    "wind_turn": "wind 20.8σ after the turn (8.0 m/s off), 78 % within 2σ",
+    "climbs_wind6": "mass 79 % within 2σ (-0.04 kg median at 1σ 0.030 kg)",
+    "outback_wind8": "mass 5.4σ (+0.22 kg) at 18 s, the take-off climb's end",
+    "payload_wind4": "mass 81 % within 2σ (+0.04 kg median at 1σ 0.025 kg)",
+    "release_wind2": "mass 23.8σ (+1.06 kg) at 49 s, the step after the mission's release",
+    "square_wind5": "mass 84 % within 2σ (-0.04 kg median at 1σ 0.024 kg)",
 }
 SCENARIOS = [
     "clean_circles", "clean_legs", "clean_mission", "payload_release", "payload_takeoff",
@@ -116,29 +105,29 @@ def test_every_stock_quad_recording_is_scored_and_the_fit_flights_are_named(
 def test_the_running_mass_and_wind_hold_90_percent_within_2_sigma_and_3_sigma_always(
     flights: Flights, name: str
 ) -> None:
-    assert _meets_the_aim([_run(flights, name)])
+    assert SCRIPT.meets_aim([_run(flights, name)])
 
 
 @pytest.mark.xfail(
     strict=True,
-    reason="pooled mass 83 % within 2σ and 97 % within 3σ, wind 80 % and 95 %: the vertical "
-    "transients read as mass, and the power pulls the wind off the autopilot's",
+    reason="pooled mass 90 % within 2σ and 99 % within 3σ, wind 84 % and 95 %: a payload read "
+    "a few tens of grams heavy, and the wind's changes arrive late",
 )
 @pytest.mark.parametrize("group", ["all", "held out"])
 def test_pooled_the_steps_hold_90_percent_within_2_sigma_and_3_sigma_always(
     flights: Flights, group: str
 ) -> None:
     runs = [r for t, r in flights if group == "all" or SCRIPT.flight_set(t) == group]
-    assert _meets_the_aim(runs)
+    assert SCRIPT.meets_aim(runs)
 
 
 def test_told_the_model_error_is_slow_the_mass_holds_its_sigma_and_the_wind_gains() -> None:
     """The cause named for the mass misses: the same flights with ``[model]
     slow_error_fraction = 0.02`` (``scripts/tracker_sitl.py --slow-error-fraction 0.02``) hold
-    the mass within 2σ on 99 % of the steps pooled and the wind on 87 % (83 % and 80 % with
+    the mass within 2σ on 100 % of the steps pooled and the wind on 87 % (90 % and 84 % with
     the 0.6 % the file states, measured on its fit flights: the slow error that would cover
     these flights is not the one the fit flights show); what is left beyond 3σ is the
-    transients above and the wind changes."""
+    wind changes."""
     runs = [r for _, r in SCRIPT.runs(slow_error_fraction=0.02)]
     mass_2, wind_2 = SCRIPT.pooled(runs, 2.0)
     assert mass_2 >= 0.95 and wind_2 >= 0.85
@@ -146,7 +135,7 @@ def test_told_the_model_error_is_slow_the_mass_holds_its_sigma_and_the_wind_gain
 
 def test_every_flight_ends_with_its_mass_and_wind(flights: Flights) -> None:
     """What the tracker does get right: at the landing the mass is within 0.15 kg and the
-    wind within 2 m/s of the truth on every flight (0.13 kg and 1.7 m/s at worst)."""
+    wind within 2 m/s of the truth on every flight (0.11 kg and 1.6 m/s at worst)."""
     for _, run in flights:
         error = run.estimate[-1] - run.truth[-1]
         assert abs(error[2]) <= 0.15 and float(np.hypot(*error[:2])) <= 2.0, run.name
