@@ -4,19 +4,16 @@ a figure that drifts from the code or the committed data fails here."""
 
 from __future__ import annotations
 
-import importlib.util
 from pathlib import Path
 
 import pytest
+from script_loader import load_script
 
 from estimator.errors import UserError
 from estimator.reports.doc_blocks import blocks_in, rewrite
 
 ROOT = Path(__file__).resolve().parent.parent
-_SPEC = importlib.util.spec_from_file_location("figures", ROOT / "scripts" / "figures.py")
-assert _SPEC is not None and _SPEC.loader is not None
-figures = importlib.util.module_from_spec(_SPEC)
-_SPEC.loader.exec_module(figures)
+figures = load_script("figures")
 
 BLOCKS = figures.all_blocks()
 NAMES = sorted({b.name for b in BLOCKS})

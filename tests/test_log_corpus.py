@@ -10,14 +10,13 @@ battery monitor on one of two instances, a current of 0 A throughout, PX4's land
 from __future__ import annotations
 
 import hashlib
-import importlib.util
 import re
 from pathlib import Path
-from types import ModuleType
 
 import pytest
 from fixtures.dataflash_writer import DataFlashWriter
 from fixtures.ulog_writer import ULogWriter
+from script_loader import load_script
 
 from estimator.analysis.log_corpus import (
     TRACEBACK,
@@ -39,15 +38,7 @@ FIXTURES = [log for log in LOGS if log.fixture]
 REDISTRIBUTABLE = {"Apache-2.0", "BSD-2-Clause", "BSD-3-Clause", "MIT", "MPL-2.0"}
 
 
-def _script() -> ModuleType:
-    spec = importlib.util.spec_from_file_location("log_corpus", ROOT / "scripts" / "log_corpus.py")
-    assert spec is not None and spec.loader is not None
-    module = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(module)
-    return module
-
-
-SCRIPT = _script()
+SCRIPT = load_script("log_corpus")
 
 
 def _table_rows() -> list[str]:

@@ -11,7 +11,6 @@ scripts/pack_state_sitl.py`` prints the table of docs/pack.md."""
 
 from __future__ import annotations
 
-import importlib.util
 import json
 from collections.abc import Mapping, Sequence
 from pathlib import Path
@@ -19,6 +18,7 @@ from typing import Any
 
 import numpy as np
 import pytest
+from script_loader import load_script
 
 from estimator.analysis.pack_flights import (
     PackFlight,
@@ -187,21 +187,12 @@ def test_one_sigma_pooled_over_every_pack_flight_holds_55_to_80_percent(
     assert 0.55 <= np.mean(np.abs(z) <= 1.0) <= 0.80
 
 
-def _script() -> Any:
-    """``scripts/pack_state_sitl.py`` as a module."""
-    spec = importlib.util.spec_from_file_location("pack_state_sitl", SCRIPT)
-    assert spec is not None and spec.loader is not None
-    script = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(script)
-    return script
-
-
 def test_the_table_of_docs_pack_md_is_what_the_script_prints(
     flights: dict[str, PackFlight],
 ) -> None:
     """docs/pack.md's table comes from ``python scripts/pack_state_sitl.py``: a figure that
     drifts fails here."""
-    script = _script()
+    script = load_script(SCRIPT.stem)
     doc = (ROOT / "docs" / "pack.md").read_text()
     for half in HALVES:
         for name in SPLIT[half]:
@@ -295,7 +286,7 @@ def test_every_flight_long_enough_after_a_restart_is_judged(
 def test_the_restart_table_of_docs_pack_md_is_what_the_script_prints(
     restarts: dict[str, Restart | None],
 ) -> None:
-    script = _script()
+    script = load_script(SCRIPT.stem)
     doc = (ROOT / "docs" / "pack.md").read_text()
     for name in NAMES:
         restart = restarts[name]

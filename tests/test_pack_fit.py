@@ -5,13 +5,13 @@ battery readings do not crash the fit."""
 
 from __future__ import annotations
 
-import importlib.util
 import json
 from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
 import pytest
+from script_loader import load_script
 
 from estimator.analysis.pack_fit import PackFit, fit_pack
 from estimator.cli import main
@@ -186,10 +186,7 @@ def test_the_vehicle_file_bounds_the_resistance() -> None:
 def test_the_table_of_docs_fit_md_is_what_the_script_prints() -> None:
     """docs/fit.md's pack table and pooled figures come from ``python
     scripts/pack_fit_sitl.py``: a figure that drifts fails here."""
-    spec = importlib.util.spec_from_file_location("pack_fit_sitl", SCRIPT)
-    assert spec is not None and spec.loader is not None
-    script = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(script)
+    script = load_script(SCRIPT.stem)
     doc = " ".join((REPO / "docs" / "fit.md").read_text().split())
     split = json.loads((PACKS / "split.json").read_text())
     for half in ("tuning", "held_out"):

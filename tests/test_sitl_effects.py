@@ -9,12 +9,11 @@ today are strict expected failures, each with its cause (docs/residuals.md, "Ard
 
 from __future__ import annotations
 
-import importlib.util
 from functools import cache
 from pathlib import Path
-from types import ModuleType
 
 import pytest
+from script_loader import load_script
 
 from estimator.analysis.slow_error import slow_error_fraction
 from estimator.logs import iter_samples
@@ -108,7 +107,7 @@ def test_the_vehicle_files_slow_error_is_the_one_its_fit_flights_show() -> None:
 def test_the_docs_give_the_results_as_measured() -> None:
     """The SITL effect blocks of README.md and docs/residuals.md are what these recordings
     give now (``scripts/figures.py`` writes them: ``make figures``)."""
-    figures = _figures_script()
+    figures = load_script("figures")
     assert figures.sitl.effect_scenarios() == SCENARIOS
     checks = {s: checked(s) for s in SCENARIOS}
     now = {
@@ -125,14 +124,6 @@ def test_the_docs_give_the_results_as_measured() -> None:
     assert {b.name for b in blocks} == set(now)
     stale = [b.name for b in blocks if b.text != now[b.name]]
     assert not stale, f"{stale}: run `make figures` and review the diff"
-
-
-def _figures_script() -> ModuleType:
-    spec = importlib.util.spec_from_file_location("figures", REPO / "scripts" / "figures.py")
-    assert spec is not None and spec.loader is not None
-    module = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(module)
-    return module
 
 
 def test_a_release_is_timed_by_the_autopilots_gripper_report() -> None:

@@ -13,12 +13,11 @@ its candidates.
 
 from __future__ import annotations
 
-import importlib.util
 from pathlib import Path
-from types import ModuleType
 
 import pytest
 import vertical_fit
+from script_loader import load_script
 
 from estimator.analysis.residual_samples import prepare
 from estimator.analysis.sitl_truth import RecordingTruth
@@ -33,15 +32,7 @@ REPO = Path(__file__).resolve().parent.parent
 THIS_FILE = "tests/test_sitl_held_out.py"
 
 
-def _figures_script() -> ModuleType:
-    spec = importlib.util.spec_from_file_location("figures", REPO / "scripts" / "figures.py")
-    assert spec is not None and spec.loader is not None
-    module = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(module)
-    return module
-
-
-FIGURES = _figures_script()
+FIGURES = load_script("figures")
 SITL = FIGURES.sitl
 TRACKER = FIGURES.script_module("tracker_sitl")
 FLIGHTS = sorted(HELD_SCENARIOS | HELD_SCENARIOS_2 | HELD_SCENARIOS_3)

@@ -4,7 +4,6 @@ and every tlog and DataFlash log replays. Also the command's answers to user mis
 
 from __future__ import annotations
 
-import importlib.util
 import json
 from functools import cache
 from pathlib import Path
@@ -12,6 +11,7 @@ from types import SimpleNamespace
 
 import pytest
 from pymavlink.dialects.v20 import common as mavlink
+from script_loader import load_script
 
 from estimator.analysis.replay import FlightReplay, replay_log, summarize
 from estimator.cli import main
@@ -87,10 +87,7 @@ def test_the_docs_give_the_replays_as_measured() -> None:
     """docs/sitl.md's table of the recordings and docs/residuals.md's of the wind in use on
     them are what they replay to now (``make figures`` writes them from
     ``scripts/figures.py``)."""
-    spec = importlib.util.spec_from_file_location("figures", REPO / "scripts" / "figures.py")
-    assert spec is not None and spec.loader is not None
-    figures = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(figures)
+    figures = load_script("figures")
     flights = {n: replayed(RECORDINGS / n / "flight.tlog") for n in figures.sitl.recordings()}
     with_wind = {n: f.estimates for n, f in flights.items()}
     now = {

@@ -5,12 +5,11 @@ wrong where, with the model's errors taken as white, it was."""
 
 from __future__ import annotations
 
-import importlib.util
 from pathlib import Path
-from types import ModuleType
 
 import numpy as np
 import pytest
+from script_loader import load_script
 
 from estimator.analysis.tracker_truth import TrackerRun
 
@@ -19,17 +18,7 @@ DATA = ROOT.parent / "shared" / "data" / "cmu_m100_subset"
 pytestmark = pytest.mark.needs(DATA.is_dir(), "the CMU M100 flights (../shared/data)")
 
 
-def _script() -> ModuleType:
-    spec = importlib.util.spec_from_file_location(
-        "tracker_cmu", ROOT / "scripts" / "tracker_cmu.py"
-    )
-    assert spec is not None and spec.loader is not None
-    module = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(module)
-    return module
-
-
-SCRIPT = _script()
+SCRIPT = load_script("tracker_cmu")
 
 
 @pytest.fixture(scope="module")

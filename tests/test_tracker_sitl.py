@@ -6,13 +6,12 @@ the block ``tracker-sitl`` of docs/residuals.md."""
 
 from __future__ import annotations
 
-import importlib.util
 import json
 from pathlib import Path
-from types import ModuleType
 
 import numpy as np
 import pytest
+from script_loader import load_script
 
 from estimator.analysis.sitl_truth import RecordingTruth, load_truth
 from estimator.analysis.tracker_truth import TrackerRun
@@ -22,17 +21,7 @@ from estimator.reports.doc_blocks import blocks_in
 ROOT = Path(__file__).resolve().parent.parent
 
 
-def _script() -> ModuleType:
-    spec = importlib.util.spec_from_file_location(
-        "tracker_sitl", ROOT / "scripts" / "tracker_sitl.py"
-    )
-    assert spec is not None and spec.loader is not None
-    module = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(module)
-    return module
-
-
-SCRIPT = _script()
+SCRIPT = load_script("tracker_sitl")
 Flights = list[tuple[RecordingTruth, TrackerRun]]
 
 
