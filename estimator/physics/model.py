@@ -69,11 +69,11 @@ class PowerModel:
         c5 V³, with the load factor n² = 1 + a⊥²/g². ``mass_ratio`` (per sample) and
         ``density_ratio`` evaluate :meth:`rescaled` models without building them.
         """
-        c1, c2, _, _, c5 = self._scaled(np.asarray(mass_ratio, dtype=float), density_ratio)
+        c1, c2, c3, c4, c5 = self._scaled(np.asarray(mass_ratio, dtype=float), density_ratio)
         v = np.asarray(speed_mps, dtype=float)
         v2 = v * v
         load2 = 1.0 + np.square(np.asarray(accel_centripetal_mps2, dtype=float) / G_MPS2)
-        induced = self.induced_w(v, load2, mass_ratio, density_ratio)
+        induced = _induced_w(c3, c4, v2, load2)
         return np.asarray(c1 * (1.0 + c2 * v2) + induced + c5 * v2 * v, dtype=float)
 
     def induced_w(
@@ -88,9 +88,7 @@ class PowerModel:
         :meth:`power_w`)."""
         _, _, c3, c4, _ = self._scaled(np.asarray(mass_ratio, dtype=float), density_ratio)
         v = np.asarray(speed_mps, dtype=float)
-        load2 = np.asarray(load_factor2, dtype=float)
-        v2_c4 = v * v / c4
-        return np.asarray(c3 * np.sqrt(load2 * (np.sqrt(load2 + v2_c4 * v2_c4) - v2_c4)))
+        return _induced_w(c3, c4, v * v, np.asarray(load_factor2, dtype=float))
 
     def hover_induced_velocity_mps(
         self, mass_ratio: ArrayLike = 1.0, density_ratio: float = 1.0
@@ -157,6 +155,14 @@ class PowerModel:
             self.c4 * mass_ratio / density_ratio,
             self.c5 * density_ratio,
         )
+
+
+def _induced_w(
+    c3: float | FloatArray, c4: float | FloatArray, v2: FloatArray, load2: FloatArray
+) -> FloatArray:
+    """Eq. (2)'s induced term, W, from the (rescaled) c3 and c4, V² (m²/s²) and n²."""
+    v2_c4 = v2 / c4
+    return np.asarray(c3 * np.sqrt(load2 * (np.sqrt(load2 + v2_c4 * v2_c4) - v2_c4)))
 
 
 @dataclass(frozen=True)
