@@ -277,6 +277,8 @@ def test_every_effect_type_round_trips_its_defaults() -> None:
         ("wind", {"speed_mps": "fast"}, "finite number"),
         ("air_density", {"rho_kgpm3": -1.0}, "out of range"),
         ("climb", {"efficiency": 1.5}, "out of range"),
+        ("heave", {"gain": 1e6}, "out of range"),
+        ("heave", {"gain": -1.0}, "out of range"),
     ],
 )
 def test_bad_effect_tables_are_one_line_user_errors(

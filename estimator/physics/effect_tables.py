@@ -9,7 +9,7 @@ from dataclasses import fields
 from typing import Any
 
 from estimator.errors import UserError
-from estimator.physics.effects import EFFECT_TYPES, Effect
+from estimator.physics.effects import EFFECT_TYPES, Effect, Heave
 
 
 def effect_from_params(name: str, params: Mapping[str, Any], where: str = "effects") -> Effect:
@@ -47,7 +47,8 @@ def _validate(effect: Effect, where: str) -> None:
         "speed_mps": lambda v: v >= 0,
         "rho_kgpm3": lambda v: v > 0,
         "efficiency": lambda v: 0 < v <= 1,
-        "gain": lambda v: v >= 0,
+        # a gain beyond the fitters' bound is no rotor's: it would swamp the prediction
+        "gain": lambda v: Heave.bounds["gain"][0] <= v <= Heave.bounds["gain"][1],
         "recovery": lambda v: 0 <= v <= 1,
         "resistance_ohm": lambda v: v >= 0,
         "reference_v": lambda v: v > 0,
