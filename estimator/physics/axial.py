@@ -40,7 +40,7 @@ WINDMILL_CLIMB_RATIO = -2.0
 
 def _vortex_ring_quartic(x: FloatArray) -> FloatArray:
     k1, k2, k3, k4 = VORTEX_RING_K
-    return np.asarray(VORTEX_RING_KAPPA + x * (k1 + x * (k2 + x * (k3 + x * k4))), dtype=float)
+    return VORTEX_RING_KAPPA + x * (k1 + x * (k2 + x * (k3 + x * k4)))
 
 
 _WINDMILL_EDGE_MISMATCH = (
@@ -56,17 +56,16 @@ def induced_velocity_ratio(climb_ratio: ArrayLike) -> FloatArray:
     """
     x = np.asarray(climb_ratio, dtype=float)
     half = 0.5 * x
-    climb = -half + np.sqrt(half * half + 1.0)
-    if np.all(x >= 0.0):  # every sample climbs or hovers: the other branches are not used
-        return np.asarray(climb, dtype=float)
+    climb = np.sqrt(half * half + 1.0) - half
+    descends = x < 0.0
+    if not descends.any():  # every sample climbs or hovers: the other branches are not used
+        return climb
     bridge = _vortex_ring_quartic(x) / VORTEX_RING_KAPPA + half * _WINDMILL_EDGE_MISMATCH
-    if not np.any(x <= WINDMILL_CLIMB_RATIO):  # nothing descends into the windmill state
-        return np.asarray(np.where(x >= 0.0, climb, bridge), dtype=float)
+    windmill_state = x <= WINDMILL_CLIMB_RATIO
+    if not windmill_state.any():  # nothing descends into the windmill state
+        return np.where(descends, bridge, climb)
     windmill = -half - np.sqrt(np.maximum(half * half - 1.0, 0.0))
-    return np.asarray(
-        np.where(x >= 0.0, climb, np.where(x <= WINDMILL_CLIMB_RATIO, windmill, bridge)),
-        dtype=float,
-    )
+    return np.where(descends, np.where(windmill_state, windmill, bridge), climb)
 
 
 def axial_induced_power_ratio(climb_mps: ArrayLike, hover_induced_mps: ArrayLike) -> FloatArray:
@@ -78,6 +77,5 @@ def axial_induced_power_ratio(climb_mps: ArrayLike, hover_induced_mps: ArrayLike
     of the vortex ring, V_c + v_i < 0), the ratio is 0: the motors' controllers do not
     return it to the battery.
     """
-    vh = np.asarray(hover_induced_mps, dtype=float)
-    x = np.asarray(climb_mps, dtype=float) / vh
-    return np.asarray(np.maximum(x + induced_velocity_ratio(x), 0.0), dtype=float)
+    x = np.asarray(climb_mps, dtype=float) / hover_induced_mps
+    return np.maximum(x + induced_velocity_ratio(x), 0.0)

@@ -35,7 +35,16 @@ from numpy.typing import ArrayLike
 
 from estimator.physics.axial import axial_induced_power_ratio
 from estimator.physics.kinematics import centripetal_accel_mps2
-from estimator.physics.model import G_MPS2, SEA_LEVEL_DENSITY_KGPM3, FloatArray, PowerModel
+from estimator.physics.model import (
+    G_MPS2,
+    SEA_LEVEL_DENSITY_KGPM3,
+    Coefficients,
+    FloatArray,
+    PowerModel,
+    hover_induced_velocity_mps,
+    induced_power_w,
+    level_power_w,
+)
 
 
 def _arr(x: ArrayLike) -> FloatArray:
@@ -115,18 +124,20 @@ class PowerContext:
     """Intermediate quantities of one prediction, shared by the effects (arrays per sample).
 
     air_vn/air_ve_mps: horizontal velocity relative to the air, NED, m/s.
-    mass_kg: actual mass. mass_ratio: mass over the vehicle file's. density_ratio: ρ / ρ₀.
+    mass_kg: actual mass. mass_ratio: mass over the vehicle file's (both one float for every
+    sample until a mass effect makes them arrays). density_ratio: ρ / ρ₀.
+    coefficients: the model's c1..c5 at that mass and density (:meth:`PowerModel.scaled`).
     speed_mps, accel_centripetal_mps2: airspeed V and a⊥ used by eq. (2).
     propulsion_w: power the rotors draw so far (eq. (2) + kinetic + propulsion effects), W.
     """
 
     state: FlightState
-    model: PowerModel
     air_vn_mps: FloatArray
     air_ve_mps: FloatArray
-    mass_kg: FloatArray
-    mass_ratio: FloatArray
+    mass_kg: FloatArray | float
+    mass_ratio: FloatArray | float
     density_ratio: float = 1.0
+    coefficients: Coefficients | None = None
     speed_mps: FloatArray | None = None
     accel_centripetal_mps2: FloatArray | None = None
     hover_induced_velocity_mps: FloatArray | None = None
@@ -417,12 +428,12 @@ class Heave(Effect):
 
     def propulsion_w(self, ctx: PowerContext) -> FloatArray:
         assert ctx.speed_mps is not None and ctx.accel_centripetal_mps2 is not None
-        assert ctx.state.ad_mps2 is not None
+        assert ctx.state.ad_mps2 is not None and ctx.coefficients is not None
         turn2 = np.square(ctx.accel_centripetal_mps2 / G_MPS2)
         vertical = np.maximum(1.0 - ctx.state.ad_mps2 / G_MPS2, 0.0)
-        model, v = ctx.model, ctx.speed_mps
-        with_heave = model.induced_w(v, vertical**2 + turn2, ctx.mass_ratio, ctx.density_ratio)
-        level = model.induced_w(v, 1.0 + turn2, ctx.mass_ratio, ctx.density_ratio)
+        coefficients, v = ctx.coefficients, ctx.speed_mps
+        with_heave = induced_power_w(coefficients, v, vertical**2 + turn2)
+        level = induced_power_w(coefficients, v, 1.0 + turn2)
         return self.gain * (with_heave - level)
 
 
@@ -527,14 +538,12 @@ def predict_context(
     model: PowerModel, mass_kg: float, state: FlightState, effects: Sequence[Effect] = ()
 ) -> tuple[PowerContext, FloatArray]:
     """Like :func:`predict_power_w`, also returning the intermediate quantities."""
-    n = len(state)
     ctx = PowerContext(
         state=state,
-        model=model,
         air_vn_mps=state.vn_mps,
         air_ve_mps=state.ve_mps,
-        mass_kg=np.full(n, float(mass_kg)),
-        mass_ratio=np.ones(n),
+        mass_kg=float(mass_kg),
+        mass_ratio=1.0,
     )
     for effect in effects:
         effect.adjust(ctx)
@@ -542,12 +551,9 @@ def predict_context(
     ctx.accel_centripetal_mps2 = centripetal_accel_mps2(
         ctx.air_vn_mps, ctx.air_ve_mps, state.an_mps2, state.ae_mps2
     )
-    power_w = model.power_w(
-        ctx.speed_mps, ctx.accel_centripetal_mps2, ctx.mass_ratio, ctx.density_ratio
-    )
-    ctx.hover_induced_velocity_mps = model.hover_induced_velocity_mps(
-        ctx.mass_ratio, ctx.density_ratio
-    )
+    ctx.coefficients = model.scaled(ctx.mass_ratio, ctx.density_ratio)
+    power_w = level_power_w(ctx.coefficients, ctx.speed_mps, ctx.accel_centripetal_mps2)
+    ctx.hover_induced_velocity_mps = hover_induced_velocity_mps(ctx.coefficients)
     power_w += ctx.mass_kg * (ctx.air_vn_mps * state.an_mps2 + ctx.air_ve_mps * state.ae_mps2)
     for effect in effects:
         extra = effect.propulsion_w(ctx)

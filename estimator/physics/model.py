@@ -69,12 +69,9 @@ class PowerModel:
         c5 V³, with the load factor n² = 1 + a⊥²/g². ``mass_ratio`` (per sample) and
         ``density_ratio`` evaluate :meth:`rescaled` models without building them.
         """
-        c1, c2, c3, c4, c5 = self._scaled(np.asarray(mass_ratio, dtype=float), density_ratio)
-        v = np.asarray(speed_mps, dtype=float)
-        v2 = v * v
-        load2 = 1.0 + np.square(np.asarray(accel_centripetal_mps2, dtype=float) / G_MPS2)
-        induced = _induced_w(c3, c4, v2, load2)
-        return np.asarray(c1 * (1.0 + c2 * v2) + induced + c5 * v2 * v, dtype=float)
+        return level_power_w(
+            self.scaled(mass_ratio, density_ratio), speed_mps, accel_centripetal_mps2
+        )
 
     def induced_w(
         self,
@@ -86,17 +83,14 @@ class PowerModel:
         """Eq. (2)'s induced term at airspeed V (m/s) and squared load factor n² (thrust over
         weight, squared): c3 n (sqrt(n² + V⁴/c4²) − V²/c4)^½, W (rescaled like
         :meth:`power_w`)."""
-        _, _, c3, c4, _ = self._scaled(np.asarray(mass_ratio, dtype=float), density_ratio)
-        v = np.asarray(speed_mps, dtype=float)
-        return _induced_w(c3, c4, v * v, np.asarray(load_factor2, dtype=float))
+        return induced_power_w(self.scaled(mass_ratio, density_ratio), speed_mps, load_factor2)
 
     def hover_induced_velocity_mps(
         self, mass_ratio: ArrayLike = 1.0, density_ratio: float = 1.0
     ) -> FloatArray:
         """Mean rotor induced velocity in hover v0 = sqrt(c4 / 2), m/s (rescaled like
         :meth:`power_w`)."""
-        c4 = self._scaled(np.asarray(mass_ratio, dtype=float), density_ratio)[3]
-        return np.asarray(np.sqrt(0.5 * c4), dtype=float)
+        return hover_induced_velocity_mps(self.scaled(mass_ratio, density_ratio))
 
     @property
     def hover_power_w(self) -> float:
@@ -138,23 +132,54 @@ class PowerModel:
         )
 
     def rescaled(self, mass_ratio: float = 1.0, density_ratio: float = 1.0) -> PowerModel:
-        """The model for mass m·mass_ratio and air density ρ·density_ratio (:meth:`_scaled`)."""
+        """The model for mass m·mass_ratio and air density ρ·density_ratio (:meth:`scaled`)."""
         if mass_ratio <= 0 or density_ratio <= 0:
             raise ValueError("mass and density ratios must be > 0")
-        return PowerModel(*(float(c) for c in self._scaled(mass_ratio, density_ratio)))
+        return PowerModel(*(float(c) for c in self.scaled(mass_ratio, density_ratio)))
 
-    def _scaled(
-        self, mass_ratio: float | FloatArray, density_ratio: float
-    ) -> tuple[float | FloatArray, ...]:
-        """c1..c5 for mass m·mass_ratio and air density ρ·density_ratio, from Zeng et al.'s
-        parameters: c1 ∝ ρ, c2 fixed (tip speed), c3 ∝ W^{3/2} ρ^{-1/2}, c4 ∝ W/ρ, c5 ∝ ρ."""
+    def scaled(self, mass_ratio: ArrayLike = 1.0, density_ratio: float = 1.0) -> Coefficients:
+        """c1..c5 for mass m·mass_ratio (one float, or one per sample) and air density
+        ρ·density_ratio, from Zeng et al.'s parameters: c1 ∝ ρ, c2 fixed (tip speed),
+        c3 ∝ W^{3/2} ρ^{-1/2}, c4 ∝ W/ρ, c5 ∝ ρ."""
+        ratio = mass_ratio if isinstance(mass_ratio, float) else np.asarray(mass_ratio, dtype=float)
         return (
             self.c1 * density_ratio,
             self.c2,
-            self.c3 * mass_ratio**1.5 / math.sqrt(density_ratio),
-            self.c4 * mass_ratio / density_ratio,
+            self.c3 * ratio**1.5 / math.sqrt(density_ratio),
+            self.c4 * ratio / density_ratio,
             self.c5 * density_ratio,
         )
+
+
+#: A model's c1..c5 as :meth:`PowerModel.scaled` gives them (floats, or arrays per sample).
+Coefficients = tuple[float | FloatArray, ...]
+
+
+def level_power_w(
+    coefficients: Coefficients, speed_mps: ArrayLike, accel_centripetal_mps2: ArrayLike = 0.0
+) -> FloatArray:
+    """:meth:`PowerModel.power_w` with the (rescaled) ``coefficients``, W."""
+    c1, c2, c3, c4, c5 = coefficients
+    v = np.asarray(speed_mps, dtype=float)
+    v2 = v * v
+    load2 = 1.0 + np.square(np.asarray(accel_centripetal_mps2, dtype=float) / G_MPS2)
+    induced = _induced_w(c3, c4, v2, load2)
+    return np.asarray(c1 * (1.0 + c2 * v2) + induced + c5 * v2 * v, dtype=float)
+
+
+def induced_power_w(
+    coefficients: Coefficients, speed_mps: ArrayLike, load_factor2: ArrayLike
+) -> FloatArray:
+    """:meth:`PowerModel.induced_w` with the (rescaled) ``coefficients``, W."""
+    v = np.asarray(speed_mps, dtype=float)
+    return _induced_w(
+        coefficients[2], coefficients[3], v * v, np.asarray(load_factor2, dtype=float)
+    )
+
+
+def hover_induced_velocity_mps(coefficients: Coefficients) -> FloatArray:
+    """:meth:`PowerModel.hover_induced_velocity_mps` with the (rescaled) ``coefficients``, m/s."""
+    return np.asarray(np.sqrt(0.5 * coefficients[3]), dtype=float)
 
 
 def _induced_w(

@@ -87,7 +87,7 @@ class _Physics:
             "accel_tangential_mps2": tangential_accel_mps2(
                 ctx.air_vn_mps, ctx.air_ve_mps, state.an_mps2, state.ae_mps2
             ),
-            "mass_kg": ctx.mass_kg,
+            "mass_kg": np.broadcast_to(ctx.mass_kg, power.shape),
         }
 
     def advance(self, rec: dict[str, np.ndarray], soc: float, last_v: float) -> dict[str, Any]:
