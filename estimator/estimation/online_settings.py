@@ -49,6 +49,16 @@ class OnlineSettings:
     #: this much likelier (log-likelihood ratio, nats; 4.6 = 100:1) or for this many steps.
     hypothesis_nats: float = 4.6
     hypothesis_max_steps: int = 30
+    #: What the model's form leaves unknown however long the filter runs, added to the 1σ it
+    #: reports (:attr:`~estimator.estimation.online_effects.OnlineEffects.sigma`), not to
+    #: its covariance: a mass difference is read off by the model's mass law (c3 ∝ W^1.5), off
+    #: by this fraction of it where the airframe's power follows the thrust otherwise (on
+    #: ArduCopter SITL a 1 kg payload reads 3.5–4.7 % heavy); a wind, by the shape of the
+    #: model's P(V), whose error reads as a wind of this 1σ per component (m/s; on SITL's
+    #: still-air flights 0.2–1.0 m/s). Both set on the development recordings of
+    #: ``replay/sitl`` (docs/residuals.md).
+    mass_form_sigma_fraction: float = 0.05
+    wind_form_sigma_mps: float = 0.5
     #: Mass may not drop below this fraction of the vehicle file's.
     min_mass_fraction: float = 0.3
     #: No multirotor flies in more wind than this (m/s): the estimate is held below it.
