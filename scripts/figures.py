@@ -213,6 +213,22 @@ def iris_replay_total() -> str:
     )
 
 
+@generator("iris-replay-errors", reads=IRIS)
+def iris_replay_errors() -> str:
+    """How the readers fared on every IRIS+ log: logs truncated and corrupt records skipped
+    (an unreadable log stops the generator, so none is skipped)."""
+    flights = _all_iris_flights()
+    truncated = [f.name for f in flights if f.truncated]
+    corrupt = {f.name: f.bad_frames for f in flights if f.bad_frames}
+    cut = f"{len(truncated)} truncated ({', '.join(truncated)})" if truncated else "none truncated"
+    records = sum(corrupt.values())
+    return (
+        f"all {len(flights)} logs replay without error: {cut}, {records} corrupt "
+        f"record{'s' if records != 1 else ''} skipped and counted"
+        + (f" (in {', '.join(corrupt)})" if corrupt else "")
+    )
+
+
 @generator("iris-replay-periods", reads=IRIS)
 def iris_replay_periods() -> str:
     """The two periods' RMSE and MAPE ranges, and how close each one's energy comes."""
