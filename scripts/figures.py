@@ -32,8 +32,9 @@ Each ``<!-- figures:NAME -->`` … ``<!-- /figures:NAME -->`` block of those doc
 - ``tracked-wind-sitl``: ``python scripts/tracked_wind_sitl.py`` (the wind the pipeline uses
   on the ArduCopter SITL recordings of ``replay/sitl``, against their truth; checked by
   ``tests/test_sitl_recordings.py``).
-- ``pack-sitl-*``: the summary of docs/pack.md's ArduCopter SITL pack flights, pooled from
-  the flights ``python scripts/pack_state_sitl.py`` tabulates (``scripts/pack_figures.py``);
+- ``pack-sitl-*``: docs/pack.md's ArduCopter SITL pack flights, the tables ``python
+  scripts/pack_state_sitl.py`` prints and their summary (``scripts/pack_figures.py``; the
+  README's sentence too);
   ``pack-ensemble-*``: the simulator's ensemble of drawn packs; ``hover-cruise-*``: the
   hover→cruise acceptance flights (``python tests/test_endurance_acceptance.py``).
 - ``fleet-iris-*``: ``uav-energy fleet fit`` of the IRIS+ logs and ``fleet trends`` of its

@@ -83,6 +83,11 @@ def _all() -> list[PackFlight]:
     return [f for half in flights().values() for f in half]
 
 
+def _held_out() -> list[PackFlight]:
+    """Every flight of the held-out sets (all but the tuning set)."""
+    return [f for half, pooled in flights().items() if half != "tuning" for f in pooled]
+
+
 def _scored(pooled: Sequence[PackFlight]) -> list[PackFlight]:
     return [f for f in pooled if len(f.errors)]
 
@@ -252,6 +257,48 @@ def wind_medians() -> str:
         f"The {len(windy)} flights with a wind of {STRONG_WIND_MPS:.0f} m/s or more have "
         f"medians of {min(windy):.1f}–{max(windy):.1f} %; the other {len(calm)}, "
         f"{min(calm):.1f}–{max(calm):.1f} %"
+    )
+
+
+def flight_table(table: ModuleType) -> str:
+    """docs/pack.md's per-flight table, rows as ``table`` (``scripts/pack_state_sitl.py``)
+    prints them."""
+    rows = [
+        table.table_row(f, half.replace("_", "-"))
+        for half, pooled in flights().items()
+        for f in pooled
+    ]
+    return "\n".join([table.TABLE_HEADER, *rows])
+
+
+def restart_table(table: ModuleType) -> str:
+    """docs/pack.md's table of the flights restarted 90 s after take-off, rows as ``table``
+    prints them."""
+    rows = [
+        table.restart_row(r, half.replace("_", "-"))
+        for half, judged in restarts().items()
+        for r in judged
+    ]
+    return "\n".join([table.RESTART_HEADER, *rows])
+
+
+def readme() -> str:
+    """The README's sentence (a table cell: its pipes escaped): how many flights, the range of
+    their real capacity (% of the label), and over the held-out sets' scored estimates the
+    median |error| (%) of ours, the PX4-style figure and ArduPilot's."""
+    shares = [
+        100 * f.truth["battery"]["capacity_ah"] / f.truth["battery"]["labelled_capacity_ah"]
+        for f in _all()
+    ]
+    held = _held_out()
+    ours, px4, ardupilot = (
+        np.median(_abs_pct(held, which)) for which in ("errors", "px4_errors", "ardupilot_errors")
+    )
+    return (
+        f"on {len(_all())} ArduCopter SITL flights with packs of {min(shares):.0f}–"
+        f"{max(shares):.0f} % of their label (told the resting curve, not the capacity), "
+        f"endurance median \\|error\\| {ours:.1f} % on {len(held)} held-out flights "
+        f"(PX4-style {px4:.0f} %, ArduPilot {ardupilot:.0f} %)"
     )
 
 
@@ -430,7 +477,8 @@ QUOTED_FLIGHTS = (
 
 def generators(table: ModuleType) -> dict[str, Callable[[], str]]:
     """Block name → the function that prints it (``scripts/figures.py`` registers them);
-    ``table``: ``scripts/pack_state_sitl.py`` as a module, whose pooled lines one prints."""
+    ``table``: ``scripts/pack_state_sitl.py`` as a module, whose table rows and pooled lines
+    some print."""
     out: dict[str, Callable[[], str]] = {
         "pack-sitl-pooled": lambda: "\n\n".join(
             table.pooled_line(half, pooled) for half, pooled in flights().items()
@@ -441,6 +489,9 @@ def generators(table: ModuleType) -> dict[str, Callable[[], str]]:
         "pack-sitl-sigma": sigma,
         "pack-sitl-pooled-1sigma": pooled_one_sigma,
         "pack-sitl-wind": wind_medians,
+        "pack-sitl-table": partial(flight_table, table),
+        "pack-sitl-restart-table": partial(restart_table, table),
+        "pack-sitl-readme": readme,
     }
     out["pack-sitl-1sigma-held-out"] = partial(set_one_sigma, "held_out")
     out["pack-sitl-held-out-7"] = partial(set_summary, "held_out_7")
