@@ -638,6 +638,7 @@ def sitl_effects_floors() -> str:
 
 
 for _name, _summary in (
+    ("sitl-effects-clean", sitl.effects_clean),
     ("sitl-effects-wind", sitl.effects_wind),
     ("sitl-effects-payload", sitl.effects_payload),
     ("sitl-effects-turn", sitl.effects_turn),
@@ -650,6 +651,7 @@ _SITL_HELD_TEST = "tests/test_sitl_held_out.py"
 generator("sitl-held-table", checked_by=_SITL_HELD_TEST)(
     lambda: sitl.effects_table(sitl.held_checks(), sitl.HELD_RECORDINGS)
 )
+generator("sitl-held-count")(sitl.held_count)
 generator("sitl-held-summary", checked_by=_SITL_HELD_TEST)(
     lambda: sitl.held_summary(sitl.held_checks())
 )
