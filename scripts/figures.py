@@ -670,6 +670,12 @@ def tracker_on_cmu() -> str:
     return tracker_cmu.report(*tracker_cmu.both())
 
 
+@generator("tracker-cmu-shows", reads=tracker_cmu.DATA)
+def tracker_on_cmu_shows() -> str:
+    """docs/residuals.md's reading of the ``tracker-cmu`` table."""
+    return str(tracker_cmu.shows(*tracker_cmu.both()))
+
+
 @generator("tracker-sitl", checked_by="tests/test_tracker_sitl.py")
 def tracker_on_sitl() -> str:
     """``python scripts/tracker_sitl.py``'s table (10 s of CPU; its check shares the runs of
