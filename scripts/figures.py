@@ -684,6 +684,31 @@ def tracker_on_sitl() -> str:
     return str(script.report(script.runs()))
 
 
+@generator("tracker-sitl-shows", checked_by="tests/test_tracker_sitl.py")
+def tracker_on_sitl_shows() -> str:
+    """docs/residuals.md's reading of the ``tracker-sitl`` table."""
+    script = script_module("tracker_sitl")
+    return str(script.shows(script.runs()))
+
+
+#: The slow model error (fraction of the hover power) docs/residuals.md's counterfactual tries.
+TRACKER_SITL_SLOW_ERROR = 0.02
+
+
+@generator("tracker-sitl-slow-2pct", checked_by="tests/test_tracker_sitl.py")
+def tracker_on_sitl_slow_error() -> str:
+    """``python scripts/tracker_sitl.py --slow-error-fraction 0.02``'s pooled 2σ shares."""
+    script = script_module("tracker_sitl")
+    return str(script.slow_error_share(script.runs(slow_error_fraction=TRACKER_SITL_SLOW_ERROR)))
+
+
+@generator("sitl-slow-error")
+def sitl_slow_error() -> str:
+    """The SITL vehicle file's slow model error, % of its hover power (measured on its fit
+    flights; ``tests/test_sitl_effects.py`` checks it against them)."""
+    return f"{100 * load_vehicle(sitl.SITL_VEHICLE).slow_error_fraction:.1f} %"
+
+
 @generator("tracker-sitl-held", checked_by=_SITL_HELD_TEST)
 def tracker_on_sitl_held() -> str:
     """``python scripts/tracker_sitl.py replay/sitl_held``'s table."""
