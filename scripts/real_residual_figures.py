@@ -141,6 +141,13 @@ def offset(summer: Json, masses_kg: list[float]) -> str:
     )
 
 
+def offset_share(summer: Json) -> str:
+    """docs/residuals.md: the load chosen (W) and its share of the March file's hover power."""
+    power_w = summer["effects"][0]["params"]["power_w"]
+    hover_w = load_vehicle(MARCH_VEHICLE).model.hover_power_w
+    return f"**{power_w:+.0f} W** ({100 * power_w / hover_w:+.0f} % of the March hover power)"
+
+
 def runner_up(summer: Json) -> str:
     """docs/residuals.md: the runner-up of step 1, its held-out RMSE against the chosen one's
     and the z of the block test between them."""
@@ -375,12 +382,14 @@ def generators(
     return {
         "residuals-iris-offset": lambda: offset(summer(), masses()),
         "residuals-iris-runner-up": lambda: runner_up(summer()),
+        "residuals-iris-offset-share": lambda: offset_share(summer()),
         "residuals-iris-tracker": lambda: tracker(summer(), masses()),
         "residuals-iris-second-step": lambda: second_step(summer()),
         "residuals-iris-june-replay": lambda: june_replay(june()),
         "residuals-iris-june-replay-change": lambda: replay_change(june()),
         "residuals-iris-in-sample-replay": lambda: replay_change(in_sample()),
         "residuals-cmu-pooled": lambda: pooled_result(together()),
+        "residuals-cmu-noise-floor": lambda: f"{together().fitted['noise_floor_w']:.0f} W",
         "residuals-cmu-pooled-replay": lambda: replay_change(together()),
         "residuals-cmu-table": lambda: table(each()),
         "residuals-cmu-readme": lambda: readme(each()),
