@@ -53,9 +53,11 @@ from __future__ import annotations
 
 import argparse
 import contextlib
+import csv
 import importlib.util
 import io
 import json
+import math
 import os
 import sys
 import tempfile
@@ -86,7 +88,7 @@ from estimator.commands.replay import flight_names, vehicle_and_settings
 from estimator.errors import UserError
 from estimator.logs import iter_samples
 from estimator.logs.mission_files import load_mission
-from estimator.physics.vehicle import BatterySpec, default_vehicle, load_vehicle
+from estimator.physics.vehicle import BatterySpec, Vehicle, default_vehicle, load_vehicle
 from estimator.reports.doc_blocks import Block, blocks_in, rewrite
 from estimator.reports.fit_report import circles_markdown
 from estimator.sim.experiments import Experiments, curve_table, reproduce
@@ -96,6 +98,8 @@ DOCUMENTS = (REPO / "README.md", *sorted((REPO / "docs").glob("*.md")))
 SHARED_DATA = REPO.parent / "shared" / "data"
 IRIS = SHARED_DATA / "iris_quadcopter_logs"
 SITL_RUN1 = SHARED_DATA / "ardupilot_sitl" / "run1_default_quad.tlog"
+#: Current ArduCopter SITL's DataFlash log of a GUIDED flight, and its tlog (``.tlog``).
+ARDUCOPTER_GUIDED = REPO / "tests" / "data" / "arducopter_guided.bin"
 #: The two IRIS+ periods: their logs (as the README's ``find`` selects them) and vehicle file.
 PERIODS = {
     "March 2016": ("2016-03-*", "iris_plus_2016_03.toml"),
@@ -422,8 +426,7 @@ def sitl_run1_builtin() -> str:
     (docs/sitl.md gives the commands)."""
     with tempfile.TemporaryDirectory() as tmp:
         vehicle_file = Path(tmp) / "sitl.toml"
-        pack = BatterySpec(3.3, 3, 0.2)
-        replace(default_vehicle(), name="sitl-quad", battery=pack).save(vehicle_file)
+        builtin_on_sitl_pack().save(vehicle_file)
         result = json.loads(
             _cli("replay", str(SITL_RUN1), "--vehicle", str(vehicle_file), "--json")
         )
@@ -431,6 +434,75 @@ def sitl_run1_builtin() -> str:
         f"{result['airborne_s']:.1f} s airborne, power RMSE {result['power_rmse_w']:.1f} W "
         f"(MAPE {result['power_mape_pct']:.1f} %), {result['energy_measured_wh']:.1f} Wh "
         f"measured vs {result['energy_predicted_wh']:.1f} Wh predicted"
+    )
+
+
+#: The SITL AUTO mission docs/replay.md replays with its mission file (``--mission``).
+MISSION_REPLAYED = MISSIONS / "square_wind5"
+#: How long after take-off (s) that mission's figure is read.
+MISSION_READ_AFTER_S = 30.0
+
+
+def estimates_csv(*argv: str) -> list[dict[str, str]]:
+    """The rows of ``uav-energy replay ARGV… --out F.csv``."""
+    with tempfile.TemporaryDirectory() as tmp:
+        out = Path(tmp) / "estimates.csv"
+        _cli("replay", *argv, "--out", str(out))
+        with out.open() as fh:
+            return list(csv.DictReader(fh))
+
+
+def mission_figure(flight: Path, rows: Sequence[Mapping[str, str]]) -> tuple[float, float, float]:
+    """A replay's estimate rows of the SITL mission recording ``flight``: the rest of the
+    mission's energy and its 1σ :data:`MISSION_READ_AFTER_S` after take-off (``MIS_WH``,
+    ``MIS_SIG``, Wh), and the energy the vehicle drew from then to the disarm (Wh, ∫ V·I of
+    its own readings, trapezoids)."""
+    events = _truth(flight)["events"]
+    time_s = [float(r["time_s"]) for r in rows]
+    power_w = [float(r["power_measured_w"]) for r in rows]
+    at = next(k for k, t in enumerate(time_s) if t >= events["takeoff_s"] + MISSION_READ_AFTER_S)
+    end = next(k for k, t in enumerate(time_s) if t >= events["disarmed_s"])
+    drawn_wh = sum(
+        0.5 * (power_w[k] + power_w[k + 1]) * (time_s[k + 1] - time_s[k]) for k in range(at, end)
+    )
+    return (
+        float(rows[at]["mission_energy_wh"]),
+        float(rows[at]["mission_sigma_wh"]),
+        drawn_wh / 3600,
+    )
+
+
+@generator("replay-mission")
+def replay_mission() -> str:
+    """docs/replay.md: ``uav-energy replay F.tlog --vehicle SITL --mission F.waypoints`` of
+    :data:`MISSION_REPLAYED`, its mission figure against the energy drawn."""
+    tlog, mission = MISSION_REPLAYED / "flight.tlog", MISSION_REPLAYED / "mission.waypoints"
+    rows = estimates_csv(str(tlog), "--vehicle", str(sitl.SITL_VEHICLE), "--mission", str(mission))
+    predicted_wh, sigma_wh, drawn_wh = mission_figure(MISSION_REPLAYED, rows)
+    return (
+        f"{predicted_wh:.2f} ± {sigma_wh:.2f} Wh against {drawn_wh:.2f} Wh drawn, "
+        f"{fits.number(100 * (predicted_wh / drawn_wh - 1), '+.1f')} %"
+    )
+
+
+def builtin_on_sitl_pack() -> Vehicle:
+    """The built-in vehicle on ArduPilot SITL's pack (3S, 3.3 Ah, 20 % reserve)."""
+    return replace(default_vehicle(), name="sitl-quad", battery=BatterySpec(3.3, 3, 0.2))
+
+
+@generator("replay-arducopter-bin")
+def replay_arducopter_bin() -> str:
+    """docs/replay.md: ``tests/data/arducopter_guided.bin`` (current ArduCopter SITL's
+    DataFlash log) and the tlog of the same flight replayed with :func:`builtin_on_sitl_pack`:
+    airborne s, power RMSE (W) and MAPE (%)."""
+    figures = []
+    for suffix in (".bin", ".tlog"):
+        s = summarize([replay_log(ARDUCOPTER_GUIDED.with_suffix(suffix), builtin_on_sitl_pack())])
+        figures.append((s.airborne_s, s.power_rmse_w or math.nan, s.power_mape_pct or math.nan))
+    (bin_s, bin_w, bin_pct), (tlog_s, tlog_w, tlog_pct) = figures
+    return (
+        f"{bin_s:.0f} s airborne, RMSE {bin_w:.1f} W, MAPE {bin_pct:.1f} %, as the tlog of the "
+        f"same flight ({tlog_s:.0f} s, {tlog_w:.1f} W, {tlog_pct:.1f} %"
     )
 
 
