@@ -546,6 +546,39 @@ def no_priors_fit() -> dict[str, Any]:
     return _fit("IRIS+ March 2016", "--no-priors")
 
 
+def _iris_fits() -> list[dict[str, Any]]:
+    """The two IRIS+ periods' fits of :func:`real_fits`."""
+    return [fit for title, fit in real_fits().items() if "IRIS+" in title]
+
+
+#: The speed (m/s) docs/fit.md compares the IRIS+ curves' power at with hover.
+IRIS_LEG_SPEED_MPS = 5.0
+
+generator("fit-real-inflation", reads=SHARED_DATA)(lambda: fits.inflation(real_fits().values()))
+generator("fit-iris-speeds", reads=SHARED_DATA)(lambda: fits.speeds(_iris_fits()))
+generator("fit-iris-flat", reads=SHARED_DATA)(lambda: fits.flat(_iris_fits(), IRIS_LEG_SPEED_MPS))
+generator("fit-iris-determined", reads=SHARED_DATA)(lambda: fits.determined(_iris_fits()))
+generator("fit-iris-c1-c3", reads=SHARED_DATA)(lambda: fits.profile_and_induced(_iris_fits()))
+generator("fit-iris-noise", reads=SHARED_DATA)(lambda: fits.noise(_iris_fits()))
+generator("fit-cmu-dip", reads=SHARED_DATA)(lambda: fits.dip(real_fits()["CMU DJI M100"]))
+
+
+@generator("fit-degree-6", reads=SHARED_DATA)
+def fit_degree_6() -> str:
+    """``uav-energy fit … --degree 6``'s held-out polynomial RMSE on IRIS+ March and CMU."""
+    rmse = [
+        _fit(title, "--degree", "6")["models"]["polynomial"]["rmse_w"]
+        for title in ("IRIS+ March 2016", "CMU DJI M100")
+    ]
+    return f"{rmse[0]:.2f} W on IRIS+ March and {rmse[1]:.2f} W on CMU"
+
+
+generator("fit-no-priors-cmu", reads=SHARED_DATA)(
+    lambda: f"{_fit('CMU DJI M100', '--no-priors')['models']['theory']['rmse_w']:.1f} W"
+)
+generator("fit-sitl-run1", reads=SITL_RUN1.parent)(
+    lambda: fits.theory_against_polynomial(json.loads(_cli("fit", str(SITL_RUN1), "--json")))
+)
 generator("fit-no-priors", reads=SHARED_DATA)(lambda: fits.no_priors(no_priors_fit()))
 generator("fit-no-priors-values", reads=SHARED_DATA)(lambda: fits.no_priors_values(no_priors_fit()))
 generator("fit-cmu-residual", reads=SHARED_DATA)(
@@ -605,6 +638,12 @@ def experiments_circles() -> str:
 
 
 generator("experiments-curve")(lambda: curve_table(experiments_run()))
+generator("experiments-points")(
+    lambda: (
+        f"{len(experiments_run().fit.points.kept()):,} of "
+        f"{len(experiments_run().fit.points):,} points kept"
+    )
+)
 generator("experiments-circles-table")(
     lambda: circles_markdown(experiments_run().circles, experiments_run().radii_m).rstrip()
 )
