@@ -347,6 +347,25 @@ def plan_summary() -> str:
     )
 
 
+@generator("plan-c1-c3-sigma")
+def plan_c1_c3_sigma() -> str:
+    """The 1σ of the hover power the planner takes from the SITL vehicle file's c1 and c3 as
+    independent, % of the hover power."""
+    vehicle = load_vehicle(sitl.SITL_VEHICLE)
+    sigma_w = math.hypot(vehicle.model_stderr["c1"], vehicle.model_stderr["c3"])
+    return f"≈ {100 * sigma_w / vehicle.model.hover_power_w:.0f} % of hover power"
+
+
+@generator("plan-within-sigma")
+def plan_within_sigma() -> str:
+    """How many of the missions' predictions (told the wind and payload SITL flew) lie within
+    their 1σ of the measured energy."""
+    checks = mission_checks()
+    within = sum(abs(c.predicted_wh - c.measured_wh) <= c.predicted_sigma_wh for c in checks)
+    every = "every prediction is" if within == len(checks) else f"{within} predictions are"
+    return f"Over the {len(checks)} SITL missions below {every} within its 1σ of the measurement"
+
+
 @generator("plan-still-air")
 def plan_still_air() -> str:
     errors = _abs_errors(mission_checks(still_air=True))
