@@ -745,11 +745,23 @@ _SITL_RECORDINGS_TEST = "tests/test_sitl_recordings.py"
 _SITL_EFFECTS_TEST = "tests/test_sitl_effects.py"
 
 
-@generator("sitl-recordings-table", checked_by=_SITL_RECORDINGS_TEST)
-def sitl_recordings_table() -> str:
+@cache
+def sitl_replays() -> dict[str, FlightReplay]:
+    """Every recording of ``replay/sitl`` replayed with the SITL vehicle file."""
     vehicle = load_vehicle(sitl.SITL_VEHICLE)
     logs = {s: sitl.SITL_RECORDINGS / s / "flight.tlog" for s in sitl.recordings()}
-    return sitl.recordings_table({s: replay_log(log, vehicle) for s, log in logs.items()})
+    return {s: replay_log(log, vehicle) for s, log in logs.items()}
+
+
+generator("sitl-recordings-table", checked_by=_SITL_RECORDINGS_TEST)(
+    lambda: sitl.recordings_table(sitl_replays())
+)
+generator("sitl-hexa-energy", checked_by=_SITL_RECORDINGS_TEST)(
+    lambda: sitl.hexa_energy(sitl_replays())
+)
+generator("sitl-wind-cost", checked_by=_SITL_RECORDINGS_TEST)(
+    lambda: sitl.wind_cost(sitl_replays())
+)
 
 
 @generator("sitl-effects-table", checked_by=_SITL_EFFECTS_TEST)

@@ -72,6 +72,24 @@ def recordings_table(replays: Mapping[str, FlightReplay]) -> str:
     return "\n".join(lines)
 
 
+#: docs/sitl.md: SITL's built-in hexa, and the steady wind compared with the clean legs.
+HEXA, STEADY_WIND, CLEAN_LEGS = "hexa_clean", "wind_constant", "clean_legs"
+
+
+def hexa_energy(replays: Mapping[str, FlightReplay]) -> str:
+    """docs/sitl.md: how close the SITL quad's vehicle file predicts the hexa's energy (%)."""
+    s = summarize([replays[HEXA]])
+    return f"{100 * abs(s.energy_predicted_wh / s.energy_measured_wh - 1):.1f} %"
+
+
+def wind_cost(replays: Mapping[str, FlightReplay]) -> str:
+    """docs/sitl.md: the steady wind's measured energy against the clean legs' (%)."""
+    wind, clean = (
+        summarize([replays[name]]).energy_measured_wh for name in (STEADY_WIND, CLEAN_LEGS)
+    )
+    return f"{STEADY_WIND} {100 * (wind / clean - 1):+.1f} % energy over {CLEAN_LEGS}"
+
+
 def effect_scenarios() -> list[str]:
     return [s for s in recordings() if s not in NOT_EFFECT_RECORDINGS]
 
