@@ -40,6 +40,7 @@ from estimator.sim.endurance_ensemble import (
     ensemble_errors,
     figures_after_change,
     hover_cruise,
+    hover_cruise_config,
     signed_pct,
     table_rows,
 )
@@ -388,6 +389,21 @@ def ensemble() -> tuple[float, float, float, float]:
     )
 
 
+def ensemble_count() -> str:
+    """How many endurance estimates the ensemble scores."""
+    return f"{len(_drawn()[0])}"
+
+
+def standard_sigma(cruise_speed_mps: float) -> str:
+    """The acceptance flight at ``cruise_speed_mps`` scored as the ensemble's flights are:
+    the share of its estimates within 1σ of the truth, and their mean |error|/σ."""
+    z = ensemble_errors([hover_cruise_config(cruise_speed_mps)]).z
+    return (
+        f"{100 * np.mean(z <= 1.0):.0f} % of the {len(z)} errors within 1σ (mean |error|/σ "
+        f"{np.mean(z):.2f})"
+    )
+
+
 def ensemble_sigma() -> str:
     one, three, _, _ = ensemble()
     return f"{one:.1f} % of estimates are within 1σ, and {three:.1f} % within 3σ"
@@ -504,6 +520,8 @@ def generators(table: ModuleType) -> dict[str, Callable[[], str]]:
     out["pack-ensemble-error"] = ensemble_error
     out["pack-ensemble-summary"] = ensemble_summary
     out["pack-ensemble-daemon"] = ensemble_daemon
+    out["pack-ensemble-count"] = ensemble_count
+    out["hover-cruise-10-sigma"] = partial(standard_sigma, 10.0)
     out["hover-cruise-10"] = partial(hover_cruise_table, 10.0)
     out["hover-cruise-14"] = partial(hover_cruise_table, 14.0)
     out["hover-cruise-readme"] = hover_cruise_readme
