@@ -86,8 +86,9 @@ from estimator.analysis.replay import (
 )
 from estimator.commands.replay import flight_names, vehicle_and_settings
 from estimator.errors import UserError
-from estimator.logs import iter_samples
+from estimator.logs import iter_samples, sanity
 from estimator.logs.mission_files import load_mission
+from estimator.logs.sanity import SanityRecorder
 from estimator.physics.vehicle import BatterySpec, Vehicle, default_vehicle, load_vehicle
 from estimator.reports.doc_blocks import Block, blocks_in, rewrite
 from estimator.reports.fit_report import circles_markdown
@@ -232,6 +233,53 @@ def iris_replay_errors() -> str:
         f"record{'s' if records != 1 else ''} skipped and counted"
         + (f" (in {', '.join(corrupt)})" if corrupt else "")
     )
+
+
+def vertical_pairs(path: Path) -> tuple[np.ndarray, np.ndarray, bool]:
+    """(height rate, logged climb rate) in m/s of the sample pairs a log's vertical velocity
+    check judges (:class:`SanityRecorder`), and whether the check warns."""
+    recorder = SanityRecorder()
+    for sample in iter_samples(path):
+        recorder.observe(sample)
+    rate, climb = recorder.judged_pairs() or (np.empty(0), np.empty(0))
+    warns = any(cause == sanity.VERTICAL_VELOCITY for cause, _ in recorder.problems())
+    return rate, climb, warns
+
+
+def _agreement(rate: np.ndarray, climb: np.ndarray) -> tuple[int, float, float]:
+    """Pairs whose signs agree, the correlation, and the median |climb| / |height rate|."""
+    agree = int(np.count_nonzero(np.sign(rate) == np.sign(climb)))
+    return agree, float(np.corrcoef(rate, climb)[0, 1]), float(np.median(np.abs(climb / rate)))
+
+
+@generator("iris-vz-sign", reads=IRIS)
+def iris_vz_sign() -> str:
+    """docs/replay.md: the vertical velocity check on every IRIS+ log — the logs with enough
+    judged pairs, how many warn, their signs, correlation and |vz| against the height rate."""
+    logs = sorted(IRIS.glob("**/*.log"))
+    judged = [p for p in map(vertical_pairs, logs) if len(p[0]) >= sanity.MIN_PAIRS]
+    figures = [_agreement(rate, climb) for rate, climb, _ in judged]
+    warned = sum(warns for _, _, warns in judged)
+    agree, pairs = sum(f[0] for f in figures), sum(len(p[0]) for p in judged)
+    opposite = "every judged pair" if agree == 0 else f"{pairs - agree} of their {pairs} pairs"
+    corr = [f[1] for f in figures]
+    every = "all warn" if warned == len(judged) else f"{warned} warn"
+    return (
+        f"of the {len(logs)} logs in `../shared/data/iris_quadcopter_logs`, the {len(judged)} "
+        f"with at least {sanity.MIN_PAIRS} climbing or descending pairs {every}, with the signs "
+        f"opposite on {opposite} (correlation {fits.number(min(corr), '.2f')} to "
+        f"{fits.number(max(corr), '.2f')}, |vz| "
+        f"≈ {fits.span([f[2] for f in figures], '.1f')} × the altitude rate)"
+    )
+
+
+@generator("sitl-vz-sign")
+def sitl_vz_sign() -> str:
+    """docs/replay.md: the same check on current ArduCopter SITL's tlog."""
+    rate, climb, _ = vertical_pairs(ARDUCOPTER_GUIDED.with_suffix(".tlog"))
+    agree, corr, _ = _agreement(rate, climb)
+    pairs = f"all {agree}" if agree == len(rate) else f"{agree} of {len(rate)}"
+    return f"agrees on {pairs} pairs (correlation {corr:+.2f})"
 
 
 @generator("iris-replay-periods", reads=IRIS)
