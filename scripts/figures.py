@@ -298,6 +298,41 @@ def iris_replay_periods() -> str:
     )
 
 
+#: The IRIS+ flights docs/replay.md reads the power module's scatter off.
+QUIET_IRIS_FLIGHTS = ("2016-08-03/002/002", "2016-08-09/003/003")
+
+
+def _airborne_power(flight: FlightReplay) -> tuple[np.ndarray, np.ndarray]:
+    """A flight's airborne readings: measured and model power (W)."""
+    _, measured, model, airborne = flight.power.arrays()
+    return measured[airborne], model[airborne]
+
+
+@generator("iris-replay-power-span", reads=IRIS)
+def iris_replay_power_span() -> str:
+    """The 5th–95th percentile of the measured power (W, to 10 W) over every IRIS+ flight's
+    airborne readings."""
+    measured = np.concatenate([_airborne_power(f)[0] for f in _all_iris_flights()])
+    low, high = np.round(np.percentile(measured, [5, 95]), -1)
+    return f"{low:.0f}–{high:.0f} W"
+
+
+@generator("iris-replay-reading-noise", reads=IRIS)
+def iris_replay_reading_noise() -> str:
+    """On :data:`QUIET_IRIS_FLIGHTS`: the 1σ of one reading from successive differences (W)
+    and the residual σ of the model (W)."""
+    flights = {f.name: f for f in _all_iris_flights()}
+    reading, residual = [], []
+    for name in QUIET_IRIS_FLIGHTS:
+        measured, model = _airborne_power(flights[name])
+        reading.append(float(np.std(np.diff(measured)) / np.sqrt(2)))
+        residual.append(float(np.std(model - measured)))
+    return (
+        f"{fits.span(reading, '.1f')} W (1σ of one reading, from their differences, on "
+        f"{' and '.join(QUIET_IRIS_FLIGHTS)}, whose residual σ is {fits.span(residual, '.1f')} W)"
+    )
+
+
 @generator("iris-replay-builtin", reads=IRIS)
 def iris_replay_builtin() -> str:
     """The same logs with the built-in vehicle (no ``--vehicle``)."""
