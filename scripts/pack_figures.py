@@ -303,6 +303,13 @@ def readme() -> str:
     )
 
 
+def flight_worst(name: str, with_median: bool = True) -> str:
+    """One flight's worst |error| (and median |error|), %."""
+    [flight] = [f for f in _all() if f.name == name]
+    median = f", median {_median_pct(flight):.1f} %" if with_median else ""
+    return f"worst {_worst_pct(flight):.1f} %{median}"
+
+
 def flight_scores(name: str) -> str:
     """One flight's median |error| and 1σ coverage."""
     [flight] = [f for f in _all() if f.name == name]
@@ -491,6 +498,10 @@ QUOTED_FLIGHTS = (
 )
 
 
+#: Flights whose worst |error| docs/pack.md's misses quote (beyond the test's bound).
+MISSED_WORST = ("pack_c90_r1_wind", "pack_c100_r3")
+
+
 def generators(table: ModuleType) -> dict[str, Callable[[], str]]:
     """Block name → the function that prints it (``scripts/figures.py`` registers them);
     ``table``: ``scripts/pack_state_sitl.py`` as a module, whose table rows and pooled lines
@@ -528,4 +539,9 @@ def generators(table: ModuleType) -> dict[str, Callable[[], str]]:
     out["hover-cruise-end"] = hover_cruise_end
     for name in QUOTED_FLIGHTS:
         out[f"pack-sitl-{name.replace('_', '-')}"] = partial(flight_scores, name)
+    for name in MISSED_WORST:
+        out[f"pack-sitl-worst-{name.replace('_', '-')}"] = partial(flight_worst, name)
+    out["pack-sitl-worst-pack-c100-r2-soc70-wind"] = partial(
+        flight_worst, "pack_c100_r2_soc70_wind", with_median=False
+    )
     return out
