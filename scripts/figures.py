@@ -430,6 +430,20 @@ def plan_summary() -> str:
     )
 
 
+#: docs/plan.md's example: a mission and the wind SITL flew it in.
+PLAN_EXAMPLE = (MISSIONS / "climbs_wind6" / "mission.plan", "6@135")
+
+
+@generator("plan-example")
+def plan_example() -> str:
+    """``uav-energy plan MISSION --vehicle SITL --wind W``'s output as a code block, without
+    its title and the table's rules (their width follows the terminal)."""
+    mission, wind = PLAN_EXAMPLE
+    out = _cli("plan", str(mission), "--vehicle", str(sitl.SITL_VEHICLE), "--wind", wind)
+    lines = [line.rstrip() for line in out.splitlines()[1:] if line[:1] not in "┏┡├└"]
+    return "\n".join(["```", *lines, "```"])
+
+
 @generator("plan-c1-c3-sigma")
 def plan_c1_c3_sigma() -> str:
     """The 1σ of the hover power the planner takes from the SITL vehicle file's c1 and c3 as
