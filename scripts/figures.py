@@ -13,6 +13,9 @@ Each ``<!-- figures:NAME -->`` … ``<!-- /figures:NAME -->`` block of those doc
   replay F --json`` (the built-in vehicle); ``sitl-run1-builtin``: ``../shared``'s recorded
   ArduCopter SITL flight replayed with the built-in vehicle on SITL's pack.
 - ``experiments-*``: ``uav-energy experiments`` (generated flights, seed 0).
+- ``fit-*``: ``uav-energy fit`` of the real logs as ``make fit-real`` runs it, and variants
+  (``--degree 6``, ``--no-priors``; ``scripts/fit_figures.py``); ``pack-fit-sitl-*``:
+  ``python scripts/pack_fit_sitl.py`` (the pack fitted on SITL's pack flights).
 - ``residuals-sim-*``: ``uav-energy residuals`` on simulated flights, each with an effect
   hidden from the built-in vehicle (``scripts/residual_figures.py``; ``residuals-iris-*``:
   the IRIS+ logs against the March vehicle file, and with ``residuals-cmu-*`` the real-log
@@ -122,6 +125,7 @@ fits = script_module("fit_figures")
 residual_figures = script_module("residual_figures")
 tracker_cmu = script_module("tracker_cmu")
 pack_table = script_module("pack_state_sitl")
+pack_fit_table = script_module("pack_fit_sitl")
 MISSIONS = sitl.SITL_RECORDINGS / "missions"
 #: The missions the planner's flight settings were read off (docs/plan.md, "Calibration").
 CALIBRATION = ("climbs_wind6", "outback_wind8", "square_wind5")
@@ -703,6 +707,19 @@ generator("fit-cmu-residual", reads=SHARED_DATA)(
 generator("sitl-quad-fit")(lambda: fits.sitl_quad_summary(sitl_quad_fit()))
 generator("sitl-quad-fit-data")(lambda: fits.sitl_quad_data(sitl_quad_fit()))
 generator("sitl-quad-fit-errors")(lambda: fits.sitl_quad_errors(sitl_quad_fit()))
+
+
+# --- the pack fitted on SITL's pack flights ------------------------------------------------------
+
+
+@cache
+def pack_fits() -> dict[str, tuple[list[str], list[np.ndarray]]]:
+    """``python scripts/pack_fit_sitl.py``'s fits (3 s of CPU)."""
+    return dict(pack_fit_table.halves())
+
+
+generator("pack-fit-sitl-table")(lambda: pack_fit_table.table(pack_fits()))
+generator("pack-fit-sitl-pooled")(lambda: pack_fit_table.pooled(pack_fits()))
 
 
 # --- the paper's experiments ------------------------------------------------------------------
