@@ -124,6 +124,7 @@ sitl = script_module("sitl_figures")
 fits = script_module("fit_figures")
 residual_figures = script_module("residual_figures")
 tracker_cmu = script_module("tracker_cmu")
+tracker_sitl = script_module("tracker_sitl")
 pack_table = script_module("pack_state_sitl")
 pack_fit_table = script_module("pack_fit_sitl")
 MISSIONS = sitl.SITL_RECORDINGS / "missions"
@@ -932,30 +933,39 @@ def tracker_on_cmu_shows() -> str:
     return str(tracker_cmu.shows(*tracker_cmu.both()))
 
 
-@generator("tracker-sitl", checked_by="tests/test_tracker_sitl.py")
-def tracker_on_sitl() -> str:
-    """``python scripts/tracker_sitl.py``'s table (10 s of CPU; its check shares the runs of
-    ``tests/test_tracker_sitl.py``)."""
-    script = script_module("tracker_sitl")
-    return str(script.report(script.runs()))
-
-
-@generator("tracker-sitl-shows", checked_by="tests/test_tracker_sitl.py")
-def tracker_on_sitl_shows() -> str:
-    """docs/residuals.md's reading of the ``tracker-sitl`` table."""
-    script = script_module("tracker_sitl")
-    return str(script.shows(script.runs()))
-
-
+_TRACKER_SITL_TEST = "tests/test_tracker_sitl.py"
 #: The slow model error (fraction of the hover power) docs/residuals.md's counterfactual tries.
 TRACKER_SITL_SLOW_ERROR = 0.02
 
 
-@generator("tracker-sitl-slow-2pct", checked_by="tests/test_tracker_sitl.py")
-def tracker_on_sitl_slow_error() -> str:
-    """``python scripts/tracker_sitl.py --slow-error-fraction 0.02``'s pooled 2σ shares."""
-    script = script_module("tracker_sitl")
-    return str(script.slow_error_share(script.runs(slow_error_fraction=TRACKER_SITL_SLOW_ERROR)))
+@cache
+def sitl_tracker_runs(
+    recordings: Path = sitl.SITL_RECORDINGS, slow_error_fraction: float | None = None
+) -> list[Any]:
+    """``python scripts/tracker_sitl.py [RECORDINGS] [--slow-error-fraction F]``'s runs (10 s
+    of CPU for replay/sitl; their checks share the runs of the tests that name them)."""
+    return list(tracker_sitl.runs(recordings, slow_error_fraction))
+
+
+generator("tracker-sitl", checked_by=_TRACKER_SITL_TEST)(
+    lambda: str(tracker_sitl.report(sitl_tracker_runs()))
+)
+generator("tracker-sitl-shows", checked_by=_TRACKER_SITL_TEST)(
+    lambda: str(tracker_sitl.shows(sitl_tracker_runs()))
+)
+generator("tracker-sitl-slow-2pct", checked_by=_TRACKER_SITL_TEST)(
+    lambda: str(
+        tracker_sitl.slow_error_share(
+            sitl_tracker_runs(slow_error_fraction=TRACKER_SITL_SLOW_ERROR)
+        )
+    )
+)
+generator("tracker-sitl-held", checked_by=_SITL_HELD_TEST)(
+    lambda: str(tracker_sitl.report(sitl_tracker_runs(sitl.HELD_RECORDINGS)))
+)
+generator("tracker-sitl-held-wind-worst", checked_by=_SITL_HELD_TEST)(
+    lambda: str(tracker_sitl.worst_wind(sitl_tracker_runs(sitl.HELD_RECORDINGS)))
+)
 
 
 @generator("sitl-slow-error")
@@ -963,13 +973,6 @@ def sitl_slow_error() -> str:
     """The SITL vehicle file's slow model error, % of its hover power (measured on its fit
     flights; ``tests/test_sitl_effects.py`` checks it against them)."""
     return f"{100 * load_vehicle(sitl.SITL_VEHICLE).slow_error_fraction:.1f} %"
-
-
-@generator("tracker-sitl-held", checked_by=_SITL_HELD_TEST)
-def tracker_on_sitl_held() -> str:
-    """``python scripts/tracker_sitl.py replay/sitl_held``'s table."""
-    script = script_module("tracker_sitl")
-    return str(script.report(script.runs(sitl.HELD_RECORDINGS)))
 
 
 for _name, _print in script_module("pack_figures").generators(pack_table).items():

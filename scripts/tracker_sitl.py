@@ -191,6 +191,12 @@ def shows(flights: list[tuple[RecordingTruth, TrackerRun]]) -> str:
     )
 
 
+def worst_wind(flights: list[tuple[RecordingTruth, TrackerRun]]) -> str:
+    """The largest |error|/σ of the wind (its larger component) over ``flights``, and where."""
+    worst = max((float(r.z()[:, :2].max()), r.name) for _, r in flights)
+    return f"up to {worst[0]:.1f}σ, on {worst[1]}"
+
+
 def slow_error_share(flights: list[tuple[RecordingTruth, TrackerRun]]) -> str:
     """The mass's and the wind's share of the steps within 2σ pooled over ``flights`` (run with
     another slow model error: ``--slow-error-fraction``)."""
