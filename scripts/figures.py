@@ -8,7 +8,11 @@ Each ``<!-- figures:NAME -->`` … ``<!-- /figures:NAME -->`` block of those doc
   on it (in-sample), and once with the built-in vehicle; ``replay-regression-march``: the
   March flights' figures frozen in ``replay/expected.json``.
 - ``plan-*``: ``uav-energy plan`` against the nine ArduCopter SITL missions of
-  ``replay/sitl/missions`` (told the wind and payload SITL flew; and told still air).
+  ``replay/sitl/missions`` (told the wind and payload SITL flew; and told still air), and
+  the example of docs/plan.md.
+- ``replay-mission``, ``replay-arducopter-bin``, ``iris-vz-sign``, ``sitl-vz-sign``:
+  docs/replay.md's mission given to a replay, current ArduCopter's DataFlash log replayed,
+  and the vertical-velocity check on the IRIS+ logs and on ArduCopter SITL's tlog.
 - ``sim-mixed-*``: ``uav-energy sim --plan mixed [--wind 6@135] --tlog F`` and ``uav-energy
   replay F --json`` (the built-in vehicle); ``sitl-run1-builtin``: ``../shared``'s recorded
   ArduCopter SITL flight replayed with the built-in vehicle on SITL's pack.
