@@ -913,6 +913,9 @@ generator("sitl-held-table", checked_by=_SITL_HELD_TEST)(
     lambda: sitl.effects_table(sitl.held_checks(), sitl.HELD_RECORDINGS)
 )
 generator("sitl-held-count")(sitl.held_count)
+generator("sitl-held-floors", checked_by=_SITL_HELD_TEST)(
+    lambda: sitl.effects_floors(sitl.held_checks())
+)
 generator("sitl-held-summary", checked_by=_SITL_HELD_TEST)(
     lambda: sitl.held_summary(sitl.held_checks())
 )
