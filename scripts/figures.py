@@ -8,11 +8,18 @@ Each ``<!-- figures:NAME -->`` … ``<!-- /figures:NAME -->`` block of those doc
   on it (in-sample), and once with the built-in vehicle; ``replay-regression-march``: the
   March flights' figures frozen in ``replay/expected.json``.
 - ``plan-*``: ``uav-energy plan`` against the nine ArduCopter SITL missions of
-  ``replay/sitl/missions`` (told the wind and payload SITL flew; and told still air).
+  ``replay/sitl/missions`` (told the wind and payload SITL flew; and told still air), and
+  the example of docs/plan.md.
+- ``replay-mission``, ``replay-arducopter-bin``, ``iris-vz-sign``, ``sitl-vz-sign``:
+  docs/replay.md's mission given to a replay, current ArduCopter's DataFlash log replayed,
+  and the vertical-velocity check on the IRIS+ logs and on ArduCopter SITL's tlog.
 - ``sim-mixed-*``: ``uav-energy sim --plan mixed [--wind 6@135] --tlog F`` and ``uav-energy
   replay F --json`` (the built-in vehicle); ``sitl-run1-builtin``: ``../shared``'s recorded
   ArduCopter SITL flight replayed with the built-in vehicle on SITL's pack.
 - ``experiments-*``: ``uav-energy experiments`` (generated flights, seed 0).
+- ``fit-*``: ``uav-energy fit`` of the real logs as ``make fit-real`` runs it, and variants
+  (``--degree 6``, ``--no-priors``; ``scripts/fit_figures.py``); ``pack-fit-sitl-*``:
+  ``python scripts/pack_fit_sitl.py`` (the pack fitted on SITL's pack flights).
 - ``residuals-sim-*``: ``uav-energy residuals`` on simulated flights, each with an effect
   hidden from the built-in vehicle (``scripts/residual_figures.py``; ``residuals-iris-*``:
   the IRIS+ logs against the March vehicle file, and with ``residuals-cmu-*`` the real-log
@@ -32,8 +39,9 @@ Each ``<!-- figures:NAME -->`` … ``<!-- /figures:NAME -->`` block of those doc
 - ``tracked-wind-sitl``: ``python scripts/tracked_wind_sitl.py`` (the wind the pipeline uses
   on the ArduCopter SITL recordings of ``replay/sitl``, against their truth; checked by
   ``tests/test_sitl_recordings.py``).
-- ``pack-sitl-*``: the summary of docs/pack.md's ArduCopter SITL pack flights, pooled from
-  the flights ``python scripts/pack_state_sitl.py`` tabulates (``scripts/pack_figures.py``);
+- ``pack-sitl-*``: docs/pack.md's ArduCopter SITL pack flights, the tables ``python
+  scripts/pack_state_sitl.py`` prints and their summary (``scripts/pack_figures.py``; the
+  README's sentence too);
   ``pack-ensemble-*``: the simulator's ensemble of drawn packs; ``hover-cruise-*``: the
   hover→cruise acceptance flights (``python tests/test_endurance_acceptance.py``).
 - ``fleet-iris-*``: ``uav-energy fleet fit`` of the IRIS+ logs and ``fleet trends`` of its
@@ -52,9 +60,11 @@ from __future__ import annotations
 
 import argparse
 import contextlib
+import csv
 import importlib.util
 import io
 import json
+import math
 import os
 import sys
 import tempfile
@@ -83,9 +93,10 @@ from estimator.analysis.replay import (
 )
 from estimator.commands.replay import flight_names, vehicle_and_settings
 from estimator.errors import UserError
-from estimator.logs import iter_samples
+from estimator.logs import iter_samples, sanity
 from estimator.logs.mission_files import load_mission
-from estimator.physics.vehicle import BatterySpec, default_vehicle, load_vehicle
+from estimator.logs.sanity import SanityRecorder
+from estimator.physics.vehicle import BatterySpec, Vehicle, default_vehicle, load_vehicle
 from estimator.reports.doc_blocks import Block, blocks_in, rewrite
 from estimator.reports.fit_report import circles_markdown
 from estimator.sim.experiments import Experiments, curve_table, reproduce
@@ -95,6 +106,8 @@ DOCUMENTS = (REPO / "README.md", *sorted((REPO / "docs").glob("*.md")))
 SHARED_DATA = REPO.parent / "shared" / "data"
 IRIS = SHARED_DATA / "iris_quadcopter_logs"
 SITL_RUN1 = SHARED_DATA / "ardupilot_sitl" / "run1_default_quad.tlog"
+#: Current ArduCopter SITL's DataFlash log of a GUIDED flight, and its tlog (``.tlog``).
+ARDUCOPTER_GUIDED = REPO / "tests" / "data" / "arducopter_guided.bin"
 #: The two IRIS+ periods: their logs (as the README's ``find`` selects them) and vehicle file.
 PERIODS = {
     "March 2016": ("2016-03-*", "iris_plus_2016_03.toml"),
@@ -115,7 +128,9 @@ sitl = script_module("sitl_figures")
 fits = script_module("fit_figures")
 residual_figures = script_module("residual_figures")
 tracker_cmu = script_module("tracker_cmu")
+tracker_sitl = script_module("tracker_sitl")
 pack_table = script_module("pack_state_sitl")
+pack_fit_table = script_module("pack_fit_sitl")
 MISSIONS = sitl.SITL_RECORDINGS / "missions"
 #: The missions the planner's flight settings were read off (docs/plan.md, "Calibration").
 CALIBRATION = ("climbs_wind6", "outback_wind8", "square_wind5")
@@ -213,6 +228,69 @@ def iris_replay_total() -> str:
     )
 
 
+@generator("iris-replay-errors", reads=IRIS)
+def iris_replay_errors() -> str:
+    """How the readers fared on every IRIS+ log: logs truncated and corrupt records skipped
+    (an unreadable log stops the generator, so none is skipped)."""
+    flights = _all_iris_flights()
+    truncated = [f.name for f in flights if f.truncated]
+    corrupt = {f.name: f.bad_frames for f in flights if f.bad_frames}
+    cut = f"{len(truncated)} truncated ({', '.join(truncated)})" if truncated else "none truncated"
+    records = sum(corrupt.values())
+    return (
+        f"all {len(flights)} logs replay without error: {cut}, {records} corrupt "
+        f"record{'s' if records != 1 else ''} skipped and counted"
+        + (f" (in {', '.join(corrupt)})" if corrupt else "")
+    )
+
+
+def vertical_pairs(path: Path) -> tuple[np.ndarray, np.ndarray, bool]:
+    """(height rate, logged climb rate) in m/s of the sample pairs a log's vertical velocity
+    check judges (:class:`SanityRecorder`), and whether the check warns."""
+    recorder = SanityRecorder()
+    for sample in iter_samples(path):
+        recorder.observe(sample)
+    rate, climb = recorder.judged_pairs() or (np.empty(0), np.empty(0))
+    warns = any(cause == sanity.VERTICAL_VELOCITY for cause, _ in recorder.problems())
+    return rate, climb, warns
+
+
+def _agreement(rate: np.ndarray, climb: np.ndarray) -> tuple[int, float, float]:
+    """Pairs whose signs agree, the correlation, and the median |climb| / |height rate|."""
+    agree = int(np.count_nonzero(np.sign(rate) == np.sign(climb)))
+    return agree, float(np.corrcoef(rate, climb)[0, 1]), float(np.median(np.abs(climb / rate)))
+
+
+@generator("iris-vz-sign", reads=IRIS)
+def iris_vz_sign() -> str:
+    """docs/replay.md: the vertical velocity check on every IRIS+ log — the logs with enough
+    judged pairs, how many warn, their signs, correlation and |vz| against the height rate."""
+    logs = sorted(IRIS.glob("**/*.log"))
+    judged = [p for p in map(vertical_pairs, logs) if len(p[0]) >= sanity.MIN_PAIRS]
+    figures = [_agreement(rate, climb) for rate, climb, _ in judged]
+    warned = sum(warns for _, _, warns in judged)
+    agree, pairs = sum(f[0] for f in figures), sum(len(p[0]) for p in judged)
+    opposite = "every judged pair" if agree == 0 else f"{pairs - agree} of their {pairs} pairs"
+    corr = [f[1] for f in figures]
+    every = "all warn" if warned == len(judged) else f"{warned} warn"
+    return (
+        f"of the {len(logs)} logs in `../shared/data/iris_quadcopter_logs`, the {len(judged)} "
+        f"with at least {sanity.MIN_PAIRS} climbing or descending pairs {every}, with the signs "
+        f"opposite on {opposite} (correlation {fits.number(min(corr), '.2f')} to "
+        f"{fits.number(max(corr), '.2f')}, |vz| "
+        f"≈ {fits.span([f[2] for f in figures], '.1f')} × the altitude rate)"
+    )
+
+
+@generator("sitl-vz-sign")
+def sitl_vz_sign() -> str:
+    """docs/replay.md: the same check on current ArduCopter SITL's tlog."""
+    rate, climb, _ = vertical_pairs(ARDUCOPTER_GUIDED.with_suffix(".tlog"))
+    agree, corr, _ = _agreement(rate, climb)
+    pairs = f"all {agree}" if agree == len(rate) else f"{agree} of {len(rate)}"
+    return f"agrees on {pairs} pairs (correlation {corr:+.2f})"
+
+
 @generator("iris-replay-periods", reads=IRIS)
 def iris_replay_periods() -> str:
     """The two periods' RMSE and MAPE ranges, and how close each one's energy comes."""
@@ -226,6 +304,41 @@ def iris_replay_periods() -> str:
     return (
         f"**{rmse[0]:.1f}–{rmse[-1]:.1f} W RMSE ({mape[0]:.1f}–{mape[-1]:.1f} % MAPE)** "
         f"in-sample, and over a whole period to {energy} of the measured energy"
+    )
+
+
+#: The IRIS+ flights docs/replay.md reads the power module's scatter off.
+QUIET_IRIS_FLIGHTS = ("2016-08-03/002/002", "2016-08-09/003/003")
+
+
+def _airborne_power(flight: FlightReplay) -> tuple[np.ndarray, np.ndarray]:
+    """A flight's airborne readings: measured and model power (W)."""
+    _, measured, model, airborne = flight.power.arrays()
+    return measured[airborne], model[airborne]
+
+
+@generator("iris-replay-power-span", reads=IRIS)
+def iris_replay_power_span() -> str:
+    """The 5th–95th percentile of the measured power (W, to 10 W) over every IRIS+ flight's
+    airborne readings."""
+    measured = np.concatenate([_airborne_power(f)[0] for f in _all_iris_flights()])
+    low, high = np.round(np.percentile(measured, [5, 95]), -1)
+    return f"{low:.0f}–{high:.0f} W"
+
+
+@generator("iris-replay-reading-noise", reads=IRIS)
+def iris_replay_reading_noise() -> str:
+    """On :data:`QUIET_IRIS_FLIGHTS`: the 1σ of one reading from successive differences (W)
+    and the residual σ of the model (W)."""
+    flights = {f.name: f for f in _all_iris_flights()}
+    reading, residual = [], []
+    for name in QUIET_IRIS_FLIGHTS:
+        measured, model = _airborne_power(flights[name])
+        reading.append(float(np.std(np.diff(measured)) / np.sqrt(2)))
+        residual.append(float(np.std(model - measured)))
+    return (
+        f"{fits.span(reading, '.1f')} W (1σ of one reading, from their differences, on "
+        f"{' and '.join(QUIET_IRIS_FLIGHTS)}, whose residual σ is {fits.span(residual, '.1f')} W)"
     )
 
 
@@ -326,6 +439,39 @@ def plan_summary() -> str:
     )
 
 
+#: docs/plan.md's example: a mission and the wind SITL flew it in.
+PLAN_EXAMPLE = (MISSIONS / "climbs_wind6" / "mission.plan", "6@135")
+
+
+@generator("plan-example")
+def plan_example() -> str:
+    """``uav-energy plan MISSION --vehicle SITL --wind W``'s output as a code block, without
+    its title and the table's rules (their width follows the terminal)."""
+    mission, wind = PLAN_EXAMPLE
+    out = _cli("plan", str(mission), "--vehicle", str(sitl.SITL_VEHICLE), "--wind", wind)
+    lines = [line.rstrip() for line in out.splitlines()[1:] if line[:1] not in "┏┡├└"]
+    return "\n".join(["```", *lines, "```"])
+
+
+@generator("plan-c1-c3-sigma")
+def plan_c1_c3_sigma() -> str:
+    """The 1σ of the hover power the planner takes from the SITL vehicle file's c1 and c3 as
+    independent, % of the hover power."""
+    vehicle = load_vehicle(sitl.SITL_VEHICLE)
+    sigma_w = math.hypot(vehicle.model_stderr["c1"], vehicle.model_stderr["c3"])
+    return f"≈ {100 * sigma_w / vehicle.model.hover_power_w:.0f} % of hover power"
+
+
+@generator("plan-within-sigma")
+def plan_within_sigma() -> str:
+    """How many of the missions' predictions (told the wind and payload SITL flew) lie within
+    their 1σ of the measured energy."""
+    checks = mission_checks()
+    within = sum(abs(c.predicted_wh - c.measured_wh) <= c.predicted_sigma_wh for c in checks)
+    every = "every prediction is" if within == len(checks) else f"{within} predictions are"
+    return f"Over the {len(checks)} SITL missions below {every} within its 1σ of the measurement"
+
+
 @generator("plan-still-air")
 def plan_still_air() -> str:
     errors = _abs_errors(mission_checks(still_air=True))
@@ -405,8 +551,7 @@ def sitl_run1_builtin() -> str:
     (docs/sitl.md gives the commands)."""
     with tempfile.TemporaryDirectory() as tmp:
         vehicle_file = Path(tmp) / "sitl.toml"
-        pack = BatterySpec(3.3, 3, 0.2)
-        replace(default_vehicle(), name="sitl-quad", battery=pack).save(vehicle_file)
+        builtin_on_sitl_pack().save(vehicle_file)
         result = json.loads(
             _cli("replay", str(SITL_RUN1), "--vehicle", str(vehicle_file), "--json")
         )
@@ -414,6 +559,75 @@ def sitl_run1_builtin() -> str:
         f"{result['airborne_s']:.1f} s airborne, power RMSE {result['power_rmse_w']:.1f} W "
         f"(MAPE {result['power_mape_pct']:.1f} %), {result['energy_measured_wh']:.1f} Wh "
         f"measured vs {result['energy_predicted_wh']:.1f} Wh predicted"
+    )
+
+
+#: The SITL AUTO mission docs/replay.md replays with its mission file (``--mission``).
+MISSION_REPLAYED = MISSIONS / "square_wind5"
+#: How long after take-off (s) that mission's figure is read.
+MISSION_READ_AFTER_S = 30.0
+
+
+def estimates_csv(*argv: str) -> list[dict[str, str]]:
+    """The rows of ``uav-energy replay ARGV… --out F.csv``."""
+    with tempfile.TemporaryDirectory() as tmp:
+        out = Path(tmp) / "estimates.csv"
+        _cli("replay", *argv, "--out", str(out))
+        with out.open() as fh:
+            return list(csv.DictReader(fh))
+
+
+def mission_figure(flight: Path, rows: Sequence[Mapping[str, str]]) -> tuple[float, float, float]:
+    """A replay's estimate rows of the SITL mission recording ``flight``: the rest of the
+    mission's energy and its 1σ :data:`MISSION_READ_AFTER_S` after take-off (``MIS_WH``,
+    ``MIS_SIG``, Wh), and the energy the vehicle drew from then to the disarm (Wh, ∫ V·I of
+    its own readings, trapezoids)."""
+    events = _truth(flight)["events"]
+    time_s = [float(r["time_s"]) for r in rows]
+    power_w = [float(r["power_measured_w"]) for r in rows]
+    at = next(k for k, t in enumerate(time_s) if t >= events["takeoff_s"] + MISSION_READ_AFTER_S)
+    end = next(k for k, t in enumerate(time_s) if t >= events["disarmed_s"])
+    drawn_wh = sum(
+        0.5 * (power_w[k] + power_w[k + 1]) * (time_s[k + 1] - time_s[k]) for k in range(at, end)
+    )
+    return (
+        float(rows[at]["mission_energy_wh"]),
+        float(rows[at]["mission_sigma_wh"]),
+        drawn_wh / 3600,
+    )
+
+
+@generator("replay-mission")
+def replay_mission() -> str:
+    """docs/replay.md: ``uav-energy replay F.tlog --vehicle SITL --mission F.waypoints`` of
+    :data:`MISSION_REPLAYED`, its mission figure against the energy drawn."""
+    tlog, mission = MISSION_REPLAYED / "flight.tlog", MISSION_REPLAYED / "mission.waypoints"
+    rows = estimates_csv(str(tlog), "--vehicle", str(sitl.SITL_VEHICLE), "--mission", str(mission))
+    predicted_wh, sigma_wh, drawn_wh = mission_figure(MISSION_REPLAYED, rows)
+    return (
+        f"{predicted_wh:.2f} ± {sigma_wh:.2f} Wh against {drawn_wh:.2f} Wh drawn, "
+        f"{fits.number(100 * (predicted_wh / drawn_wh - 1), '+.1f')} %"
+    )
+
+
+def builtin_on_sitl_pack() -> Vehicle:
+    """The built-in vehicle on ArduPilot SITL's pack (3S, 3.3 Ah, 20 % reserve)."""
+    return replace(default_vehicle(), name="sitl-quad", battery=BatterySpec(3.3, 3, 0.2))
+
+
+@generator("replay-arducopter-bin")
+def replay_arducopter_bin() -> str:
+    """docs/replay.md: ``tests/data/arducopter_guided.bin`` (current ArduCopter SITL's
+    DataFlash log) and the tlog of the same flight replayed with :func:`builtin_on_sitl_pack`:
+    airborne s, power RMSE (W) and MAPE (%)."""
+    figures = []
+    for suffix in (".bin", ".tlog"):
+        s = summarize([replay_log(ARDUCOPTER_GUIDED.with_suffix(suffix), builtin_on_sitl_pack())])
+        figures.append((s.airborne_s, s.power_rmse_w or math.nan, s.power_mape_pct or math.nan))
+    (bin_s, bin_w, bin_pct), (tlog_s, tlog_w, tlog_pct) = figures
+    return (
+        f"{bin_s:.0f} s airborne, RMSE {bin_w:.1f} W, MAPE {bin_pct:.1f} %, as the tlog of the "
+        f"same flight ({tlog_s:.0f} s, {tlog_w:.1f} W, {tlog_pct:.1f} %"
     )
 
 
@@ -457,6 +671,39 @@ def no_priors_fit() -> dict[str, Any]:
     return _fit("IRIS+ March 2016", "--no-priors")
 
 
+def _iris_fits() -> list[dict[str, Any]]:
+    """The two IRIS+ periods' fits of :func:`real_fits`."""
+    return [fit for title, fit in real_fits().items() if "IRIS+" in title]
+
+
+#: The speed (m/s) docs/fit.md compares the IRIS+ curves' power at with hover.
+IRIS_LEG_SPEED_MPS = 5.0
+
+generator("fit-real-inflation", reads=SHARED_DATA)(lambda: fits.inflation(real_fits().values()))
+generator("fit-iris-speeds", reads=SHARED_DATA)(lambda: fits.speeds(_iris_fits()))
+generator("fit-iris-flat", reads=SHARED_DATA)(lambda: fits.flat(_iris_fits(), IRIS_LEG_SPEED_MPS))
+generator("fit-iris-determined", reads=SHARED_DATA)(lambda: fits.determined(_iris_fits()))
+generator("fit-iris-c1-c3", reads=SHARED_DATA)(lambda: fits.profile_and_induced(_iris_fits()))
+generator("fit-iris-noise", reads=SHARED_DATA)(lambda: fits.noise(_iris_fits()))
+generator("fit-cmu-dip", reads=SHARED_DATA)(lambda: fits.dip(real_fits()["CMU DJI M100"]))
+
+
+@generator("fit-degree-6", reads=SHARED_DATA)
+def fit_degree_6() -> str:
+    """``uav-energy fit … --degree 6``'s held-out polynomial RMSE on IRIS+ March and CMU."""
+    rmse = [
+        _fit(title, "--degree", "6")["models"]["polynomial"]["rmse_w"]
+        for title in ("IRIS+ March 2016", "CMU DJI M100")
+    ]
+    return f"{rmse[0]:.2f} W on IRIS+ March and {rmse[1]:.2f} W on CMU"
+
+
+generator("fit-no-priors-cmu", reads=SHARED_DATA)(
+    lambda: f"{_fit('CMU DJI M100', '--no-priors')['models']['theory']['rmse_w']:.1f} W"
+)
+generator("fit-sitl-run1", reads=SITL_RUN1.parent)(
+    lambda: fits.theory_against_polynomial(json.loads(_cli("fit", str(SITL_RUN1), "--json")))
+)
 generator("fit-no-priors", reads=SHARED_DATA)(lambda: fits.no_priors(no_priors_fit()))
 generator("fit-no-priors-values", reads=SHARED_DATA)(lambda: fits.no_priors_values(no_priors_fit()))
 generator("fit-cmu-residual", reads=SHARED_DATA)(
@@ -465,6 +712,19 @@ generator("fit-cmu-residual", reads=SHARED_DATA)(
 generator("sitl-quad-fit")(lambda: fits.sitl_quad_summary(sitl_quad_fit()))
 generator("sitl-quad-fit-data")(lambda: fits.sitl_quad_data(sitl_quad_fit()))
 generator("sitl-quad-fit-errors")(lambda: fits.sitl_quad_errors(sitl_quad_fit()))
+
+
+# --- the pack fitted on SITL's pack flights ------------------------------------------------------
+
+
+@cache
+def pack_fits() -> dict[str, tuple[list[str], list[np.ndarray]]]:
+    """``python scripts/pack_fit_sitl.py``'s fits (3 s of CPU)."""
+    return dict(pack_fit_table.halves())
+
+
+generator("pack-fit-sitl-table")(lambda: pack_fit_table.table(pack_fits()))
+generator("pack-fit-sitl-pooled")(lambda: pack_fit_table.pooled(pack_fits()))
 
 
 # --- the paper's experiments ------------------------------------------------------------------
@@ -516,6 +776,12 @@ def experiments_circles() -> str:
 
 
 generator("experiments-curve")(lambda: curve_table(experiments_run()))
+generator("experiments-points")(
+    lambda: (
+        f"{len(experiments_run().fit.points.kept()):,} of "
+        f"{len(experiments_run().fit.points):,} points kept"
+    )
+)
 generator("experiments-circles-table")(
     lambda: circles_markdown(experiments_run().circles, experiments_run().radii_m).rstrip()
 )
@@ -598,11 +864,23 @@ _SITL_RECORDINGS_TEST = "tests/test_sitl_recordings.py"
 _SITL_EFFECTS_TEST = "tests/test_sitl_effects.py"
 
 
-@generator("sitl-recordings-table", checked_by=_SITL_RECORDINGS_TEST)
-def sitl_recordings_table() -> str:
+@cache
+def sitl_replays() -> dict[str, FlightReplay]:
+    """Every recording of ``replay/sitl`` replayed with the SITL vehicle file."""
     vehicle = load_vehicle(sitl.SITL_VEHICLE)
     logs = {s: sitl.SITL_RECORDINGS / s / "flight.tlog" for s in sitl.recordings()}
-    return sitl.recordings_table({s: replay_log(log, vehicle) for s, log in logs.items()})
+    return {s: replay_log(log, vehicle) for s, log in logs.items()}
+
+
+generator("sitl-recordings-table", checked_by=_SITL_RECORDINGS_TEST)(
+    lambda: sitl.recordings_table(sitl_replays())
+)
+generator("sitl-hexa-energy", checked_by=_SITL_RECORDINGS_TEST)(
+    lambda: sitl.hexa_energy(sitl_replays())
+)
+generator("sitl-wind-cost", checked_by=_SITL_RECORDINGS_TEST)(
+    lambda: sitl.wind_cost(sitl_replays())
+)
 
 
 @generator("sitl-effects-table", checked_by=_SITL_EFFECTS_TEST)
@@ -621,6 +899,7 @@ def sitl_effects_floors() -> str:
 
 
 for _name, _summary in (
+    ("sitl-effects-clean", sitl.effects_clean),
     ("sitl-effects-wind", sitl.effects_wind),
     ("sitl-effects-payload", sitl.effects_payload),
     ("sitl-effects-turn", sitl.effects_turn),
@@ -632,6 +911,10 @@ for _name, _summary in (
 _SITL_HELD_TEST = "tests/test_sitl_held_out.py"
 generator("sitl-held-table", checked_by=_SITL_HELD_TEST)(
     lambda: sitl.effects_table(sitl.held_checks(), sitl.HELD_RECORDINGS)
+)
+generator("sitl-held-count")(sitl.held_count)
+generator("sitl-held-floors", checked_by=_SITL_HELD_TEST)(
+    lambda: sitl.effects_floors(sitl.held_checks())
 )
 generator("sitl-held-summary", checked_by=_SITL_HELD_TEST)(
     lambda: sitl.held_summary(sitl.held_checks())
@@ -651,19 +934,52 @@ def tracker_on_cmu() -> str:
     return tracker_cmu.report(*tracker_cmu.both())
 
 
-@generator("tracker-sitl", checked_by="tests/test_tracker_sitl.py")
-def tracker_on_sitl() -> str:
-    """``python scripts/tracker_sitl.py``'s table (10 s of CPU; its check shares the runs of
-    ``tests/test_tracker_sitl.py``)."""
-    script = script_module("tracker_sitl")
-    return str(script.report(script.runs()))
+@generator("tracker-cmu-shows", reads=tracker_cmu.DATA)
+def tracker_on_cmu_shows() -> str:
+    """docs/residuals.md's reading of the ``tracker-cmu`` table."""
+    return str(tracker_cmu.shows(*tracker_cmu.both()))
 
 
-@generator("tracker-sitl-held", checked_by=_SITL_HELD_TEST)
-def tracker_on_sitl_held() -> str:
-    """``python scripts/tracker_sitl.py replay/sitl_held``'s table."""
-    script = script_module("tracker_sitl")
-    return str(script.report(script.runs(sitl.HELD_RECORDINGS)))
+_TRACKER_SITL_TEST = "tests/test_tracker_sitl.py"
+#: The slow model error (fraction of the hover power) docs/residuals.md's counterfactual tries.
+TRACKER_SITL_SLOW_ERROR = 0.02
+
+
+@cache
+def sitl_tracker_runs(
+    recordings: Path = sitl.SITL_RECORDINGS, slow_error_fraction: float | None = None
+) -> list[Any]:
+    """``python scripts/tracker_sitl.py [RECORDINGS] [--slow-error-fraction F]``'s runs (10 s
+    of CPU for replay/sitl; their checks share the runs of the tests that name them)."""
+    return list(tracker_sitl.runs(recordings, slow_error_fraction))
+
+
+generator("tracker-sitl", checked_by=_TRACKER_SITL_TEST)(
+    lambda: str(tracker_sitl.report(sitl_tracker_runs()))
+)
+generator("tracker-sitl-shows", checked_by=_TRACKER_SITL_TEST)(
+    lambda: str(tracker_sitl.shows(sitl_tracker_runs()))
+)
+generator("tracker-sitl-slow-2pct", checked_by=_TRACKER_SITL_TEST)(
+    lambda: str(
+        tracker_sitl.slow_error_share(
+            sitl_tracker_runs(slow_error_fraction=TRACKER_SITL_SLOW_ERROR)
+        )
+    )
+)
+generator("tracker-sitl-held", checked_by=_SITL_HELD_TEST)(
+    lambda: str(tracker_sitl.report(sitl_tracker_runs(sitl.HELD_RECORDINGS)))
+)
+generator("tracker-sitl-held-wind-worst", checked_by=_SITL_HELD_TEST)(
+    lambda: str(tracker_sitl.worst_wind(sitl_tracker_runs(sitl.HELD_RECORDINGS)))
+)
+
+
+@generator("sitl-slow-error")
+def sitl_slow_error() -> str:
+    """The SITL vehicle file's slow model error, % of its hover power (measured on its fit
+    flights; ``tests/test_sitl_effects.py`` checks it against them)."""
+    return f"{100 * load_vehicle(sitl.SITL_VEHICLE).slow_error_fraction:.1f} %"
 
 
 for _name, _print in script_module("pack_figures").generators(pack_table).items():

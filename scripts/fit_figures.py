@@ -6,10 +6,12 @@ Powers in W, speeds in m/s; ± is 1σ (for the per-fold differences: the mean's 
 
 from __future__ import annotations
 
-from collections.abc import Callable, Mapping
+from collections.abc import Callable, Iterable, Mapping, Sequence
 from typing import Any
 
 import numpy as np
+
+from estimator.physics.model import COEFFICIENT_NAMES, PowerModel
 
 Fit = Mapping[str, Any]
 
@@ -28,6 +30,12 @@ def number(value: float, spec: str) -> str:
     """``value`` formatted by ``spec``, a negative one with the documents' minus sign."""
     text = format(value, spec)
     return "−" + text[1:] if text.startswith("-") else text
+
+
+def span(values: Iterable[float], spec: str) -> str:
+    """The range of ``values`` formatted by ``spec`` ("a–b", or "a" when both read the same)."""
+    low, high = (number(v, spec) for v in (min(values), max(values)))
+    return low if low == high else f"{low}–{high}"
 
 
 def pm(value: float, sigma: float, spec: str) -> str:
@@ -157,3 +165,57 @@ def residual_noise(fit: Fit) -> str:
         f"σ {fit['noise_sigma_w']:.0f} W; held-out RMSE {min(rmse):.1f}–{max(rmse):.1f} W "
         f"for every model"
     )
+
+
+def _model(fit: Fit) -> PowerModel:
+    return PowerModel(*(fit["params"][name] for name in COEFFICIENT_NAMES))
+
+
+def inflation(fits: Iterable[Fit]) -> str:
+    """The noise inflation factors of ``fits`` as a range."""
+    return span([f["noise_inflation"] for f in fits], ".1f")
+
+
+def flat(fits: Iterable[Fit], speed_mps: float) -> str:
+    """How much the fitted power at ``speed_mps`` differs from hover (%), as a range."""
+    changes = [100 * (float(_model(f).power_w(speed_mps)) / f["hover_power_w"] - 1) for f in fits]
+    return f"{span(changes, '.0f')} % from hover to {speed_mps:g} m/s"
+
+
+def determined(fits: Sequence[Fit]) -> str:
+    """How well the fits pin down hover power and V_me (1σ)."""
+    hover = max(f["hover_power_stderr_w"] for f in fits)
+    v_me = span([f["v_me_stderr_mps"] for f in fits], ".1f")
+    return f"Hover power is measured to ±{hover:.1f} W; V_me has ±{v_me} m/s"
+
+
+def profile_and_induced(fits: Sequence[Fit]) -> str:
+    """c1 and c3 (1σ) against their sum, the hover power, and their correlation."""
+    each = span([f["stderr"][c] for f in fits for c in ("c1", "c3")], ".0f")
+    total = span([f["hover_power_stderr_w"] for f in fits], ".1f")
+    corr = span([f["correlation"][0][2] for f in fits], ".2f")
+    return f"c1/c3 individually are ±{each} W while their sum is ±{total} W (correlation {corr})"
+
+
+def noise(fits: Sequence[Fit]) -> str:
+    """The residual σ (W) and the theory's held-out MAPE (%), as ranges."""
+    sigma = span([f["noise_sigma_w"] for f in fits], ".0f")
+    mape = span([f["models"]["theory"]["mape_pct"] for f in fits], ".0f")
+    return f"σ {sigma} W, held-out MAPE {mape} %"
+
+
+def dip(fit: Fit) -> str:
+    """How far the fitted curve dips between hover and V_me (W)."""
+    return f"{fit['hover_power_w'] - float(_model(fit).power_w(fit['v_me_mps'])):.0f} W"
+
+
+def theory_against_polynomial(fit: Fit) -> str:
+    models = fit["models"]
+    return f"{models['theory']['rmse_w']:.1f} W vs {models['polynomial']['rmse_w']:.1f} W"
+
+
+def speeds(fits: Sequence[Fit]) -> str:
+    """The speed range of the kept data (m/s) over ``fits``."""
+    low = min(f["speed_range_mps"][0] for f in fits)
+    high = max(f["speed_range_mps"][1] for f in fits)
+    return f"{low:.0f}–{high:.0f} m/s"

@@ -33,6 +33,16 @@ CHARGED_PARTNER = {
 }
 
 
+#: The table's header (docs/fit.md).
+TABLE_HEADER = (
+    "| flight | fitted | R mΩ (true) | charge at power-up (true) | stretch "
+    "| RMS / worst mV/cell | σ mV/cell |\n"
+    "|---|---|---|---|---|---|---|"
+)
+#: The halves of ``split.json`` the table has, in its order.
+HALVES = ("tuning", "held_out")
+
+
 def curve_errors_v(name: str) -> tuple[str, np.ndarray]:
     """One flight's table row (docs/fit.md) and its curve errors (V per cell)."""
     truth = json.loads((FLIGHTS / name / "truth.json").read_text())["battery"]
@@ -65,22 +75,33 @@ def pooled_row(half: str, errors: list[np.ndarray]) -> str:
     )
 
 
-def main() -> None:
+def halves() -> dict[str, tuple[list[str], list[np.ndarray]]]:
+    """Per half of :data:`HALVES`: its flights' table rows and curve errors (V per cell)."""
     split = json.loads((FLIGHTS / "split.json").read_text())
-    for half in ("tuning", "held_out"):
-        print(
-            "| flight | fitted | R mΩ (true) | charge at power-up (true) | stretch "
-            "| RMS / worst mV/cell | σ mV/cell |"
-        )
-        print("|---|---|---|---|---|---|---|")
-        errors = []
-        for name in split[half]:
-            row, e = curve_errors_v(name)
-            print(row)
-            errors.append(e)
-        print()
-        print(pooled_row(half.replace("_", "-"), errors))
-        print()
+    out = {}
+    for half in HALVES:
+        rows, errors = zip(*(curve_errors_v(name) for name in split[half]), strict=True)
+        out[half] = (list(rows), list(errors))
+    return out
+
+
+def table(fitted: dict[str, tuple[list[str], list[np.ndarray]]]) -> str:
+    """docs/fit.md's table: every flight of :func:`halves`, tuning first."""
+    return "\n".join([TABLE_HEADER, *(row for rows, _ in fitted.values() for row in rows)])
+
+
+def pooled(fitted: dict[str, tuple[list[str], list[np.ndarray]]]) -> str:
+    """docs/fit.md's sentence under the table: each half's :func:`pooled_row`."""
+    return "; ".join(
+        pooled_row(half.replace("_", "-"), errors) for half, (_, errors) in fitted.items()
+    )
+
+
+def main() -> None:
+    fitted = halves()
+    print(table(fitted))
+    print()
+    print(pooled(fitted))
 
 
 if __name__ == "__main__":

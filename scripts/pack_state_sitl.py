@@ -33,6 +33,19 @@ FLIGHTS = REPO / "replay" / "sitl_packs"
 VEHICLE = REPO / "config" / "vehicles" / "ardupilot_sitl_quad.toml"
 
 
+#: The header of the per-flight table (docs/pack.md).
+TABLE_HEADER = (
+    "| flight | half | charge at power-up | capacity at half used, Ah "
+    "| endurance median / worst |error| % | within 1σ | PX4-style % | ArduPilot % |\n"
+    "|---|---|---|---|---|---:|---|---|"
+)
+#: The header of the restart table (docs/pack.md).
+RESTART_HEADER = (
+    "| restarted flight | half | endurance error 60 s after | most \\|z\\| after |\n"
+    "|---|---|---:|---:|"
+)
+
+
 def _pct(errors: np.ndarray) -> str:
     a = 100 * np.abs(errors[np.isfinite(errors)])
     return f"{np.median(a):.1f} / {a.max():.1f}" if len(a) else "–"
@@ -80,11 +93,7 @@ def restart_row(restart: Restart, half: str) -> str:
 def main() -> None:
     vehicle = load_vehicle(VEHICLE)
     split = json.loads((FLIGHTS / "split.json").read_text())
-    print(
-        "| flight | half | charge at power-up | capacity at half used, Ah "
-        "| endurance median / worst |error| % | within 1σ | PX4-style % | ArduPilot % |"
-    )
-    print("|---|---|---|---|---|---:|---|---|")
+    print(TABLE_HEADER)
     pooled: dict[str, list[PackFlight]] = {}
     for half in split:
         for name in split[half]:
@@ -93,8 +102,7 @@ def main() -> None:
             print(table_row(flight, half.replace("_", "-")))
     for half, flights in pooled.items():
         print(f"\n{pooled_line(half, flights)}")
-    print("\n| restarted flight | half | endurance error 60 s after | most \\|z\\| after |")
-    print("|---|---|---:|---:|")
+    print(f"\n{RESTART_HEADER}")
     for half in split:
         for name in split[half]:
             restart = replay_restarted(FLIGHTS / name, vehicle)

@@ -141,6 +141,13 @@ def offset(summer: Json, masses_kg: list[float]) -> str:
     )
 
 
+def offset_share(summer: Json) -> str:
+    """docs/residuals.md: the load chosen (W) and its share of the March file's hover power."""
+    power_w = summer["effects"][0]["params"]["power_w"]
+    hover_w = load_vehicle(MARCH_VEHICLE).model.hover_power_w
+    return f"**{power_w:+.0f} W** ({100 * power_w / hover_w:+.0f} % of the March hover power)"
+
+
 def runner_up(summer: Json) -> str:
     """docs/residuals.md: the runner-up of step 1, its held-out RMSE against the chosen one's
     and the z of the block test between them."""
@@ -267,9 +274,9 @@ def _wind_agrees(runs: list[Flight]) -> int:
     )
 
 
-def readme(runs: list[Flight]) -> str:
-    """README.md's bullet: the mass where selected against the payload, the flights without
-    payload, the online wind against the anemometer."""
+def offline_mass(runs: list[Flight]) -> str:
+    """The mass ``residuals`` finds per flight where selected, against the payload, and the
+    flights without payload that select nothing."""
     found = [(m, r.truth.mass_delta_kg) for r in runs if (m := _mass_kg(r.every)) is not None]
     empty = [r for r in runs if r.truth.mass_delta_kg == 0.0]
     quiet = sum(not r.every["effects"] for r in empty)
@@ -277,7 +284,30 @@ def readme(runs: list[Flight]) -> str:
         f"the per-flight mass found equals the payload within "
         f"{max(abs(m - p) for m, p in found):.2f} kg wherever it is selected ({len(found)} of "
         f"{len(runs)} flights), and {quiet} of the {len(empty)} no-payload flights select "
-        f"nothing. The online wind's speed agrees with the anemometer's within "
+        f"nothing"
+    )
+
+
+def offline_wind(runs: list[Flight]) -> str:
+    """How many flights ``residuals`` names a wind on (every candidate, and wind and mass
+    only), the anemometer's winds and the flights' noise floors (W)."""
+    named = sum(
+        any(e["name"] == "wind" for e in r.every["effects"] + r.wind_mass["effects"]) for r in runs
+    )
+    on = "on no flight" if not named else f"on {named} of {len(runs)} flights"
+    speeds = [_truth_wind(r.truth)[0] for r in runs]
+    floors = [r.every["noise_floor_w"] for r in runs]
+    return (
+        f"The offline tool selects a wind {on}: {min(speeds):.0f}–{max(speeds):.0f} m/s winds "
+        f"change the M100's power by less than its {min(floors):.0f}–{max(floors):.0f} W "
+        f"sample noise"
+    )
+
+
+def readme(runs: list[Flight]) -> str:
+    """README.md's bullet: :func:`offline_mass`, and the online wind against the anemometer."""
+    return (
+        f"{offline_mass(runs)}. The online wind's speed agrees with the anemometer's within "
         f"{WIND_AGREES_MPS:.1f} m/s on {_wind_agrees(runs)} of {len(runs)} flights"
     )
 
@@ -375,15 +405,19 @@ def generators(
     return {
         "residuals-iris-offset": lambda: offset(summer(), masses()),
         "residuals-iris-runner-up": lambda: runner_up(summer()),
+        "residuals-iris-offset-share": lambda: offset_share(summer()),
         "residuals-iris-tracker": lambda: tracker(summer(), masses()),
         "residuals-iris-second-step": lambda: second_step(summer()),
         "residuals-iris-june-replay": lambda: june_replay(june()),
         "residuals-iris-june-replay-change": lambda: replay_change(june()),
         "residuals-iris-in-sample-replay": lambda: replay_change(in_sample()),
         "residuals-cmu-pooled": lambda: pooled_result(together()),
+        "residuals-cmu-noise-floor": lambda: f"{together().fitted['noise_floor_w']:.0f} W",
         "residuals-cmu-pooled-replay": lambda: replay_change(together()),
         "residuals-cmu-table": lambda: table(each()),
         "residuals-cmu-readme": lambda: readme(each()),
+        "residuals-cmu-offline-mass": lambda: offline_mass(each()),
+        "residuals-cmu-offline-wind": lambda: offline_wind(each()),
         "residuals-cmu-online-mass": lambda: online_mass(each()),
         "residuals-cmu-online-wind": lambda: online_wind(each()),
         "residuals-cmu-unselected": lambda: unselected(each()),

@@ -11,7 +11,7 @@ recording), so those tests check them; ``scripts/figures.py`` registers them as 
 from __future__ import annotations
 
 import json
-from collections.abc import Mapping
+from collections.abc import Iterable, Mapping
 from functools import cache
 from pathlib import Path
 from typing import Any
@@ -72,6 +72,24 @@ def recordings_table(replays: Mapping[str, FlightReplay]) -> str:
     return "\n".join(lines)
 
 
+#: docs/sitl.md: SITL's built-in hexa, and the steady wind compared with the clean legs.
+HEXA, STEADY_WIND, CLEAN_LEGS = "hexa_clean", "wind_constant", "clean_legs"
+
+
+def hexa_energy(replays: Mapping[str, FlightReplay]) -> str:
+    """docs/sitl.md: how close the SITL quad's vehicle file predicts the hexa's energy (%)."""
+    s = summarize([replays[HEXA]])
+    return f"{100 * abs(s.energy_predicted_wh / s.energy_measured_wh - 1):.1f} %"
+
+
+def wind_cost(replays: Mapping[str, FlightReplay]) -> str:
+    """docs/sitl.md: the steady wind's measured energy against the clean legs' (%)."""
+    wind, clean = (
+        summarize([replays[name]]).energy_measured_wh for name in (STEADY_WIND, CLEAN_LEGS)
+    )
+    return f"{STEADY_WIND} {100 * (wind / clean - 1):+.1f} % energy over {CLEAN_LEGS}"
+
+
 def effect_scenarios() -> list[str]:
     return [s for s in recordings() if s not in NOT_EFFECT_RECORDINGS]
 
@@ -95,17 +113,28 @@ def held_checks() -> dict[str, RecordingCheck]:
     return _checks(HELD_RECORDINGS, recordings(HELD_RECORDINGS))
 
 
+def held_sets(names: Iterable[str]) -> dict[str, list[str]]:
+    """The held-out flights ``names`` per set (the name before the first "_": ``held``,
+    ``held2``, …), newest set first."""
+    sets: dict[str, list[str]] = {}
+    for name in names:
+        sets.setdefault(name.split("_")[0], []).append(name)
+    return dict(sorted(sets.items(), key=lambda kv: (len(kv[0]), kv[0]), reverse=True))
+
+
+def held_count() -> str:
+    """README.md: how many held-out flights ``replay/sitl_held`` has, in how many sets."""
+    sets = held_sets(recordings(HELD_RECORDINGS))
+    return f"{sum(len(names) for names in sets.values())} flights in {len(sets)} sets"
+
+
 def held_summary(checks: Mapping[str, RecordingCheck]) -> str:
-    """Per held-out set (the flights' name before the first "_": ``held``, ``held2``, …), newest
-    first, how many name a true effect first and end within the limit. Only the newest set is
-    held out for the current rules: the older ones were looked at before those were chosen."""
-    sets: dict[str, list[RecordingCheck]] = {}
-    for name, check in checks.items():
-        sets.setdefault(name.split("_")[0], []).append(check)
+    """Per held-out set (:func:`held_sets`), newest first, how many name a true effect first
+    and end within the limit. Only the newest set is held out for the current rules: the older
+    ones were looked at before those were chosen."""
     parts = []
-    ordered = sorted(sets.items(), key=lambda kv: (len(kv[0]), kv[0]), reverse=True)
-    for k, (label, group) in enumerate(ordered):
-        scores = [c.score for c in group]
+    for k, (label, names) in enumerate(held_sets(checks).items()):
+        scores = [checks[name].score for name in names]
         within = sum(s.rmse_to_floor <= HELD_FLOOR_LIMIT for s in scores)
         ratios = [s.rmse_to_floor for s in scores]
         status = "held out for the current rules" if k == 0 else "recorded for earlier rules"
@@ -142,6 +171,19 @@ def effects_table(checks: Mapping[str, RecordingCheck], recordings: Path = SITL_
 def effects_right(checks: Mapping[str, RecordingCheck]) -> str:
     right = sum(c.score.first_right for c in checks.values())
     return f"names the right effect first on {right} of {len(checks)}"
+
+
+def effects_clean(checks: Mapping[str, RecordingCheck]) -> str:
+    """README.md: the clean recordings (no effect in their truth) that name nothing, and how
+    many of them the SITL vehicle file was fitted on."""
+    clean = [name for name, c in checks.items() if not c.score.truth.effects]
+    silent = [name for name in clean if not checks[name].score.matches]
+    fitted = [name for name in clean if name in CLEAN_RECORDINGS]
+    every = "All" if len(silent) == len(clean) else f"{len(silent)} of the"
+    return (
+        f"{every} {len(clean)} clean flights name nothing ({', '.join(clean)}); {len(fitted)} "
+        f"of them are the flights the SITL vehicle file was fitted on (in-sample)"
+    )
 
 
 def effects_floors(checks: Mapping[str, RecordingCheck]) -> str:

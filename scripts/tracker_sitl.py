@@ -9,7 +9,8 @@ the air mass's velocity over ground, the gripper payload while held. Wind as in
 ``scripts/tracker_cmu.py``: both components within kσ of their own 1σ.
 
 Prints the block ``tracker-sitl`` of docs/residuals.md, which ``make figures`` writes and
-``tests/test_tracker_sitl.py`` checks. ``--slow-error-fraction F``: the same with the vehicle
+``tests/test_tracker_sitl.py`` checks (with ``tracker-sitl-shows``, the sentence that reads
+it, and ``tracker-sitl-slow-2pct``). ``--slow-error-fraction F``: the same with the vehicle
 file's ``[model] slow_error_fraction`` (none stated: the model's errors taken as white) set to
 F, what the tracker would do told that the model's error stays correlated.
 
@@ -167,6 +168,45 @@ def summary_lines(flights: list[tuple[RecordingTruth, TrackerRun]]) -> list[str]
             f"{sum(meets_aim([r]) for r in group)} of {len(group)}"
         )
     return out
+
+
+def shows(flights: list[tuple[RecordingTruth, TrackerRun]]) -> str:
+    """docs/residuals.md's reading of the table: the flights that meet the aim alone, whether
+    the pooled steps do (their shares within 1σ, 2σ and 3σ), and the flights with a step
+    beyond 3σ, with the largest |error|/σ of the mass and of the wind there."""
+    runs_ = [r for _, r in flights]
+    meeting = [r.name for r in runs_ if meets_aim([r])]
+    (m1, _), (m2, w2), (m3, w3) = (pooled(runs_, k) for k in (1.0, 2.0, 3.0))
+    beyond = []
+    for run in runs_:
+        z = run.z()
+        worst = (("mass", float(z[:, 2].max())), ("wind", float(z[:, :2].max())))
+        parts = [f"{label} {value:.1f}σ" for label, value in worst if value > 3.0]
+        if parts:
+            beyond.append(f"{run.name} ({', '.join(parts)})")
+    return (
+        f"{len(meeting)} of the {len(runs_)} flights meet the aim alone "
+        f"({', '.join(meeting) or 'none'}); the pooled steps "
+        f"{'do' if meets_aim(runs_) else 'do not'} (mass {100 * m2:.0f} % within 2σ, "
+        f"{100 * m3:.0f} % within 3σ and {100 * m1:.0f} % within 1σ; wind {100 * w2:.0f} %, "
+        f"{100 * w3:.0f} %). A step beyond 3σ: {'; '.join(beyond) or 'none'}"
+    )
+
+
+def worst_wind(flights: list[tuple[RecordingTruth, TrackerRun]]) -> str:
+    """The largest |error|/σ of the wind (its larger component) over ``flights``, and where."""
+    worst = max((float(r.z()[:, :2].max()), r.name) for _, r in flights)
+    return f"up to {worst[0]:.1f}σ, on {worst[1]}"
+
+
+def slow_error_share(flights: list[tuple[RecordingTruth, TrackerRun]]) -> str:
+    """The mass's and the wind's share of the steps within 2σ pooled over ``flights`` (run with
+    another slow model error: ``--slow-error-fraction``)."""
+    mass_2, wind_2 = pooled([r for _, r in flights], 2.0)
+    return (
+        f"{100 * mass_2:.0f} % of the steps within 2σ for the mass, {100 * wind_2:.0f} % "
+        "for the wind"
+    )
 
 
 def report(flights: list[tuple[RecordingTruth, TrackerRun]]) -> str:

@@ -7,7 +7,8 @@ any run), and six more sets held out were recorded after the rules were frozen
 (``held_out_2`` at commit 2190ac9, ``held_out_3`` at a8aa701, ``held_out_4`` at 2359ce0,
 ``held_out_5`` at 37b4158, ``held_out_6`` scored first at 3fd730e, the fourteen flights of
 ``held_out_7`` at 19b3e8c); ``python
-scripts/pack_state_sitl.py`` prints the table of docs/pack.md."""
+scripts/pack_state_sitl.py`` prints the tables of docs/pack.md, which ``make figures`` writes
+there and ``tests/test_figures.py`` checks."""
 
 from __future__ import annotations
 
@@ -18,7 +19,6 @@ from typing import Any
 
 import numpy as np
 import pytest
-from script_loader import load_script
 
 from estimator.analysis.pack_flights import (
     PackFlight,
@@ -32,7 +32,6 @@ ROOT = Path(__file__).resolve().parent.parent
 FLIGHTS = ROOT / "replay" / "sitl_packs"
 SPLIT = json.loads((FLIGHTS / "split.json").read_text())
 VEHICLE = load_vehicle(ROOT / "config" / "vehicles" / "ardupilot_sitl_quad.toml")
-SCRIPT = ROOT / "scripts" / "pack_state_sitl.py"
 #: Flights too short to score: the pack reaches its reserve within 120 s of take-off.
 UNSCORED = {"pack_c80_r3_soc50"}
 HALVES = tuple(SPLIT)
@@ -42,7 +41,7 @@ SCORED = [n for n in NAMES if n not in UNSCORED]
 
 #: Flights that miss 3 % median / 8 % worst, and why.
 MISSES = {
-    "pack_c90_r1_wind": "worst 8.2 %, median 1.9 % (held-out 4, rescored after a period came "
+    "pack_c90_r1_wind": "worst 9.2 %, median 2.0 % (held-out 4, rescored after a period came "
     "to end with the readings held over its last 50 ms; 7.9 % and 1.6 % before): this "
     "recording's readings sit within 50 ms of the second, so the pack filter takes each "
     "blended with the one before it, and the worst estimate, the same one as before, moved "
@@ -187,33 +186,6 @@ def test_one_sigma_pooled_over_every_pack_flight_holds_55_to_80_percent(
     assert 0.55 <= np.mean(np.abs(z) <= 1.0) <= 0.80
 
 
-def test_the_table_of_docs_pack_md_is_what_the_script_prints(
-    flights: dict[str, PackFlight],
-) -> None:
-    """docs/pack.md's table comes from ``python scripts/pack_state_sitl.py``: a figure that
-    drifts fails here."""
-    script = load_script(SCRIPT.stem)
-    doc = (ROOT / "docs" / "pack.md").read_text()
-    for half in HALVES:
-        for name in SPLIT[half]:
-            assert script.table_row(flights[name], half.replace("_", "-")) in doc, name
-
-    def median_pct(errors: list[np.ndarray]) -> float:
-        pooled = np.abs(np.concatenate(errors))
-        return float(100 * np.median(pooled[np.isfinite(pooled)]))
-
-    readme = (ROOT / "README.md").read_text()
-    held_out = [flights[n] for half in HALVES[1:] for n in SPLIT[half]]
-    ours = median_pct([f.errors for f in held_out])
-    px4 = median_pct([f.px4_errors for f in held_out])
-    ardupilot = median_pct([f.ardupilot_errors for f in held_out])
-    line = (
-        f"{ours:.1f} % on {len(held_out)} held-out flights (PX4-style {px4:.0f} %, "
-        f"ArduPilot {ardupilot:.0f} %)"
-    )
-    assert line in readme
-
-
 #: Tuning flights restarted mid-flight (under load, no state file).
 RESTARTED = ("pack_c65_r1", "pack_c100_r1", "pack_c80_r3")
 
@@ -281,14 +253,3 @@ def test_every_flight_long_enough_after_a_restart_is_judged(
     restarts: dict[str, Restart | None],
 ) -> None:
     assert sorted(n for n, r in restarts.items() if r is not None) == sorted(RESTARTED_ALL)
-
-
-def test_the_restart_table_of_docs_pack_md_is_what_the_script_prints(
-    restarts: dict[str, Restart | None],
-) -> None:
-    script = load_script(SCRIPT.stem)
-    doc = (ROOT / "docs" / "pack.md").read_text()
-    for name in NAMES:
-        restart = restarts[name]
-        if restart is not None:
-            assert script.restart_row(restart, _half(name).replace("_", "-")) in doc, name

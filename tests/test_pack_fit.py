@@ -11,7 +11,6 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from script_loader import load_script
 
 from estimator.analysis.pack_fit import PackFit, fit_pack
 from estimator.cli import main
@@ -23,7 +22,6 @@ REPO = Path(__file__).resolve().parent.parent
 PACKS = REPO / "replay" / "sitl_packs"
 SITL_VEHICLE = REPO / "config" / "vehicles" / "ardupilot_sitl_quad.toml"
 IRIS = REPO / "replay/iris/2016-08-03/002/002.log"
-SCRIPT = REPO / "scripts" / "pack_fit_sitl.py"
 #: The fitted curve against SITL's over the drawn stretch (V per cell): the method's error
 #: on the tuning flights is 0.5–1.6 mV RMS and under 2.6 mV at worst; a resistance left in
 #: the curve (10 mΩ × 30 A / 3 cells = 0.1 V) or a charge axis off by 0.02 (≥ 10 mV on SITL's
@@ -181,18 +179,3 @@ def test_the_vehicle_file_bounds_the_resistance() -> None:
     vehicle = vehicle_from_toml(doc, "v.toml")
     assert vehicle.battery.internal_resistance_ohm == 0.012
     assert vehicle_from_toml(vehicle.to_toml()).battery.internal_resistance_ohm == 0.012
-
-
-def test_the_table_of_docs_fit_md_is_what_the_script_prints() -> None:
-    """docs/fit.md's pack table and pooled figures come from ``python
-    scripts/pack_fit_sitl.py``: a figure that drifts fails here."""
-    script = load_script(SCRIPT.stem)
-    doc = " ".join((REPO / "docs" / "fit.md").read_text().split())
-    split = json.loads((PACKS / "split.json").read_text())
-    for half in ("tuning", "held_out"):
-        errors = []
-        for name in split[half]:
-            row, e = script.curve_errors_v(name)
-            assert row in doc, name
-            errors.append(e)
-        assert script.pooled_row(half.replace("_", "-"), errors) in doc

@@ -114,6 +114,7 @@ def test_the_docs_give_the_results_as_measured() -> None:
         "sitl-effects-table": figures.sitl.effects_table(checks),
         "sitl-effects-right": figures.sitl.effects_right(checks),
         "sitl-effects-floors": figures.sitl.effects_floors(checks),
+        "sitl-effects-clean": figures.sitl.effects_clean(checks),
         "sitl-effects-wind": figures.sitl.effects_wind(checks),
         "sitl-effects-payload": figures.sitl.effects_payload(checks),
         "sitl-effects-turn": figures.sitl.effects_turn(checks),

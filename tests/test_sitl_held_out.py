@@ -184,7 +184,9 @@ def test_the_docs_give_the_results_as_measured(
     now = {
         "sitl-held-table": SITL.effects_table(checks, SITL.HELD_RECORDINGS),
         "sitl-held-summary": SITL.held_summary(checks),
+        "sitl-held-floors": SITL.effects_floors(checks),
         "tracker-sitl-held": TRACKER.report(list(tracked.values())),
+        "tracker-sitl-held-wind-worst": TRACKER.worst_wind(list(tracked.values())),
     }
     assert set(now) == {n for n, test in FIGURES.CHECKED_BY.items() if test == THIS_FILE}
     blocks = [b for b in FIGURES.all_blocks() if b.name in now]

@@ -92,6 +92,8 @@ def test_the_docs_give_the_replays_as_measured() -> None:
     with_wind = {n: f.estimates for n, f in flights.items()}
     now = {
         "sitl-recordings-table": figures.sitl.recordings_table(flights),
+        "sitl-hexa-energy": figures.sitl.hexa_energy(flights),
+        "sitl-wind-cost": figures.sitl.wind_cost(flights),
         "tracked-wind-sitl": "\n".join(
             figures.script_module("tracked_wind_sitl").table_lines(with_wind)
         ),

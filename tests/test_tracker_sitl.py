@@ -112,9 +112,11 @@ def test_told_the_model_error_is_slow_the_mass_holds_its_sigma_and_the_wind_gain
     wind on 96 % (96 % and 95 % with the 0.6 % the file states, measured on its fit flights:
     the slow error that would cover these flights is not the one the fit flights show); what
     is left beyond 3σ is the wind changes."""
-    runs = [r for _, r in SCRIPT.runs(slow_error_fraction=0.02)]
-    mass_2, wind_2 = SCRIPT.pooled(runs, 2.0)
+    flights = SCRIPT.runs(slow_error_fraction=0.02)
+    mass_2, wind_2 = SCRIPT.pooled([r for _, r in flights], 2.0)
     assert mass_2 >= 0.99 and wind_2 >= 0.95
+    # docs/residuals.md gives these shares (``make figures`` writes the block)
+    assert _block("tracker-sitl-slow-2pct") == SCRIPT.slow_error_share(flights)
 
 
 def test_every_flight_ends_with_its_mass_and_wind(flights: Flights) -> None:
@@ -138,10 +140,17 @@ def test_a_release_the_mission_commanded_ends_the_payload_in_the_truth(
     assert run.across_changes == 1 and set(run.truth[:, 2]) == {0.0, 1.0}
 
 
-def test_the_doc_block_is_what_the_script_prints(flights: Flights) -> None:
-    """docs/residuals.md's block "tracker-sitl" (``make figures`` writes it)."""
-    [block] = [b for b in blocks_in(ROOT / "docs" / "residuals.md") if b.name == "tracker-sitl"]
-    assert block.text == SCRIPT.report(flights), "run `make figures` and review the diff"
+def _block(name: str) -> str:
+    """The text of docs/residuals.md's block ``name``."""
+    [block] = [b for b in blocks_in(ROOT / "docs" / "residuals.md") if b.name == name]
+    return block.text
+
+
+def test_the_doc_blocks_are_what_the_script_prints(flights: Flights) -> None:
+    """docs/residuals.md's blocks "tracker-sitl" and "tracker-sitl-shows" (``make figures``
+    writes them)."""
+    assert _block("tracker-sitl") == SCRIPT.report(flights), "run `make figures`"
+    assert _block("tracker-sitl-shows") == SCRIPT.shows(flights), "run `make figures`"
 
 
 def test_a_malformed_truth_or_no_recording_is_one_line_and_exit_2(

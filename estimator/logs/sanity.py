@@ -164,17 +164,24 @@ class SanityRecorder:
         elif isinstance(sample, RebootSample):
             self._velocity.append([])
 
+    def judged_pairs(self) -> tuple[np.ndarray, np.ndarray] | None:
+        """(height rate, logged climb rate) in m/s of the velocity sample pairs the vertical
+        check judges (no pair spans a reboot); None before two samples of one boot."""
+        pairs = [_judged_pairs(*np.array(boot).T) for boot in self._velocity if len(boot) > 1]
+        if not pairs:
+            return None
+        rate, climb = (np.concatenate(column) for column in zip(*pairs, strict=True))
+        return rate, climb
+
     def problems(
         self, cells: int | None = None, source: str = "vertical velocity"
     ) -> list[tuple[str, str]]:
         """The checks' (cause, warning) over what was observed (voltage only when ``cells``
         is known); no pair of velocity samples spans a reboot."""
         out = []
-        pairs = [_judged_pairs(*np.array(boot).T) for boot in self._velocity if len(boot) > 1]
-        if pairs:
-            rate, climb = (np.concatenate(column) for column in zip(*pairs, strict=True))
-            if (problem := _vertical_verdict(rate, climb, source)) is not None:
-                out.append((VERTICAL_VELOCITY, problem))
+        pairs = self.judged_pairs()
+        if pairs is not None and (problem := _vertical_verdict(*pairs, source)) is not None:
+            out.append((VERTICAL_VELOCITY, problem))
         if cells is not None and (problem := voltage_problem(self._voltage_v, cells)):
             out.append((PACK_VOLTAGE, problem))
         return out

@@ -181,11 +181,16 @@ def ensemble_errors(configs: list[SimConfig]) -> EnsembleErrors:
     return EnsembleErrors(np.array(z), ours, px4)
 
 
-def hover_cruise(cruise_speed_mps: float) -> Flown:
+def hover_cruise_config(cruise_speed_mps: float) -> SimConfig:
     """The built-in hover-cruise plan (60 s hover, then cruise to the reserve) with
     :data:`HIDDEN` effects, cruising at ``cruise_speed_mps`` (seed 0)."""
     plan = builtin_plan("hover-cruise", cruise_speed_mps=cruise_speed_mps)
-    return fly(SimConfig(plan=plan, effects=HIDDEN, seed=0))
+    return SimConfig(plan=plan, effects=HIDDEN, seed=0)
+
+
+def hover_cruise(cruise_speed_mps: float) -> Flown:
+    """:func:`hover_cruise_config` flown."""
+    return fly(hover_cruise_config(cruise_speed_mps))
 
 
 def signed_pct(fraction: float) -> str:
