@@ -16,10 +16,11 @@ from __future__ import annotations
 
 import json
 import math
-from collections.abc import Callable, Sequence
+from collections.abc import Callable, Mapping, Sequence
 from functools import cache, partial
 from pathlib import Path
 from types import ModuleType
+from typing import Any
 
 import numpy as np
 
@@ -264,23 +265,19 @@ def wind_medians() -> str:
 def flight_table(table: ModuleType) -> str:
     """docs/pack.md's per-flight table, rows as ``table`` (``scripts/pack_state_sitl.py``)
     prints them."""
-    rows = [
-        table.table_row(f, half.replace("_", "-"))
-        for half, pooled in flights().items()
-        for f in pooled
-    ]
-    return "\n".join([table.TABLE_HEADER, *rows])
+    return _table(table.TABLE_HEADER, table.table_row, flights())
 
 
 def restart_table(table: ModuleType) -> str:
     """docs/pack.md's table of the flights restarted 90 s after take-off, rows as ``table``
     prints them."""
-    rows = [
-        table.restart_row(r, half.replace("_", "-"))
-        for half, judged in restarts().items()
-        for r in judged
-    ]
-    return "\n".join([table.RESTART_HEADER, *rows])
+    return _table(table.RESTART_HEADER, table.restart_row, restarts())
+
+
+def _table(header: str, row: Callable[[Any, str], str], groups: Mapping[str, Any]) -> str:
+    """``header`` and one ``row(item, set label)`` per item of each set of ``groups``."""
+    rows = [row(item, half.replace("_", "-")) for half, items in groups.items() for item in items]
+    return "\n".join([header, *rows])
 
 
 def readme() -> str:

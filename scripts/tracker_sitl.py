@@ -164,8 +164,7 @@ def summary_lines(flights: list[tuple[RecordingTruth, TrackerRun]]) -> list[str]
             f"{label} ({len(group)} flights, {steps} steps): mass {100 * m2:.0f} % within 2σ, "
             f"{100 * m3:.0f} % within 3σ ({100 * m1:.0f} % within 1σ); wind {100 * w2:.0f} %, "
             f"{100 * w3:.0f} % ({100 * w1:.0f} %); not applied {100 * unapplied:.0f} %; the aim "
-            "met on "
-            f"{sum(meets_aim([r]) for r in group)} of {len(group)}"
+            f"met on {sum(meets_aim([r]) for r in group)} of {len(group)}"
         )
     return out
 
