@@ -109,7 +109,7 @@ async def test_daemon_asks_px4_for_message_intervals_only(flight: Messages) -> N
     async with running(ServiceConfig()) as (service, sender):
         received: list[mavlink.MAVLink_message] = []
         async with asyncio.timeout(15):
-            while service.latest is None:
+            while service.out.latest is None:
                 await play(sender, messages[:200])
                 with contextlib.suppress(TimeoutError):
                     async with asyncio.timeout(0.2):
@@ -119,8 +119,8 @@ async def test_daemon_asks_px4_for_message_intervals_only(flight: Messages) -> N
             async with asyncio.timeout(0.5):
                 while True:
                     received.extend(await sender.recv())
-        assert service.latest is not None and service.latest.model_only
-        assert service.latest.power_measured_w is None
+        assert service.out.latest is not None and service.out.latest.model_only
+        assert service.out.latest.power_measured_w is None
         given = ServiceConfig().pipeline_settings().return_home
         assert service.pipeline.returning.settings == px4_rtl(given)
     kinds = {m.get_type() for m in received}
@@ -148,7 +148,7 @@ async def test_a_pack_of_one_other_cell_count_is_taken_in_one_line(
     try:
         async with running(config, vehicle) as (service, sender):
             await play(sender, as_px4(flight)[:1500])
-            await wait_for(lambda: service.latest is not None, timeout_s=5.0)
+            await wait_for(lambda: service.out.latest is not None, timeout_s=5.0)
             await wait_for(lambda: client.of_type("STATUSTEXT"), timeout_s=5.0)
             assert service.pipeline.vehicle.battery.cells == base.battery.cells == 6
             assert service.decoder.counts["voltage_implausible"] == 1  # the first, only
@@ -182,7 +182,7 @@ async def test_a_pack_of_several_possible_cell_counts_is_named_and_not_used(
             await wait_for(lambda: "fits" in caplog.text, timeout_s=5.0)
             await play(sender, as_px4(flight)[1500:])
             await wait_for(lambda: client.of_type("STATUSTEXT"), timeout_s=5.0)
-            assert service.latest is None
+            assert service.out.latest is None
             assert service.pipeline.vehicle.battery.cells == 3
             assert service.decoder.counts["voltage_implausible"] > 10
     finally:

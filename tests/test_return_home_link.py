@@ -225,7 +225,7 @@ async def test_failed_mission_downloads_are_counted_and_warned_once_per_cause(
 
         await wait_for(lambda: failed() == 2, 15)
         assert len(server.kinds("MISSION_REQUEST_LIST")) == 2 * (1 + mission_download.RETRIES)
-        assert service.latest is not None and service.latest.rth_flags & 4  # no mission
+        assert service.out.latest is not None and service.out.latest.rth_flags & 4  # no mission
         server.silent, server.refuse = False, True
         await wait_for(lambda: failed() == 5, 15)
         server.task.cancel()
@@ -272,8 +272,8 @@ async def test_home_is_requested_when_positions_come_without_it_then_followed(
         request = home_requests()[0]
         assert int(request.param1) == mavlink.MAVLINK_MSG_ID_HOME_POSITION
         assert (request.target_system, request.target_component) == (1, 1)
-        assert service.latest is not None and service.latest.rth_flags & 1  # no home yet
-        assert math.isnan(service.latest.rth_energy_wh)
+        assert service.out.latest is not None and service.out.latest.rth_flags & 1  # no home yet
+        assert math.isnan(service.out.latest.rth_energy_wh)
         sender.send(
             sender.mav.home_position_encode(
                 round(HOME[0] * 1e7), round(HOME[1] * 1e7), 488_000, 0, 0, 0, [1, 0, 0, 0], 0, 0, 0

@@ -266,8 +266,8 @@ async def test_silent_link_marks_estimates_stale_then_resumes(
     config = ServiceConfig(publish=(f"udpout:127.0.0.1:{port}",), stale_after_s=0.5)
     async with running(config) as (service, sender):
         await play(sender, messages[:400])
-        await wait_for(lambda: service.latest is not None)
-        await wait_for(lambda: service.stale, timeout_s=5)
+        await wait_for(lambda: service.out.latest is not None)
+        await wait_for(lambda: service.out.stale, timeout_s=5)
         await wait_for(lambda: any(int(v) & 2 for v in client.named("FLAGS").values()), 5)
         stale_count = len(client.of_type("NAMED_VALUE_FLOAT"))
 
@@ -278,7 +278,7 @@ async def test_silent_link_marks_estimates_stale_then_resumes(
 
         talking = asyncio.create_task(keep_talking())
         try:
-            await wait_for(lambda: not service.stale)
+            await wait_for(lambda: not service.out.stale)
 
             def live_flags_after_resume() -> bool:
                 named = client.of_type("NAMED_VALUE_FLOAT")[stale_count:]
@@ -298,14 +298,14 @@ async def test_autopilot_reboot_keeps_the_energy_state(flight: Messages) -> None
         await play(sender, messages)
         await wait_for(lambda: service.pipeline.counts["velocity"] > 300)
         await asyncio.sleep(0.3)
-        assert service.latest is not None
-        energy_before = service.latest.energy_remaining_wh
+        assert service.out.latest is not None
+        energy_before = service.out.latest.energy_remaining_wh
         # the autopilot reboots: the same stream again, its clock starting from 0
         await play(sender, messages[: len(messages) // 3])
         await wait_for(lambda: service.decoder.counts["reboots"] == 1)
         await asyncio.sleep(0.3)
         assert service.pipeline.counts["reboot"] == 1
-        latest = service.latest
+        latest = service.out.latest
         assert latest is not None and latest.time_s < 20
         assert latest.energy_remaining_wh <= energy_before + 0.5
         assert np.isfinite(latest.endurance_s)
@@ -385,7 +385,7 @@ async def test_configured_target_ignores_other_autopilots(flight: Messages) -> N
             source_component=1,
         )
         await play(impostor, messages)
-        await wait_for(lambda: service.latest is not None)
+        await wait_for(lambda: service.out.latest is not None)
         await impostor.close()
         assert service.decoder.target == (7, 1)
         assert service.link is not None
@@ -411,7 +411,7 @@ async def test_an_exception_on_one_message_is_logged_and_skipped(
         await play(sender, messages)
         await wait_for(lambda: calls["n"] > 120)
         assert service.internal_errors == 1
-        assert service.latest is not None
+        assert service.out.latest is not None
     assert "internal error #1" in caplog.text
 
 
@@ -428,7 +428,7 @@ async def test_daemon_as_tcp_client_like_ardupilot_sitl(flight: Messages) -> Non
         requests: list[mavlink.MAVLink_message] = []
         messages = [m for _, m in flight[:400]]
         async with asyncio.timeout(15):
-            while service.latest is None:
+            while service.out.latest is None:
                 await play(autopilot, messages[:100])
                 with contextlib.suppress(TimeoutError):
                     async with asyncio.timeout(0.2):
@@ -501,7 +501,7 @@ async def test_battery_status_goes_towards_the_autopilot_only_when_configured(
     )
     async with running(config) as (service, sender):
         await play(sender, [m for _, m in flight[:400]])
-        await wait_for(lambda: service.latest is not None)
+        await wait_for(lambda: service.out.latest is not None)
         received: list[mavlink.MAVLink_message] = []
         async with asyncio.timeout(5):
             while sum(m.get_type() == "NAMED_VALUE_FLOAT" for m in received) < 32:
@@ -550,14 +550,14 @@ async def test_forged_reboots_from_the_autopilots_address_are_dropped(
 
         collector = asyncio.create_task(collect())
         await play(sender, messages[:half])
-        await wait_for(lambda: service.latest is not None and service._streams_ok)
+        await wait_for(lambda: service.out.latest is not None and service._streams_ok)
         requests_before = sum(m.get_type() == "REQUEST_DATA_STREAM" for m in received)
         for k in range(10):
             for j in range(5):  # an earlier clock, five agreeing frames
                 sender.send(sender.mav.attitude_encode(1_000 + 100 * j, 0, 0, 0, 0, 0, 0))
             await play(sender, messages[half + k * step : half + (k + 1) * step])
         expected = replay(messages[: half + 10 * step])[-1]
-        await wait_for(lambda: service.latest == expected)
+        await wait_for(lambda: service.out.latest == expected)
         collector.cancel()
     assert service.lock.counts["off_clock_frames"] == 50
     assert service.decoder.counts["reboots"] == service.decoder.counts["clock_jumps"] == 0

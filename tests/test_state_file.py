@@ -199,7 +199,7 @@ async def test_state_file_is_used_only_when_it_fits(
     config = ServiceConfig(state_file=str(path), stale_after_s=30.0)
     async with running(config) as (service, sender):
         await play(sender, [m for t, m in flight if t >= 10.5 or m.get_type() == "HEARTBEAT"])
-        await wait_for(lambda: service.latest is not None and service.latest.time_s > 30)
+        await wait_for(lambda: service.out.latest is not None and service.out.latest.time_s > 30)
     assert sum(line in r.getMessage() for r in caplog.records) == 1, caplog.text
     counts = service.pipeline.counts
     assert (counts["resumed"], counts["energy_initialized"]) == (

@@ -122,7 +122,7 @@ async def test_signed_link_rejects_wrong_key_unsigned_and_replayed_frames(
         port = daemon_port(service)
         autopilot = await autopilot_to(port, key=KEY)
         first = await autopilot.play(messages[:300])
-        await wait_for(lambda: service.latest is not None)
+        await wait_for(lambda: service.out.latest is not None)
         await asyncio.sleep(0.3)
         velocity = service.pipeline.counts["velocity"]
         signing = service.link.signing  # type: ignore[union-attr]
@@ -146,7 +146,7 @@ async def test_signed_link_rejects_wrong_key_unsigned_and_replayed_frames(
 
         await autopilot.play(messages[300:])  # the real stream goes on
         expected = replay(messages)[-1]
-        await wait_for(lambda: service.latest == expected)
+        await wait_for(lambda: service.out.latest == expected)
         await asyncio.sleep(1.2)  # a HEARTBEAT and a publish period
         assert service.link.counts["bad_frames"] == 0  # type: ignore[union-attr]
         assert service.counters()["signing_bad_signature"] == 51
@@ -171,7 +171,7 @@ async def test_without_require_signing_unsigned_frames_are_accepted(
     config = ServiceConfig(signing_key_file=str(key_file(tmp_path)), stale_after_s=30.0)
     async with running(config) as (service, sender):  # the sender does not sign
         await play(sender, [m for _, m in flight[:400]])
-        await wait_for(lambda: service.latest is not None)
+        await wait_for(lambda: service.out.latest is not None)
         signing = service.link.signing  # type: ignore[union-attr]
         used = sum(m.get_msgId() in USED_MESSAGE_IDS for _, m in flight[:400])
         assert signing is not None and signing.unsigned_count >= used
@@ -228,7 +228,7 @@ async def test_autopilot_is_locked_after_its_telemetry_confirms_it_not_first_spe
         for _ in range(3):  # the forger now plays a whole flight
             await forger.play(messages[:200])
         await play(sender, messages[200:])
-        await wait_for(lambda: service.latest == expected)
+        await wait_for(lambda: service.out.latest == expected)
         assert service.lock.counts["candidates"] >= 1
         used = sum(m.get_msgId() in USED_MESSAGE_IDS for m in messages[:200])
         assert service.lock.counts["other_autopilot_frames"] >= 3 * used

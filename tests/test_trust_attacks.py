@@ -170,13 +170,13 @@ async def attack(
     config = replace(config, stale_after_s=30.0)
     async with running(config, sitl_vehicle()) as (service, _sender):
         estimates: list[Estimate] = []
-        deliver = service._deliver
+        deliver = service.out.deliver
 
         def record(estimate: Estimate, now_s: float) -> None:
             estimates.append(estimate)
             deliver(estimate, now_s)
 
-        service._deliver = record  # type: ignore[method-assign]
+        service.out.deliver = record  # type: ignore[method-assign]
         assert service.link is not None and service.link.local_address is not None
         port = service.link.local_address[1]
         autopilot = await peer_to(port)

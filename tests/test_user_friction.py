@@ -115,9 +115,9 @@ async def test_daemon_logs_the_estimating_mode_once_per_change(
     caplog.set_level(logging.INFO, logger="uav_energy")
     async with running(ServiceConfig(stale_after_s=30.0)) as (service, sender):
         await play(sender, messages[:300])
-        await wait_for(lambda: service.latest is not None)
+        await wait_for(lambda: service.out.latest is not None)
         await play(sender, messages[300:])
-        await wait_for(lambda: service.latest is not None and not service.latest.model_only)
+        await wait_for(lambda: service.out.latest is not None and not service.out.latest.model_only)
     modes = [r.getMessage() for r in caplog.records if "estimating" in r.getMessage()]
     assert modes == [
         "telemetry flowing: estimating, model only (no current measured)",

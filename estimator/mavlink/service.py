@@ -2,7 +2,8 @@
 
 Messages are handled in the link's receive callback as their datagram arrives (decode →
 pipeline → JSON lines; no queue, no task switch); frames of ids the decoder does not use are
-dropped by their header before pymavlink parses them. Tasks: publish (NAMED_VALUE_FLOAT and
+dropped by their header before pymavlink parses them; the estimates go out through
+:class:`~estimator.mavlink.outlet.EstimateOutlet`. Tasks: publish (NAMED_VALUE_FLOAT and
 BATTERY_STATUS at the configured rate), heartbeat + watchdog (1 Hz: our HEARTBEAT, stale
 detection, stream requests until telemetry flows, counters of bad input), and a drain per
 output link. Wall clock is used only for these timers; the estimates run on the autopilot's
@@ -50,29 +51,24 @@ import gc
 import logging
 import signal
 import time
-from dataclasses import replace
 from pathlib import Path
 
 from pymavlink.dialects.v20 import common as mavlink
 
-from estimator.estimation.estimate import Estimate
 from estimator.estimation.pack_identity import FlightPack
 from estimator.estimation.pipeline import Pipeline
 from estimator.estimation.pipeline_settings import PipelineSettings
 from estimator.estimation.return_home import MissionEnergyFn, MissionSample
 from estimator.estimation.rtl_profiles import rtl_settings
 from estimator.logs.mission_files import MissionItem
-from estimator.mavlink import publish
 from estimator.mavlink.autopilot_lock import AutopilotLock
 from estimator.mavlink.config import ServiceConfig
 from estimator.mavlink.daemon_warnings import ThrottledLog, format_counts, warn_input_counts
-from estimator.mavlink.json_output import JsonOutput
 from estimator.mavlink.link import MavlinkLink, open_link
-from estimator.mavlink.margin_alerts import MarginAlerts
 from estimator.mavlink.mission_download import MESSAGE_IDS as MISSION_MESSAGE_IDS
 from estimator.mavlink.mission_download import MESSAGE_TYPES as MISSION_MESSAGES
 from estimator.mavlink.mission_download import MissionDownload
-from estimator.mavlink.pack_alerts import PackLabelAlert
+from estimator.mavlink.outlet import EstimateOutlet
 from estimator.mavlink.pack_cells import inferred_cells, pack_mismatch_text
 from estimator.mavlink.signing import LinkSigning, load_key
 from estimator.mavlink.state_file import StateKeeper
@@ -125,19 +121,15 @@ class Service:
         self._rtl = "ardupilot"  # whose RTL the return figures follow
         self.state: StateKeeper | None = None
         self._mission_energy = mission_energy
+        self.out = EstimateOutlet(config)
         self._use_vehicle(vehicle, settings or config.pipeline_settings())
         if config.return_autopilot != "auto":
             self._follow_rtl(config.return_autopilot)
         self._cells_checked = False  # a pack voltage of other cells looked at (once a run)
         self.lock = AutopilotLock(target, (config.system_id, OWN_COMPONENT))
-        self.latest: Estimate | None = None
-        self.stale = False
         self.internal_errors = 0
         self.link: MavlinkLink | None = None
-        self.outputs: list[MavlinkLink] = []
-        self.json = JsonOutput(config.json)
         self._last_rx_s: float | None = None
-        self._last_json_s = -1e9
         self._last_request_s = -1e9
         self._streams_ok = False
         self._model_only_said: bool | None = None  # the estimating mode last logged
@@ -166,15 +158,7 @@ class Service:
             self.state = StateKeeper(
                 cfg.state_file, cfg.state_max_age_s, cfg.state_period_s, self.pipeline
             )
-        # BATTERY_STATUS.battery_remaining is a share of a full pack's usable energy.
-        self._full_usable_wh = float(self.pipeline.pack.usable_energy_wh(1.0))
-        per_pct_wh = self._full_usable_wh / 100.0
-        self.alerts = MarginAlerts(
-            cfg.warning_margin_pct * per_pct_wh,
-            cfg.critical_margin_pct * per_pct_wh,
-            cfg.hysteresis_pct * per_pct_wh,
-        )
-        self.pack_alert = PackLabelAlert(self.pipeline.pack.spec.capacity_ah)
+        self.out.use_pack(self.pipeline)
 
     def _infer_cells(self) -> None:
         """Before any estimate, the first pack voltage the vehicle file's cell count cannot
@@ -193,8 +177,7 @@ class Service:
         log.warning("%s", line)
         self._use_vehicle(vehicle, self.pipeline.settings)
         self.decoder.implausible_voltage = None
-        for link in self._ground_links(False):  # never towards the autopilot
-            link.send(publish.statustext(link, mavlink.MAV_SEVERITY_WARNING, text))
+        self.out.statustext(mavlink.MAV_SEVERITY_WARNING, text)  # never towards the autopilot
 
     # -- lifecycle --------------------------------------------------------------------------
 
@@ -219,30 +202,31 @@ class Service:
             message_ids=USED_MESSAGE_IDS | MISSION_MESSAGE_IDS | {PACK_INFO_ID},
             signing=signing(0),
         )
+        self.out.autopilot = self.link
         self.link.answer_only(None)  # a shared link answers nobody until an autopilot is locked
         if self.state is not None:
             self.state.load()
         try:
             for i, url in enumerate(cfg.publish, start=1):
-                self.outputs.append(
+                self.out.outputs.append(
                     await open_link(
                         url, source_system=cfg.system_id, signing=signing(i), listen=False
                     )
                 )
-            await self.json.open()
+            await self.out.json.open()
             log.info(
                 "started: autopilot link %s, %d output(s), vehicle %s, signing %s",
                 cfg.connect,
-                len(self.outputs),
+                len(self.out.outputs),
                 self.pipeline.vehicle.name,
                 "off" if key is None else "required" if cfg.require_signing else "on",
             )
             self.link.set_listener(self._on_messages)
             gc.freeze()  # start-up objects (modules, codecs) leave the collector's scans
             tasks = [
-                loop.create_task(self._publish_loop()),
+                loop.create_task(self.out.publish_loop()),
                 loop.create_task(self._heartbeat_loop()),
-                *(loop.create_task(_drain(out)) for out in self.outputs),
+                *(loop.create_task(_drain(out)) for out in self.out.outputs),
             ]
             if self.state is not None:
                 tasks.append(loop.create_task(self.state.run(lambda: self.decoder.target)))
@@ -255,16 +239,16 @@ class Service:
                 with contextlib.suppress(asyncio.CancelledError):
                     await task
             if (last := self.pipeline.flush()) is not None:  # the samples of the open period
-                self._deliver(last, loop.time())
+                self.out.deliver(last, loop.time())
             if self.state is not None:
                 self.state.save(self.decoder.target)
             self._remember_pack()
             if (note := self.flight_pack.unnamed()) is not None:
                 log.info("pack memory: %s", note)
         finally:
-            for link in [self.link, *self.outputs]:
+            for link in [self.link, *self.out.outputs]:
                 await link.close()
-            self.json.close()
+            self.out.json.close()
             for sig in installed:
                 loop.remove_signal_handler(sig)
         if self.mission is not None:
@@ -285,11 +269,11 @@ class Service:
         out.update({f"pipeline_{k}": v for k, v in self.pipeline.counts.items()})
         if self.mission is not None:
             out.update({f"mission_{k}": v for k, v in self.mission.counts.items()})
-        out.update(internal_errors=self.internal_errors, json_dropped=self.json.dropped)
+        out.update(internal_errors=self.internal_errors, json_dropped=self.out.json.dropped)
         if self.state is not None:
             out.update(state_writes=self.state.writes, state_write_errors=self.state.write_errors)
-        out.update(home_requests=self.home_request.sent, alerts_sent=self.alerts.sent)
-        out.update(pack_alerts_sent=self.pack_alert.sent)
+        out.update(home_requests=self.home_request.sent, alerts_sent=self.out.alerts.sent)
+        out.update(pack_alerts_sent=self.out.pack_alert.sent)
         if self.flight_pack.directory is not None:
             out.update(pack_memory_errors=self.flight_pack.errors)
         return out
@@ -399,8 +383,8 @@ class Service:
             assert self.decoder.target is not None
             self.state.resume(self.decoder.target, self.decoder.clock_s)
         self._last_rx_s = now_s
-        if self.stale:
-            self.stale = False
+        if self.out.stale:
+            self.out.stale = False
             log.info("telemetry resumed: estimates live again")
         was_initialized = self.pipeline.energy.initialized
         for sample in samples:
@@ -409,7 +393,7 @@ class Service:
                 log.info("landed detector: %s at %.2f s autopilot time", where, sample.time_s)
             estimate = self.pipeline.process(sample)
             if estimate is not None:
-                self._deliver(estimate, now_s)
+                self.out.deliver(estimate, now_s)
         if not was_initialized and self.pipeline.energy.initialized:
             how = "continued" if self.pipeline.counts["resumed"] else "initialized"
             log.info("energy %s: SoC %.0f %%", how, 100 * self.pipeline.energy.soc)
@@ -417,16 +401,16 @@ class Service:
             cells = self.pipeline.vehicle.battery.cells
             if (problem := pack_voltage_problem(battery.voltage_v, cells)) is not None:
                 log.warning("%s", problem)
+        latest = self.out.latest
         if (
-            self.latest is not None
+            latest is not None
             and not self._streams_ok
             and self.pipeline.counts["velocity"]
             and self.pipeline.counts["battery"]
         ):
             self._streams_ok = True
-            self._model_only_said = self.latest.model_only
-            log.info("telemetry flowing: estimating, %s", _mode(self.latest.model_only))
-        latest = self.latest
+            self._model_only_said = latest.model_only
+            log.info("telemetry flowing: estimating, %s", _mode(latest.model_only))
         if latest is not None and self._model_only_said not in (None, latest.model_only):
             self._model_only_said = latest.model_only  # said once per change
             log.info("estimating, %s", _mode(latest.model_only))
@@ -509,78 +493,20 @@ class Service:
         if self.flight_pack.wants_serial and self.link is not None:
             self.link.send(request_message(self.link.mav, target, PACK_INFO_ID))
 
-    # -- publish ----------------------------------------------------------------------------
-
-    def _current(self) -> Estimate | None:
-        if self.latest is not None and self.stale and not self.latest.stale:
-            return replace(self.latest, stale=True)
-        return self.latest
-
-    def _deliver(self, estimate: Estimate, now_s: float) -> None:
-        """A new estimate: keep it for the publish loop, send it now where configured."""
-        self.latest = estimate
-        if (alert := self.alerts.update(estimate)) is not None:
-            log.warning("%s", alert.text)
-            for link in self._ground_links(self.config.statustext_to_autopilot):
-                link.send(publish.statustext(link, alert.severity, alert.text))
-        if (alert := self.pack_alert.update(estimate)) is not None:
-            log.warning("%s", alert.text)
-            for link in self._ground_links(False):  # never towards the autopilot
-                link.send(publish.statustext(link, alert.severity, alert.text))
-        if self.config.publish_rate_hz == 0:
-            self._publish(estimate)
-        if self.config.json and (
-            self.config.json_rate_hz == 0
-            or now_s - self._last_json_s >= 1.0 / self.config.json_rate_hz
-        ):
-            self._last_json_s = now_s
-            self.json.write(estimate)
-
-    def _ground_links(self, to_autopilot: bool) -> list[MavlinkLink]:
-        """The ``--publish`` links, and the autopilot link when ``to_autopilot``."""
-        if to_autopilot and self.link is not None:
-            return [*self.outputs, self.link]
-        return list(self.outputs)
-
-    def _publish(self, estimate: Estimate) -> None:
-        cfg = self.config
-        for link in self._ground_links(cfg.values_to_autopilot):
-            for msg in publish.named_values(link, estimate):
-                link.send(msg)
-            if link is not self.link or cfg.battery_status_to_autopilot:
-                link.send(
-                    publish.battery_status(link, estimate, cfg.battery_id, self._full_usable_wh)
-                )
-
-    async def _publish_loop(self) -> None:
-        rate = self.config.publish_rate_hz
-        if rate == 0:
-            return
-        while True:
-            await asyncio.sleep(1.0 / rate)
-            estimate = self._current()
-            if estimate is not None:
-                self._publish(estimate)
+    # -- heartbeat and watchdog -----------------------------------------------------------
 
     async def _heartbeat_loop(self) -> None:
         loop = asyncio.get_running_loop()
         while True:
-            estimate = self._current()
-            links = list(self.outputs)
-            if self.link is not None and self.config.heartbeat_to_autopilot:
-                links.append(self.link)
-            for link in links:
-                link.send(publish.heartbeat(link, estimate))
+            self.out.heartbeat()
             self._watchdog(loop.time())
             await asyncio.sleep(1.0)
 
     def _watchdog(self, now_s: float) -> None:
         silent_s = None if self._last_rx_s is None else now_s - self._last_rx_s
-        if silent_s is not None and silent_s > self.config.stale_after_s and not self.stale:
-            self.stale = True
+        if silent_s is not None and silent_s > self.config.stale_after_s and not self.out.stale:
             log.warning("link silent for %.1f s: estimates marked stale", silent_s)
-            if self.config.publish_rate_hz == 0 and (estimate := self._current()) is not None:
-                self._publish(estimate)
+            self.out.mark_stale()
         self._handle_each(self.lock.tick(now_s), now_s)
         if not self._streams_ok:
             self._request_streams(now_s)
@@ -601,8 +527,7 @@ class Service:
             return
         line, text = mismatch
         log.warning("%s", line)
-        for link in self._ground_links(False):  # never towards the autopilot
-            link.send(publish.statustext(link, mavlink.MAV_SEVERITY_WARNING, text))
+        self.out.statustext(mavlink.MAV_SEVERITY_WARNING, text)  # never towards the autopilot
 
 
 async def _drain(link: MavlinkLink) -> None:
