@@ -33,6 +33,7 @@ from estimator.errors import UserError
 from estimator.estimation.return_home import MissionEnergyFn
 from estimator.logs.mission_files import MissionLeg
 from estimator.physics.battery import PackModel
+from estimator.physics.lean_limit import along_track_limit_mps
 from estimator.physics.route_energy import (
     DEFAULT_ACCEL_MPS2,
     DEFAULT_CLIMB_RATE_MPS,
@@ -218,11 +219,12 @@ def mission_energy(
         )  # fmt: skip
     corners = _corner_speeds(flown, settings)
     results = []
-    for i, leg in enumerate(flown):
+    for i, (leg, heading) in enumerate(zip(flown, _headings(flown), strict=True)):
         cond = conditions if leg.payload else replace(conditions, payload_kg=0, payload_sigma_kg=0)
         ends = (corners[i], corners[i + 1])
+        leg_settings = _off_nose(settings, vehicle, cond, leg, heading)
         try:
-            results.append(_leg(rv, cond, leg, settings, ends, added and i == len(flown) - 1))
+            results.append(_leg(rv, cond, leg, leg_settings, ends, added and i == len(flown) - 1))
         except InfeasibleTrack as exc:
             raise UserError(f"leg {i + 1} ({leg.kind}, item {leg.seq}): {exc}") from None
     total = sum_energies(r.energy for r in results)
@@ -242,6 +244,45 @@ def _track(leg: MissionLeg) -> tuple[float, float]:
     """Horizontal direction (° from north) and length (m) of a leg."""
     (n0, e0, _), (n1, e1, _) = leg.start_ned_m, leg.end_ned_m
     return math.degrees(math.atan2(e1 - e0, n1 - n0)) % 360.0, math.hypot(n1 - n0, e1 - e0)
+
+
+def _headings(legs: Sequence[MissionLeg]) -> list[float]:
+    """Where the nose points on each leg (° from north): along its track (ArduCopter's
+    WP_YAW_BEHAVIOR default faces the next waypoint), except on RTL, which keeps the heading
+    of the last leg that moved over the ground (that default's RTL exception); NaN before any."""
+    headings, last = [], math.nan
+    for leg in legs:
+        track, distance = _track(leg)
+        if leg.kind != "rtl" and distance > 0:
+            last = track
+        headings.append(last if leg.kind == "rtl" else track)
+    return headings
+
+
+def _off_nose(
+    settings: FlightSettings,
+    vehicle: Vehicle,
+    conditions: Conditions,
+    leg: MissionLeg,
+    heading_deg: float,
+) -> FlightSettings:
+    """``settings`` with the airspeed limit along ``leg``'s track for a nose at
+    ``heading_deg``, when the vehicle file states its drag per body axis
+    (:func:`~estimator.physics.lean_limit.along_track_limit_mps`); loiter circles, legs
+    without a heading and vehicles without the drag law keep the limit straight ahead."""
+    track, distance = _track(leg)
+    if (
+        vehicle.drag is None
+        or not settings.airspeed_along_track
+        or leg.kind == "loiter_turns"
+        or distance <= 0
+        or not math.isfinite(heading_deg)
+    ):
+        return settings
+    limit_mps = along_track_limit_mps(
+        vehicle.drag, settings.airspeed_limit_mps, conditions.wind_ne_mps(), track, heading_deg
+    )
+    return replace(settings, max_airspeed_mps=limit_mps)
 
 
 def _corner_speeds(legs: Sequence[MissionLeg], s: FlightSettings) -> list[float]:

@@ -13,6 +13,9 @@ Layout (all sections but ``[effects]`` required)::
                      liion), cell_ocv_v (optional: the pack's own curve), cell_ocv_sigma_v
                      (optional: its 1σ error), internal_resistance_ohm (optional: measured)
     [effects.NAME]   parameters of effects added by ``uav-energy residuals`` (optional)
+    [drag]           bcoef_x_kgpm2, bcoef_y_kgpm2, mcoef_per_s (optional: the drag per body
+                     axis, ArduPilot's EK3_DRAG_* meanings; the planner's airspeed limit off
+                     the nose, :mod:`estimator.physics.lean_limit`)
 """
 
 from __future__ import annotations
@@ -30,6 +33,7 @@ import tomli_w
 
 from estimator.errors import UserError
 from estimator.file_checks import number_in_range
+from estimator.physics.lean_limit import DragLaw
 from estimator.physics.model import COEFFICIENT_NAMES, PowerModel
 from estimator.telemetry.plausibility import MAX_POWER_PER_HOVER, InputLimits
 from estimator.toml_files import read_toml
@@ -59,6 +63,12 @@ COEFFICIENT_RANGES = {
 }
 STDERR_RANGE = (1e-9, 1e5)
 SLOW_ERROR_RANGE = (0.0, 0.5)
+#: ``[drag]`` keys and their ranges: EK3_DRAG_BCOEF_X/Y (kg/m²) and EK3_DRAG_MCOEF (1/s).
+DRAG_RANGES = {
+    "bcoef_x_kgpm2": (1.0, 1000.0),
+    "bcoef_y_kgpm2": (1.0, 1000.0),
+    "mcoef_per_s": (0.0, 1.0),
+}
 CAPACITY_RANGE_AH = (0.05, 1000.0)
 CELLS_RANGE = (1, 24)
 #: Chemistries with a built-in resting curve (estimator.physics.battery.CHEMISTRY_OCV_V).
@@ -106,6 +116,9 @@ class Vehicle:
     #: 1σ of the model's slow error as a fraction of its hover power (None: not stated; see
     #: :mod:`estimator.estimation.online_effects`).
     slow_error_fraction: float | None = None
+    #: The drag per body axis (None: not stated; the airspeed limit then holds along the
+    #: track whatever the heading).
+    drag: DragLaw | None = None
 
     def flyable_cells(self, voltage_v: float) -> list[int]:
         """The cell counts at which a pack reading ``voltage_v`` (V, at rest or light load)
@@ -188,6 +201,8 @@ class Vehicle:
         }
         if self.effects:
             doc["effects"] = {k: _toml_safe(v) for k, v in self.effects.items()}
+        if self.drag is not None:
+            doc["drag"] = {k: getattr(self.drag, k) for k in DRAG_RANGES}
         return doc
 
     def save(self, path: Path) -> None:
@@ -262,6 +277,19 @@ def vehicle_from_toml(doc: dict[str, Any], where: str = "vehicle file") -> Vehic
         effects=effects,
         max_airspeed_mps=max_airspeed,
         slow_error_fraction=slow_error,
+        drag=_drag(doc, where),
+    )
+
+
+def _drag(doc: dict[str, Any], where: str) -> DragLaw | None:
+    """The optional ``[drag]`` table: every key of :data:`DRAG_RANGES`, each in its range."""
+    if "drag" not in doc:
+        return None
+    table = _section(doc, "drag", where)
+    if set(table) != set(DRAG_RANGES):
+        raise UserError(f"{where} [drag] must hold exactly {', '.join(DRAG_RANGES)}")
+    return DragLaw(
+        **{k: number_in_range(table, k, f"{where} [drag]", r) for k, r in DRAG_RANGES.items()}
     )
 
 
