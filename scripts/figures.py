@@ -503,13 +503,16 @@ def plan_airspeed_total() -> str:
 
 @generator("plan-headline")
 def plan_headline() -> str:
-    told, still = _abs_errors(mission_checks()), _abs_errors(mission_checks(still_air=True))
-    px4 = _abs_errors(mission_checks(), px4=True)
+    checks = mission_checks()
+    told, still = _abs_errors(checks), _abs_errors(mission_checks(still_air=True))
+    held = _abs_errors([c for c in checks if c.name.startswith(LEAN_HELD_OUT_PREFIX)])
+    px4 = _abs_errors(checks, px4=True)
     return (
-        f"told the wind SITL flew: median error {np.median(told):.1f} %, max {told.max():.1f} % "
-        f"(3 of the {len(told)} missions set the flight settings); told still air: "
-        f"{np.median(still):.1f} % / {still.max():.0f} %; a PX4-style distance/set-speed "
-        f"estimate misses by {np.median(px4):.0f} %"
+        f"{len(told)} AUTO missions, told the wind SITL flew: median error "
+        f"{np.median(told):.1f} %, max {told.max():.1f} % ({len(held)} held out: "
+        f"{np.median(held):.1f} %, max {held.max():.1f} %; 3 of the others set the flight "
+        f"settings); told still air: {np.median(still):.1f} % / {still.max():.0f} %; a "
+        f"PX4-style distance/set-speed estimate misses by {np.median(px4):.0f} %"
     )
 
 

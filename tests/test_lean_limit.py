@@ -11,7 +11,7 @@ import pytest
 from pymavlink import mavutil
 
 from estimator.analysis.mission_energy import mission_energy
-from estimator.analysis.mission_validation import truth_conditions
+from estimator.analysis.mission_validation import check_recording, truth_conditions
 from estimator.errors import UserError
 from estimator.logs.mission_files import load_mission
 from estimator.physics.lean_limit import DragLaw, along_track_limit_mps
@@ -90,3 +90,33 @@ def test_the_planned_rtl_speed_off_the_nose_is_the_speed_sitl_flew() -> None:
     plan = mission_energy(legs, vehicle, told)
     planned = plan.legs[-1].energy.ground_speed_mps
     assert planned == pytest.approx(_rtl_ground_speed_mps(TALL / "flight.tlog"), rel=0.03)
+
+
+MISSIONS = REPO / "replay/sitl/missions"
+#: Held-out missions (flown after the lean limit was frozen) whose energy misses by more than
+#: 3 %, with the cause.
+MISSES = {
+    "rtl_payload_wind4": (
+        "+6.1 %: the return flew 8.56 m/s over the ground with the 1 kg payload, planned "
+        "6.8 m/s. The drag law's coefficients are per unit mass of the vehicle without payload: "
+        "with 4/3 of the mass the lean balances 4/3 of the drag force (the law at 4 kg gives "
+        "5.72 m/s² where the limit is 5.74)"
+    ),
+}
+
+
+@pytest.mark.parametrize(
+    "name",
+    [
+        pytest.param(d.name, marks=pytest.mark.xfail(strict=True, reason=MISSES[d.name]))
+        if d.name in MISSES
+        else d.name
+        for d in sorted(MISSIONS.iterdir())
+        if (d / "truth.json").is_file()
+    ],
+)
+def test_each_recorded_missions_energy_is_planned_within_3_percent(name: str) -> None:
+    """Told the wind and payload SITL flew (docs/plan.md: the nine before the lean limit are
+    development figures for it, the rtl_* missions held out)."""
+    check = check_recording(MISSIONS / name, load_vehicle(SITL_VEHICLE))
+    assert abs(check.error_pct) <= 3.0, round(check.error_pct, 2)
