@@ -267,7 +267,7 @@ def _off_nose(
     heading_deg: float,
 ) -> FlightSettings:
     """``settings`` with the airspeed limit along ``leg``'s track for a nose at
-    ``heading_deg``, when the vehicle file states its drag per body axis
+    ``heading_deg`` and the payload carried, when the vehicle file states its drag per body axis
     (:func:`~estimator.physics.lean_limit.along_track_limit_mps`); loiter circles, legs
     without a heading and vehicles without the drag law keep the limit straight ahead."""
     track, distance = _track(leg)
@@ -279,8 +279,14 @@ def _off_nose(
         or not math.isfinite(heading_deg)
     ):
         return settings
+    mass_ratio = 1.0 + conditions.payload_kg / vehicle.mass_kg
     limit_mps = along_track_limit_mps(
-        vehicle.drag, settings.airspeed_limit_mps, conditions.wind_ne_mps(), track, heading_deg
+        vehicle.drag,
+        settings.airspeed_limit_mps,
+        conditions.wind_ne_mps(),
+        track,
+        heading_deg,
+        mass_ratio,
     )
     return replace(settings, max_airspeed_mps=limit_mps)
 

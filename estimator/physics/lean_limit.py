@@ -10,8 +10,11 @@ horizontal force, so the fastest airspeed depends on where the nose points: airs
 the nose meets only 1/√2 of the quadratic drag of the same airspeed straight ahead.
 
 The vehicle file's ``max_airspeed_mps`` is the fastest airspeed straight ahead; it fixes the
-deceleration the lean limit balances, and :func:`along_track_limit_mps` gives the airspeed
-along a track flown with the nose at ``heading_deg`` that meets the same deceleration.
+deceleration the lean limit balances (g tan of the lean, whatever the mass), and
+:func:`along_track_limit_mps` gives the airspeed along a track flown with the nose at
+``heading_deg`` that meets the same deceleration. The coefficients hold at the vehicle file's
+mass: a payload scales them (:meth:`DragLaw.at_mass_ratio`), so a heavier vehicle flies
+faster at the same lean.
 Velocities in m/s (north, east: airspeed is ground velocity less the wind's), angles in degrees
 clockwise from north.
 """
@@ -36,6 +39,16 @@ class DragLaw:
     bcoef_y_kgpm2: float
     mcoef_per_s: float
 
+    def at_mass_ratio(self, mass_ratio: float) -> DragLaw:
+        """The law of the same airframe at ``mass_ratio`` times the mass it was stated at:
+        a ballistic coefficient is mass over drag area (× ratio), and the rotors' momentum drag
+        grows with the square root of their thrust, the weight (÷ √ratio of deceleration)."""
+        return DragLaw(
+            self.bcoef_x_kgpm2 * mass_ratio,
+            self.bcoef_y_kgpm2 * mass_ratio,
+            self.mcoef_per_s / math.sqrt(mass_ratio),
+        )
+
     def deceleration_mps2(self, x_mps: float, y_mps: float) -> float:
         """The drag's deceleration (m/s²) at airspeed ``x_mps`` along the nose and ``y_mps``
         to its right (body frame, level)."""
@@ -51,13 +64,16 @@ def along_track_limit_mps(
     wind_ne_mps: tuple[float, float],
     track_deg: float,
     heading_deg: float,
+    mass_ratio: float = 1.0,
 ) -> float:
     """The airspeed along ``track_deg`` (m/s) at which a vehicle flying with its nose at
-    ``heading_deg`` meets the deceleration of ``straight_limit_mps`` straight ahead, in the
+    ``heading_deg`` and ``mass_ratio`` times the mass ``law`` was stated at (a payload) meets
+    the deceleration of ``straight_limit_mps`` straight ahead at that mass, in the
     wind ``wind_ne_mps`` (the air's velocity over the ground, north and east); −inf when no
     airspeed along the track is left (the wind across it alone needs the limit). Equals
     ``straight_limit_mps`` in still air with the nose along the track."""
     limit_mps2 = law.deceleration_mps2(straight_limit_mps, 0.0)
+    law = law.at_mass_ratio(mass_ratio)
     un, ue = math.cos(math.radians(track_deg)), math.sin(math.radians(track_deg))
     hn, he = math.cos(math.radians(heading_deg)), math.sin(math.radians(heading_deg))
     wind_along = wind_ne_mps[0] * un + wind_ne_mps[1] * ue
