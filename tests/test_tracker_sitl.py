@@ -55,6 +55,14 @@ SHORT = {
     "outback_wind8": "mass 5.2σ (+0.22 kg) at 18 s, the take-off climb's end",
     "release_wind2": "mass 15.3σ (+1.06 kg) at 49 s, the step after the mission's release",
     "square_wind5": "mass 84 % within 2σ (-0.039 kg median at 1σ 0.023 kg, no payload)",
+    # flown after the tracker's rules were last changed (the planner's held-out missions)
+    "lean2_clean_diag7": "mass 79 % within 2σ (-0.040 kg median at 1σ 0.026 kg, no payload); "
+    "3.3σ at 126 s, the return",
+    "rtl_climb_wind2": "mass 88 % within 2σ (-0.056 kg median at 1σ 0.032 kg, no payload)",
+    "rtl_cross_wind7": "mass 52 % within 2σ (-0.062 kg median at 1σ 0.029 kg, no payload); "
+    "4.0σ at 137 s, the return",
+    "rtl_diag_wind6": "mass 85 % within 2σ (-0.020 kg median at 1σ 0.055 kg, no payload)",
+    "rtl_side_wind5": "mass 85 % within 2σ (-0.039 kg median at 1σ 0.025 kg, no payload)",
 }
 SCENARIOS = [
     "clean_circles", "clean_legs", "clean_mission", "payload_release", "payload_takeoff",
@@ -62,8 +70,11 @@ SCENARIOS = [
     "wind_turn",
 ]  # fmt: skip
 MISSIONS = [
-    "climbs_wind6", "fast_wind3", "loiter_wind1", "outback_wind8", "payload_wind4",
-    "release_wind2", "square_wind5", "tall_wind4", "zigzag_wind7",
+    "climbs_wind6", "fast_wind3", "lean2_clean_diag7", "lean2_payload_back4",
+    "lean2_payload_climb3", "lean2_payload_cross5", "lean2_payload_headwind6", "loiter_wind1",
+    "outback_wind8", "payload_wind4", "release_wind2", "rtl_back_wind3", "rtl_climb_wind2",
+    "rtl_cross_wind7", "rtl_diag_wind6", "rtl_payload_wind4", "rtl_side_wind5", "square_wind5",
+    "tall_wind4", "zigzag_wind7",
 ]  # fmt: skip
 
 
@@ -94,7 +105,7 @@ def test_the_running_mass_and_wind_hold_90_percent_within_2_sigma_and_3_sigma_al
 
 @pytest.mark.xfail(
     strict=True,
-    reason="pooled mass 96 % within 2σ and 100 % within 3σ, wind 95 % and 98 %: the wind's "
+    reason="pooled mass 94 % within 2σ and 99 % within 3σ, wind 96 % and 98 %: the wind's "
     "changes arrive late",
 )
 @pytest.mark.parametrize("group", ["all", "held out"])
