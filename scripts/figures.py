@@ -82,6 +82,7 @@ from estimator.analysis.mission_energy import FlightSettings
 from estimator.analysis.mission_validation import (
     MissionCheck,
     check_recording,
+    leg_checks,
     truth_conditions,
 )
 from estimator.analysis.replay import (
@@ -500,6 +501,22 @@ def plan_airspeed_total() -> str:
     settings = FlightSettings(max_airspeed_mps=10.5, airspeed_along_track=False)
     errors = _abs_errors(mission_checks(settings=settings))
     return f"{np.median(errors):.1f} % / {errors.max():.1f} %"
+
+
+#: The mission whose legs docs/plan.md sets planned against flown (the RTL off the nose).
+PLAN_LEGS_MISSION = MISSIONS / "tall_wind4"
+
+
+@generator("plan-legs")
+def plan_legs() -> str:
+    """tall_wind4's legs, planned (told the wind SITL flew) against flown."""
+    rows = [
+        f"| {c.seq} | {c.kind} | {c.planned_time_s:.1f} / {c.flown_time_s:.1f} "
+        f"| {c.planned_wh:.2f} / {c.flown_wh:.2f} | {fits.number(c.error_pct, '+.1f')} % |"
+        for c in leg_checks(PLAN_LEGS_MISSION, load_vehicle(sitl.SITL_VEHICLE))
+    ]
+    header = "| item | leg | time s plan / flown | energy Wh plan / flown | error |\n"
+    return header + "|---:|---|---:|---:|---:|\n" + "\n".join(rows)
 
 
 @generator("plan-headline")

@@ -11,9 +11,10 @@ import pytest
 from pymavlink import mavutil
 
 from estimator.analysis.mission_energy import mission_energy
-from estimator.analysis.mission_validation import check_recording, truth_conditions
+from estimator.analysis.mission_validation import check_recording, leg_checks, truth_conditions
 from estimator.errors import UserError
 from estimator.logs.mission_files import load_mission
+from estimator.logs.mission_progress import mission_item_starts
 from estimator.physics.lean_limit import DragLaw, along_track_limit_mps
 from estimator.physics.vehicle import default_vehicle, load_vehicle, vehicle_from_toml
 
@@ -123,3 +124,20 @@ def test_each_recorded_missions_energy_is_planned_within_3_percent(name: str) ->
     development figures for it, the rtl_* missions held out)."""
     check = check_recording(MISSIONS / name, load_vehicle(SITL_VEHICLE))
     assert abs(check.error_pct) <= 3.0, round(check.error_pct, 2)
+
+
+def test_the_legs_planned_and_flown_add_up_to_the_mission(tmp_path: Path) -> None:
+    """Per-leg checks split the mission at each item's first MISSION_CURRENT: their planned
+    energies sum to the plan's, their flown ones to the measured energy (the stretches meet
+    at the item changes, so only the trapezoids across them differ)."""
+    vehicle = load_vehicle(SITL_VEHICLE)
+    for name in ("tall_wind4", "outback_wind8", "lean2_payload_back4"):
+        legs = leg_checks(MISSIONS / name, vehicle)
+        whole = check_recording(MISSIONS / name, vehicle)
+        assert sum(c.planned_wh for c in legs) == pytest.approx(whole.predicted_wh, rel=1e-9)
+        assert sum(c.flown_wh for c in legs) == pytest.approx(whole.measured_wh, rel=0.005)
+        assert legs[0].kind == "takeoff" and legs[-1].kind in ("rtl", "land")
+    empty = tmp_path / "no_mission.tlog"
+    empty.write_bytes(b"")
+    with pytest.raises(UserError, match="no MISSION_CURRENT"):
+        mission_item_starts(empty)

@@ -6,6 +6,9 @@ battery telemetry (SYS_STATUS voltage × BATTERY_STATUS current, as the log read
 them), integrated by trapezoids from the mission start (MAV_CMD_MISSION_START accepted) to
 the disarm after landing. Predicted: :func:`~estimator.analysis.mission_energy.mission_energy`
 on the mission file with the wind and payload of the truth, and the PX4-style estimate beside.
+Per leg (:func:`leg_checks`): each planned leg against the stretch of the flight from the
+first report of its mission item (MISSION_CURRENT, :mod:`estimator.logs.mission_progress`) to
+the next planned item's (the disarm for the last).
 """
 
 from __future__ import annotations
@@ -21,6 +24,7 @@ from estimator.analysis.mission_energy import FlightSettings, MissionEnergy, mis
 from estimator.errors import UserError
 from estimator.logs import load_flights
 from estimator.logs.mission_files import load_mission
+from estimator.logs.mission_progress import mission_item_starts
 from estimator.physics.route_energy import Conditions
 from estimator.physics.vehicle import Vehicle
 
@@ -46,6 +50,23 @@ class MissionCheck:
     @property
     def px4_error_pct(self) -> float:
         return 100.0 * (self.px4_wh - self.measured_wh) / self.measured_wh
+
+
+@dataclass(frozen=True)
+class LegCheck:
+    """One planned leg (its mission item ``seq`` and ``kind``) against the flight: time (s)
+    and energy (Wh) planned and flown."""
+
+    seq: int
+    kind: str
+    planned_time_s: float
+    planned_wh: float
+    flown_time_s: float
+    flown_wh: float
+
+    @property
+    def error_pct(self) -> float:
+        return 100.0 * (self.planned_wh - self.flown_wh) / self.flown_wh
 
 
 def measured_energy(tlog: Path, start_s: float, end_s: float) -> tuple[float, float]:
@@ -114,3 +135,30 @@ def check_recording(
         px4_time_s=plan.px4.time_s,
         measured_time_s=measured_s,
     )
+
+
+def leg_checks(directory: Path, vehicle: Vehicle) -> list[LegCheck]:
+    """Each planned leg of a recording (planned in its truth's wind and payload) against the
+    flight between its item's first report and the next planned item's; the first leg starts
+    at the mission's start, the last ends at the disarm. Legs of one item (a return the plan
+    added) are one row."""
+    events = json.loads((directory / "truth.json").read_text())["events"]
+    tlog = directory / "flight.tlog"
+    plan = predict_recording(directory, vehicle)
+    reached = mission_item_starts(tlog)
+    rows: list[tuple[int, str, float, float]] = []
+    for result in plan.legs:
+        seq, energy = result.leg.seq, result.energy
+        if rows and rows[-1][0] == seq:
+            _, kind, time_s, wh = rows[-1]
+            rows[-1] = (seq, kind, time_s + energy.time_s, wh + energy.energy_wh)
+        else:
+            rows.append((seq, result.leg.kind, energy.time_s, energy.energy_wh))
+    starts = [next((t for s, t in reached if s >= seq), math.nan) for seq, *_ in rows]
+    starts[0] = events["mission_start_s"]
+    ends = [*starts[1:], events["disarmed_s"]]
+    checks = []
+    for (seq, kind, time_s, wh), start_s, end_s in zip(rows, starts, ends, strict=True):
+        flown_wh, flown_s = measured_energy(tlog, start_s, end_s)
+        checks.append(LegCheck(seq, kind, time_s, wh, flown_s, flown_wh))
+    return checks
