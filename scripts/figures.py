@@ -82,6 +82,7 @@ from estimator.analysis.mission_energy import FlightSettings
 from estimator.analysis.mission_validation import (
     MissionCheck,
     check_recording,
+    predict_recording,
     truth_conditions,
 )
 from estimator.analysis.replay import (
@@ -96,10 +97,13 @@ from estimator.errors import UserError
 from estimator.logs import iter_samples, sanity
 from estimator.logs.mission_files import load_mission
 from estimator.logs.sanity import SanityRecorder
+from estimator.physics.route_energy import Conditions, RouteVehicle, steady_power_w
 from estimator.physics.vehicle import BatterySpec, Vehicle, default_vehicle, load_vehicle
 from estimator.reports.doc_blocks import Block, blocks_in, rewrite
 from estimator.reports.fit_report import circles_markdown
 from estimator.sim.experiments import Experiments, curve_table, reproduce
+from estimator.sitl.truth_check import angle_deg
+from estimator.telemetry.samples import MissionCurrentSample, VelocitySample
 
 REPO = Path(__file__).resolve().parent.parent
 DOCUMENTS = (REPO / "README.md", *sorted((REPO / "docs").glob("*.md")))
@@ -131,6 +135,7 @@ tracker_cmu = script_module("tracker_cmu")
 tracker_sitl = script_module("tracker_sitl")
 pack_table = script_module("pack_state_sitl")
 pack_fit_table = script_module("pack_fit_sitl")
+vertical_fit = script_module("vertical_fit", REPO / "tests")
 MISSIONS = sitl.SITL_RECORDINGS / "missions"
 #: The missions the planner's flight settings were read off (docs/plan.md, "Calibration").
 CALIBRATION = ("climbs_wind6", "outback_wind8", "square_wind5")
@@ -484,6 +489,64 @@ def plan_airspeed_total() -> str:
     settings = FlightSettings(max_airspeed_mps=10.5, airspeed_along_track=False)
     errors = _abs_errors(mission_checks(settings=settings))
     return f"{np.median(errors):.1f} % / {errors.max():.1f} %"
+
+
+#: The climb and descent rates (m/s) docs/plan.md gives the planner's climb term at.
+CLIMB_MPS, DESCENT_MPS = 2.5, 1.5
+
+
+@generator("plan-climb-power")
+def plan_climb_power() -> str:
+    """The planner's power beyond hover (W) at :data:`CLIMB_MPS` up and :data:`DESCENT_MPS`
+    down with the SITL vehicle file, and SITL's at the same rates: its vertical law fitted on
+    the climbs and descents of ``replay/sitl_axial`` (``tests/vertical_fit.py``)."""
+    vehicle = load_vehicle(sitl.SITL_VEHICLE)
+    climb_mps = np.array([CLIMB_MPS, -DESCENT_MPS])
+    route = RouteVehicle.from_vehicle(vehicle)
+    hover_w, *planned_w = steady_power_w(route, Conditions(), 0.0, 0.0, [0.0, *-climb_mps])
+    axial = [vertical_fit.axial_samples(name) for name in vertical_fit.AXIAL_FLIGHTS]
+    per_mps, per_mps2, _ = vertical_fit.vertical_response(axial, vehicle)
+    sitl_w = per_mps * climb_mps + per_mps2 * climb_mps * np.abs(climb_mps)
+    up, down = (
+        f"{fits.number(plan_w - hover_w, '+.0f')} W at {abs(rate):g} m/s {way}"
+        for plan_w, rate, way in zip(planned_w, climb_mps, ("up", "down"), strict=True)
+    )
+    measured = " and ".join(f"{fits.number(w, '+.0f')} W" for w in sitl_w)
+    return (
+        f"{up} and {down}, where SITL draws {measured} (its vertical law fitted on the "
+        f"flights of `replay/sitl_axial`)"
+    )
+
+
+#: The recorded mission whose headwind leg docs/plan.md names among the remaining misses.
+HEADWIND_MISSION = MISSIONS / "outback_wind8"
+
+
+def flown_ground_speed_mps(tlog: Path, seq: int) -> float:
+    """The median horizontal ground speed (m/s) of a recording while the autopilot flew to
+    mission item ``seq`` (MISSION_CURRENT)."""
+    flying, speeds = False, []
+    for sample in iter_samples(tlog):
+        if isinstance(sample, MissionCurrentSample):
+            flying = sample.seq == seq
+        elif flying and isinstance(sample, VelocitySample):
+            speeds.append(math.hypot(sample.vn_mps, sample.ve_mps))
+    return float(np.median(speeds))
+
+
+@generator("plan-headwind-leg")
+def plan_headwind_leg() -> str:
+    """On :data:`HEADWIND_MISSION`, the waypoint leg flown most nearly into the wind SITL
+    flew: its ground speed as flown (the median) and as planned (m/s)."""
+    told = truth_conditions(_truth(HEADWIND_MISSION))
+    plan = predict_recording(HEADWIND_MISSION, load_vehicle(sitl.SITL_VEHICLE))
+    legs = [r for r in plan.legs if r.leg.kind == "waypoint"]
+    upwind = min(legs, key=lambda r: angle_deg(r.track_deg, told.wind_from_deg))
+    flown_mps = flown_ground_speed_mps(HEADWIND_MISSION / "flight.tlog", upwind.leg.seq)
+    return (
+        f"`{HEADWIND_MISSION.name}`: the quad makes {flown_mps:.1f} m/s into "
+        f"{told.wind_speed_mps:g} m/s, planned {upwind.energy.ground_speed_mps:.1f}"
+    )
 
 
 @generator("plan-headline")
@@ -881,6 +944,7 @@ generator("sitl-hexa-energy", checked_by=_SITL_RECORDINGS_TEST)(
 generator("sitl-wind-cost", checked_by=_SITL_RECORDINGS_TEST)(
     lambda: sitl.wind_cost(sitl_replays())
 )
+generator("sitl-payload-hover-current")(sitl.payload_hover_current)
 
 
 @generator("sitl-effects-table", checked_by=_SITL_EFFECTS_TEST)

@@ -12,11 +12,15 @@ from __future__ import annotations
 
 import json
 from collections.abc import Iterable, Mapping
+from fractions import Fraction
 from functools import cache
 from pathlib import Path
 from typing import Any
 
+import numpy as np
+
 from estimator.analysis.replay import FlightReplay, summarize
+from estimator.logs import load_flights
 from estimator.physics.vehicle import load_vehicle
 from estimator.sitl.truth_check import Match, RecordingCheck, angle_deg, score_recording, span_s
 
@@ -88,6 +92,40 @@ def wind_cost(replays: Mapping[str, FlightReplay]) -> str:
         summarize([replays[name]]).energy_measured_wh for name in (STEADY_WIND, CLEAN_LEGS)
     )
     return f"{STEADY_WIND} {100 * (wind / clean - 1):+.1f} % energy over {CLEAN_LEGS}"
+
+
+#: docs/sitl.md's payload figure: the recording that releases its load in a hover.
+PAYLOAD_RELEASE = "payload_release"
+#: A hover, for that figure: horizontal and vertical speed below these (m/s).
+HOVER_SPEED_MPS, HOVER_CLIMB_MPS = 0.3, 0.2
+#: Seconds left out of the hovers on either side of the truth's payload switches (the
+#: gripper's jaw opens about 1 s after the release's acknowledgement).
+SWITCH_MARGIN_S = 3.0
+
+
+def payload_hover_current() -> str:
+    """docs/sitl.md: the median hover current (A) of :data:`PAYLOAD_RELEASE` without its load
+    (after the release) and with it, their ratio, and the weights' ratio (its truth)."""
+    truth = _truth(PAYLOAD_RELEASE)
+    [payload] = [e for e in truth["effects"] if e["effect"] == "payload"]
+    tlog = SITL_RECORDINGS / PAYLOAD_RELEASE / "flight.tlog"
+    flight = max(load_flights([tlog]), key=len)
+    t, events = flight.time_s, truth["events"]
+    hover = (
+        (t > events["takeoff_s"])
+        & (t < events["landed_s"])
+        & (flight.speed_mps < HOVER_SPEED_MPS)
+        & (np.abs(flight.vd_mps) < HOVER_CLIMB_MPS)
+    )
+    loaded = (t > payload["start_s"] + SWITCH_MARGIN_S) & (t < payload["end_s"] - SWITCH_MARGIN_S)
+    empty = t > payload["end_s"] + SWITCH_MARGIN_S
+    without_a, with_a = (float(np.median(flight.current_a[hover & m])) for m in (empty, loaded))
+    weights = Fraction((truth["mass_kg"] + payload["mass_kg"]) / truth["mass_kg"])
+    return (
+        f"hover current rises from {without_a:.1f} A to {with_a:.1f} A "
+        f"({100 * (with_a / without_a - 1):+.0f} %, the {weights.limit_denominator(10)} of "
+        f"the weight)"
+    )
 
 
 def effect_scenarios() -> list[str]:
