@@ -70,7 +70,7 @@ import sys
 import tempfile
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import replace
-from functools import cache
+from functools import cache, partial
 from pathlib import Path
 from types import ModuleType
 from typing import Any
@@ -945,6 +945,10 @@ generator("sitl-wind-cost", checked_by=_SITL_RECORDINGS_TEST)(
     lambda: sitl.wind_cost(sitl_replays())
 )
 generator("sitl-payload-hover-current")(sitl.payload_hover_current)
+for _recording in (sitl.PAYLOADS[0], sitl.HEAVY_AIRFRAME):
+    generator(f"sitl-hover-power-{_recording.replace('_', '-')}")(
+        partial(sitl.hover_power_rise, _recording)
+    )
 
 
 @generator("sitl-effects-table", checked_by=_SITL_EFFECTS_TEST)
@@ -983,6 +987,16 @@ generator("sitl-held-floors", checked_by=_SITL_HELD_TEST)(
 generator("sitl-held-summary", checked_by=_SITL_HELD_TEST)(
     lambda: sitl.held_summary(sitl.held_checks())
 )
+for _name, _figures in (
+    ("sitl-held-windows", sitl.held_windows),
+    ("sitl-held-autopilot-wind", sitl.held_autopilot_wind),
+    ("sitl-held-short-onset", sitl.held_short_onset),
+    *(
+        (f"sitl-held-no-gain-{flight.replace('_', '-')}", partial(sitl.held_no_gain, name=flight))
+        for flight in sitl.HELD_NO_GAIN
+    ),
+):
+    generator(_name, checked_by=_SITL_HELD_TEST)(lambda f=_figures: f(sitl.held_checks()))
 
 
 @generator("tracked-wind-sitl", checked_by=_SITL_RECORDINGS_TEST)
