@@ -78,7 +78,7 @@ from typing import Any
 import numpy as np
 
 from estimator import cli
-from estimator.analysis.mission_energy import FlightSettings
+from estimator.analysis.mission_energy import FlightSettings, LegResult, MissionEnergy
 from estimator.analysis.mission_validation import (
     MissionCheck,
     check_recording,
@@ -347,6 +347,22 @@ def iris_replay_reading_noise() -> str:
     )
 
 
+@generator("iris-replay-march", reads=IRIS)
+def iris_replay_march() -> str:
+    """The power RMSE (W) of the March flights replayed with their own vehicle file."""
+    _, flights = iris_periods()["March 2016"]
+    return f"{summarize(flights).power_rmse_w:.0f} W"
+
+
+@generator("fleet-iris-file-masses")
+def fleet_iris_file_masses() -> str:
+    """The masses (kg) of the two IRIS+ periods' vehicle files and their ratio."""
+    march, summer = (
+        load_vehicle(REPO / "config" / "vehicles" / name).mass_kg for _, name in PERIODS.values()
+    )
+    return f"{march:g} → {summer:g} kg (×{summer / march:.2f})"
+
+
 @generator("iris-replay-builtin", reads=IRIS)
 def iris_replay_builtin() -> str:
     """The same logs with the built-in vehicle (no ``--vehicle``)."""
@@ -534,18 +550,38 @@ def flown_ground_speed_mps(tlog: Path, seq: int) -> float:
     return float(np.median(speeds))
 
 
+def upwind_leg(plan: MissionEnergy) -> LegResult:
+    """The waypoint leg of ``plan`` flown most nearly into its wind."""
+    legs = [r for r in plan.legs if r.leg.kind == "waypoint"]
+    return min(legs, key=lambda r: angle_deg(r.track_deg, plan.conditions.wind_from_deg))
+
+
 @generator("plan-headwind-leg")
 def plan_headwind_leg() -> str:
     """On :data:`HEADWIND_MISSION`, the waypoint leg flown most nearly into the wind SITL
     flew: its ground speed as flown (the median) and as planned (m/s)."""
-    told = truth_conditions(_truth(HEADWIND_MISSION))
     plan = predict_recording(HEADWIND_MISSION, load_vehicle(sitl.SITL_VEHICLE))
-    legs = [r for r in plan.legs if r.leg.kind == "waypoint"]
-    upwind = min(legs, key=lambda r: angle_deg(r.track_deg, told.wind_from_deg))
+    upwind = upwind_leg(plan)
     flown_mps = flown_ground_speed_mps(HEADWIND_MISSION / "flight.tlog", upwind.leg.seq)
     return (
         f"`{HEADWIND_MISSION.name}`: the quad makes {flown_mps:.1f} m/s into "
-        f"{told.wind_speed_mps:g} m/s, planned {upwind.energy.ground_speed_mps:.1f}"
+        f"{plan.conditions.wind_speed_mps:g} m/s, planned {upwind.energy.ground_speed_mps:.1f}"
+    )
+
+
+@generator("plan-example-upwind")
+def plan_example_upwind() -> str:
+    """docs/plan.md's example (:data:`PLAN_EXAMPLE`, planned in the wind SITL flew it in): its
+    leg most nearly into the wind, the speed the mission asks, the ground speed planned, and
+    its share of the energy (%)."""
+    plan = predict_recording(PLAN_EXAMPLE[0].parent, load_vehicle(sitl.SITL_VEHICLE))
+    upwind = upwind_leg(plan)
+    asked_mps = upwind.leg.speed_mps or plan.settings.cruise_mps
+    share = 100 * upwind.energy.energy_wh / plan.total.energy_wh
+    return (
+        f"Leg {plan.legs.index(upwind) + 1} flies into the wind: the mission asks "
+        f"{asked_mps:g} m/s, the SITL quad makes {upwind.energy.ground_speed_mps:.1f} m/s over "
+        f"ground at its airspeed limit, and that one leg takes {share:.0f} % of the energy"
     )
 
 
@@ -749,6 +785,7 @@ generator("fit-iris-determined", reads=SHARED_DATA)(lambda: fits.determined(_iri
 generator("fit-iris-c1-c3", reads=SHARED_DATA)(lambda: fits.profile_and_induced(_iris_fits()))
 generator("fit-iris-noise", reads=SHARED_DATA)(lambda: fits.noise(_iris_fits()))
 generator("fit-cmu-dip", reads=SHARED_DATA)(lambda: fits.dip(real_fits()["CMU DJI M100"]))
+generator("fit-cmu-vme", reads=SHARED_DATA)(lambda: fits.v_me(real_fits()["CMU DJI M100"]))
 
 
 @generator("fit-degree-6", reads=SHARED_DATA)
