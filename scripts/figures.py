@@ -8,8 +8,9 @@ Each ``<!-- figures:NAME -->`` … ``<!-- /figures:NAME -->`` block of those doc
   on it (in-sample), and once with the built-in vehicle; ``replay-regression-march``: the
   March flights' figures frozen in ``replay/expected.json``.
 - ``plan-*``: ``uav-energy plan`` against the nine ArduCopter SITL missions of
-  ``replay/sitl/missions`` (told the wind and payload SITL flew; and told still air), and
-  the example of docs/plan.md.
+  ``replay/sitl/missions`` (told the wind and payload SITL flew; and told still air), the
+  example of docs/plan.md, a headwind leg's ground speed as flown, and the planner's climb
+  term against SITL's vertical law on ``replay/sitl_axial`` (``tests/vertical_fit.py``).
 - ``replay-mission``, ``replay-arducopter-bin``, ``iris-vz-sign``, ``sitl-vz-sign``:
   docs/replay.md's mission given to a replay, current ArduCopter's DataFlash log replayed,
   and the vertical-velocity check on the IRIS+ logs and on ArduCopter SITL's tlog.
@@ -31,8 +32,11 @@ Each ``<!-- figures:NAME -->`` … ``<!-- /figures:NAME -->`` block of those doc
   (``scripts/sitl_figures.py``; checked by ``tests/test_sitl_recordings.py`` and
   ``tests/test_sitl_effects.py``, which compute the same results anyway, not by
   ``tests/test_figures.py``).
-- ``sitl-held-*``, ``tracker-sitl-held``: the same analysis, and the online tracker, on the
-  held-out flights of ``replay/sitl_held`` (checked by ``tests/test_sitl_held_out.py``).
+- ``sitl-payload-hover-current``, ``sitl-hover-power-*``: the hover current and power of
+  the payload and heavier-airframe recordings of ``replay/sitl`` (``scripts/sitl_figures.py``).
+- ``sitl-held-*``, ``tracker-sitl-held``: the same analysis (and its misses' candidates), and
+  the online tracker, on the held-out flights of ``replay/sitl_held`` (checked by
+  ``tests/test_sitl_held_out.py``).
 - ``state-restart-table``: ``python -m bench.trust``'s restart mid-flight (docs/daemon.md).
 - ``tracker-cmu``: ``python scripts/tracker_cmu.py`` (the online tracker on the CMU M100
   flights against their payload and anemometer).
@@ -44,8 +48,8 @@ Each ``<!-- figures:NAME -->`` … ``<!-- /figures:NAME -->`` block of those doc
   README's sentence too);
   ``pack-ensemble-*``: the simulator's ensemble of drawn packs; ``hover-cruise-*``: the
   hover→cruise acceptance flights (``python tests/test_endurance_acceptance.py``).
-- ``fleet-iris-*``: ``uav-energy fleet fit`` of the IRIS+ logs and ``fleet trends`` of its
-  rows (docs/fleet.md; ``scripts/fleet_figures.py``).
+- ``fleet-iris-*``: ``uav-energy fleet fit`` of the IRIS+ logs, ``fleet trends`` of its
+  rows (docs/fleet.md; ``scripts/fleet_figures.py``) and the two periods' vehicle-file masses.
 - ``tracker-sitl``: ``python scripts/tracker_sitl.py`` (the online tracker on the
   ArduCopter SITL recordings of ``replay/sitl``, against their wind and payload; checked by
   ``tests/test_tracker_sitl.py``).

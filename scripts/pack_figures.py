@@ -144,6 +144,35 @@ def charge_and_capacity() -> str:
     )
 
 
+#: The charges at power-up (fractions) whose voltage on the ground docs/sitl.md quotes.
+GROUND_SOCS = (0.75, 0.5)
+
+
+def ground_voltage() -> str:
+    """docs/sitl.md: the voltage (V) SITL's pack is powered up at for each charge of
+    :data:`GROUND_SOCS`, and the largest difference (mV) of a reading before arming from it
+    over the flights powered up so."""
+    started: dict[float, set[float]] = {soc: set() for soc in GROUND_SOCS}
+    worst_v, count = 0.0, 0
+    for flight in _all():
+        battery = flight.truth["battery"]
+        soc, start_v = round(battery["start_soc"], 2), battery["start_voltage_v"]
+        if soc not in started:
+            continue
+        started[soc].add(start_v)
+        armed_s = flight.truth["events"]["armed_s"]
+        ground_v = [r.voltage_v for r in flight.readings if r.time_s < armed_s]
+        worst_v = max(worst_v, *(abs(v - start_v) for v in ground_v))
+        count += 1
+    voltages = " or ".join(
+        f"{start_v:.3f} V ({100 * soc:.0f} %)" for soc, (start_v,) in started.items()
+    )
+    return (
+        f"started at {voltages}, every reading before arming is within "
+        f"{1000 * worst_v:.0f} mV of it on the {count} flights powered up so"
+    )
+
+
 def _bound(worst: float, decimals: int) -> str:
     """``worst`` rounded up to ``decimals``: a bound that holds as written."""
     return f"{math.ceil(worst * 10**decimals) / 10**decimals:.{decimals}f}"
@@ -541,6 +570,7 @@ def generators(table: ModuleType) -> dict[str, Callable[[], str]]:
             table.pooled_line(half, pooled) for half, pooled in flights().items()
         ),
         "pack-sitl-charge-capacity": charge_and_capacity,
+        "pack-sitl-ground-voltage": ground_voltage,
         "pack-sitl-warning": warning,
         "pack-sitl-endurance": endurance,
         "pack-sitl-sigma": sigma,

@@ -346,6 +346,10 @@ def _blocks_within(check: RecordingCheck, start_s: float, end_s: float) -> int:
     return len(np.unique(samples.block[inside]))
 
 
+def _wind_episode(speed_mps: float, from_deg: float, start_s: float, end_s: float) -> str:
+    return f"{speed_mps:.1f} m/s from {from_deg:.0f}°, {start_s:.0f}–{end_s:.0f} s"
+
+
 def held_windows(checks: Mapping[str, RecordingCheck]) -> str:
     """Per :data:`HELD_WINDOWS` flight: its windowed wind candidate against the true episode,
     the candidate's held-out gain (%), z and the rank test's blocks within its window."""
@@ -355,13 +359,16 @@ def held_windows(checks: Mapping[str, RecordingCheck]) -> str:
         row = _candidate(check, "wind (window)")
         params = row["params"]
         [true] = [e for e in check.score.truth.effects if e.kind == "wind"]
+        named = _wind_episode(
+            params["speed_mps"], params["from_deg"], params["at_s"], params["until_s"]
+        )
+        truth = _wind_episode(
+            true.values["speed_mps"], true.values["from_deg"], true.start_s, true.end_s
+        )
+        blocks = _blocks_within(check, params["at_s"], params["until_s"])
         parts.append(
-            f"{name}: {params['speed_mps']:.1f} m/s from {params['from_deg']:.0f}°, "
-            f"{params['at_s']:.0f}–{params['until_s']:.0f} s (truth "
-            f"{true.values['speed_mps']:g} m/s from {true.values['from_deg']:.0f}°, "
-            f"{true.start_s:.0f}–{true.end_s:.0f} s) cuts the held-out error by "
-            f"{row['gain_pct']:.0f} % at z {row['z']:.1f} over "
-            f"{_blocks_within(check, params['at_s'], params['until_s'])} blocks"
+            f"{name}: {named} (truth {truth}) cuts the held-out error by "
+            f"{row['gain_pct']:.0f} % at z {row['z']:.1f} over {blocks} blocks"
         )
     return "; ".join(parts)
 
