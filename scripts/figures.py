@@ -8,8 +8,9 @@ Each ``<!-- figures:NAME -->`` … ``<!-- /figures:NAME -->`` block of those doc
   on it (in-sample), and once with the built-in vehicle; ``replay-regression-march``: the
   March flights' figures frozen in ``replay/expected.json``.
 - ``plan-*``: ``uav-energy plan`` against the nine ArduCopter SITL missions of
-  ``replay/sitl/missions`` (told the wind and payload SITL flew; and told still air), and
-  the example of docs/plan.md.
+  ``replay/sitl/missions`` (told the wind and payload SITL flew; and told still air), the
+  example of docs/plan.md, a headwind leg's ground speed as flown, and the planner's climb
+  term against SITL's vertical law on ``replay/sitl_axial`` (``tests/vertical_fit.py``).
 - ``replay-mission``, ``replay-arducopter-bin``, ``iris-vz-sign``, ``sitl-vz-sign``:
   docs/replay.md's mission given to a replay, current ArduCopter's DataFlash log replayed,
   and the vertical-velocity check on the IRIS+ logs and on ArduCopter SITL's tlog.
@@ -31,8 +32,11 @@ Each ``<!-- figures:NAME -->`` … ``<!-- /figures:NAME -->`` block of those doc
   (``scripts/sitl_figures.py``; checked by ``tests/test_sitl_recordings.py`` and
   ``tests/test_sitl_effects.py``, which compute the same results anyway, not by
   ``tests/test_figures.py``).
-- ``sitl-held-*``, ``tracker-sitl-held``: the same analysis, and the online tracker, on the
-  held-out flights of ``replay/sitl_held`` (checked by ``tests/test_sitl_held_out.py``).
+- ``sitl-payload-hover-current``, ``sitl-hover-power-*``: the hover current and power of
+  the payload and heavier-airframe recordings of ``replay/sitl`` (``scripts/sitl_figures.py``).
+- ``sitl-held-*``, ``tracker-sitl-held``: the same analysis (and its misses' candidates), and
+  the online tracker, on the held-out flights of ``replay/sitl_held`` (checked by
+  ``tests/test_sitl_held_out.py``).
 - ``state-restart-table``: ``python -m bench.trust``'s restart mid-flight (docs/daemon.md).
 - ``tracker-cmu``: ``python scripts/tracker_cmu.py`` (the online tracker on the CMU M100
   flights against their payload and anemometer).
@@ -44,8 +48,8 @@ Each ``<!-- figures:NAME -->`` … ``<!-- /figures:NAME -->`` block of those doc
   README's sentence too);
   ``pack-ensemble-*``: the simulator's ensemble of drawn packs; ``hover-cruise-*``: the
   hover→cruise acceptance flights (``python tests/test_endurance_acceptance.py``).
-- ``fleet-iris-*``: ``uav-energy fleet fit`` of the IRIS+ logs and ``fleet trends`` of its
-  rows (docs/fleet.md; ``scripts/fleet_figures.py``).
+- ``fleet-iris-*``: ``uav-energy fleet fit`` of the IRIS+ logs, ``fleet trends`` of its
+  rows (docs/fleet.md; ``scripts/fleet_figures.py``) and the two periods' vehicle-file masses.
 - ``tracker-sitl``: ``python scripts/tracker_sitl.py`` (the online tracker on the
   ArduCopter SITL recordings of ``replay/sitl``, against their wind and payload; checked by
   ``tests/test_tracker_sitl.py``).
@@ -70,7 +74,7 @@ import sys
 import tempfile
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import replace
-from functools import cache
+from functools import cache, partial
 from pathlib import Path
 from types import ModuleType
 from typing import Any
@@ -78,11 +82,12 @@ from typing import Any
 import numpy as np
 
 from estimator import cli
-from estimator.analysis.mission_energy import FlightSettings
+from estimator.analysis.mission_energy import FlightSettings, LegResult, MissionEnergy
 from estimator.analysis.mission_validation import (
     MissionCheck,
     check_recording,
     leg_checks,
+    predict_recording,
     truth_conditions,
 )
 from estimator.analysis.replay import (
@@ -97,10 +102,13 @@ from estimator.errors import UserError
 from estimator.logs import iter_samples, sanity
 from estimator.logs.mission_files import load_mission
 from estimator.logs.sanity import SanityRecorder
+from estimator.physics.route_energy import Conditions, RouteVehicle, steady_power_w
 from estimator.physics.vehicle import BatterySpec, Vehicle, default_vehicle, load_vehicle
 from estimator.reports.doc_blocks import Block, blocks_in, rewrite
 from estimator.reports.fit_report import circles_markdown
 from estimator.sim.experiments import Experiments, curve_table, reproduce
+from estimator.sitl.truth_check import angle_deg
+from estimator.telemetry.samples import MissionCurrentSample, VelocitySample
 
 REPO = Path(__file__).resolve().parent.parent
 DOCUMENTS = (REPO / "README.md", *sorted((REPO / "docs").glob("*.md")))
@@ -132,6 +140,7 @@ tracker_cmu = script_module("tracker_cmu")
 tracker_sitl = script_module("tracker_sitl")
 pack_table = script_module("pack_state_sitl")
 pack_fit_table = script_module("pack_fit_sitl")
+vertical_fit = script_module("vertical_fit", REPO / "tests")
 MISSIONS = sitl.SITL_RECORDINGS / "missions"
 #: The missions the planner's flight settings were read off (docs/plan.md, "Calibration").
 CALIBRATION = ("climbs_wind6", "outback_wind8", "square_wind5")
@@ -348,6 +357,22 @@ def iris_replay_reading_noise() -> str:
     )
 
 
+@generator("iris-replay-march", reads=IRIS)
+def iris_replay_march() -> str:
+    """The power RMSE (W) of the March flights replayed with their own vehicle file."""
+    _, flights = iris_periods()["March 2016"]
+    return f"{summarize(flights).power_rmse_w:.0f} W"
+
+
+@generator("fleet-iris-file-masses")
+def fleet_iris_file_masses() -> str:
+    """The masses (kg) of the two IRIS+ periods' vehicle files and their ratio."""
+    march, summer = (
+        load_vehicle(REPO / "config" / "vehicles" / name).mass_kg for _, name in PERIODS.values()
+    )
+    return f"{march:g} → {summer:g} kg (×{summer / march:.2f})"
+
+
 @generator("iris-replay-builtin", reads=IRIS)
 def iris_replay_builtin() -> str:
     """The same logs with the built-in vehicle (no ``--vehicle``)."""
@@ -517,6 +542,84 @@ def plan_legs() -> str:
     ]
     header = "| item | leg | time s plan / flown | energy Wh plan / flown | error |\n"
     return header + "|---:|---|---:|---:|---:|\n" + "\n".join(rows)
+
+
+#: The climb and descent rates (m/s) docs/plan.md gives the planner's climb term at.
+CLIMB_MPS, DESCENT_MPS = 2.5, 1.5
+
+
+@generator("plan-climb-power")
+def plan_climb_power() -> str:
+    """The planner's power beyond hover (W) at :data:`CLIMB_MPS` up and :data:`DESCENT_MPS`
+    down with the SITL vehicle file, and SITL's at the same rates: its vertical law fitted on
+    the climbs and descents of ``replay/sitl_axial`` (``tests/vertical_fit.py``)."""
+    vehicle = load_vehicle(sitl.SITL_VEHICLE)
+    climb_mps = np.array([CLIMB_MPS, -DESCENT_MPS])
+    route = RouteVehicle.from_vehicle(vehicle)
+    hover_w, *planned_w = steady_power_w(route, Conditions(), 0.0, 0.0, [0.0, *-climb_mps])
+    axial = [vertical_fit.axial_samples(name) for name in vertical_fit.AXIAL_FLIGHTS]
+    per_mps, per_mps2, _ = vertical_fit.vertical_response(axial, vehicle)
+    sitl_w = per_mps * climb_mps + per_mps2 * climb_mps * np.abs(climb_mps)
+    up, down = (
+        f"{fits.number(plan_w - hover_w, '+.0f')} W at {abs(rate):g} m/s {way}"
+        for plan_w, rate, way in zip(planned_w, climb_mps, ("up", "down"), strict=True)
+    )
+    measured = " and ".join(f"{fits.number(w, '+.0f')} W" for w in sitl_w)
+    return (
+        f"{up} and {down}, where SITL draws {measured} (its vertical law fitted on the "
+        f"flights of `replay/sitl_axial`)"
+    )
+
+
+#: The recorded mission whose headwind leg docs/plan.md names among the remaining misses.
+HEADWIND_MISSION = MISSIONS / "outback_wind8"
+
+
+def flown_ground_speed_mps(tlog: Path, seq: int) -> float:
+    """The median horizontal ground speed (m/s) of a recording while the autopilot flew to
+    mission item ``seq`` (MISSION_CURRENT)."""
+    flying, speeds = False, []
+    for sample in iter_samples(tlog):
+        if isinstance(sample, MissionCurrentSample):
+            flying = sample.seq == seq
+        elif flying and isinstance(sample, VelocitySample):
+            speeds.append(math.hypot(sample.vn_mps, sample.ve_mps))
+    return float(np.median(speeds))
+
+
+def upwind_leg(plan: MissionEnergy) -> LegResult:
+    """The waypoint leg of ``plan`` flown most nearly into its wind."""
+    legs = [r for r in plan.legs if r.leg.kind == "waypoint"]
+    return min(legs, key=lambda r: angle_deg(r.track_deg, plan.conditions.wind_from_deg))
+
+
+@generator("plan-headwind-leg")
+def plan_headwind_leg() -> str:
+    """On :data:`HEADWIND_MISSION`, the waypoint leg flown most nearly into the wind SITL
+    flew: its ground speed as flown (the median) and as planned (m/s)."""
+    plan = predict_recording(HEADWIND_MISSION, load_vehicle(sitl.SITL_VEHICLE))
+    upwind = upwind_leg(plan)
+    flown_mps = flown_ground_speed_mps(HEADWIND_MISSION / "flight.tlog", upwind.leg.seq)
+    return (
+        f"`{HEADWIND_MISSION.name}`: the quad makes {flown_mps:.1f} m/s into "
+        f"{plan.conditions.wind_speed_mps:g} m/s, planned {upwind.energy.ground_speed_mps:.1f}"
+    )
+
+
+@generator("plan-example-upwind")
+def plan_example_upwind() -> str:
+    """docs/plan.md's example (:data:`PLAN_EXAMPLE`, planned in the wind SITL flew it in): its
+    leg most nearly into the wind, the speed the mission asks, the ground speed planned, and
+    its share of the energy (%)."""
+    plan = predict_recording(PLAN_EXAMPLE[0].parent, load_vehicle(sitl.SITL_VEHICLE))
+    upwind = upwind_leg(plan)
+    asked_mps = upwind.leg.speed_mps or plan.settings.cruise_mps
+    share = 100 * upwind.energy.energy_wh / plan.total.energy_wh
+    return (
+        f"Leg {plan.legs.index(upwind) + 1} flies into the wind: the mission asks "
+        f"{asked_mps:g} m/s, the SITL quad makes {upwind.energy.ground_speed_mps:.1f} m/s over "
+        f"ground at its airspeed limit, and that one leg takes {share:.0f} % of the energy"
+    )
 
 
 @generator("plan-headline")
@@ -722,6 +825,7 @@ generator("fit-iris-determined", reads=SHARED_DATA)(lambda: fits.determined(_iri
 generator("fit-iris-c1-c3", reads=SHARED_DATA)(lambda: fits.profile_and_induced(_iris_fits()))
 generator("fit-iris-noise", reads=SHARED_DATA)(lambda: fits.noise(_iris_fits()))
 generator("fit-cmu-dip", reads=SHARED_DATA)(lambda: fits.dip(real_fits()["CMU DJI M100"]))
+generator("fit-cmu-vme", reads=SHARED_DATA)(lambda: fits.v_me(real_fits()["CMU DJI M100"]))
 
 
 @generator("fit-degree-6", reads=SHARED_DATA)
@@ -917,6 +1021,11 @@ generator("sitl-hexa-energy", checked_by=_SITL_RECORDINGS_TEST)(
 generator("sitl-wind-cost", checked_by=_SITL_RECORDINGS_TEST)(
     lambda: sitl.wind_cost(sitl_replays())
 )
+generator("sitl-payload-hover-current")(sitl.payload_hover_current)
+for _recording in (sitl.PAYLOADS[0], sitl.HEAVY_AIRFRAME):
+    generator(f"sitl-hover-power-{_recording.replace('_', '-')}")(
+        partial(sitl.hover_power_rise, _recording)
+    )
 
 
 @generator("sitl-effects-table", checked_by=_SITL_EFFECTS_TEST)
@@ -955,6 +1064,16 @@ generator("sitl-held-floors", checked_by=_SITL_HELD_TEST)(
 generator("sitl-held-summary", checked_by=_SITL_HELD_TEST)(
     lambda: sitl.held_summary(sitl.held_checks())
 )
+for _name, _figures in (
+    ("sitl-held-windows", sitl.held_windows),
+    ("sitl-held-autopilot-wind", sitl.held_autopilot_wind),
+    ("sitl-held-short-onset", sitl.held_short_onset),
+    *(
+        (f"sitl-held-no-gain-{flight.replace('_', '-')}", partial(sitl.held_no_gain, name=flight))
+        for flight in sitl.HELD_NO_GAIN
+    ),
+):
+    generator(_name, checked_by=_SITL_HELD_TEST)(lambda f=_figures: f(sitl.held_checks()))
 
 
 @generator("tracked-wind-sitl", checked_by=_SITL_RECORDINGS_TEST)

@@ -209,6 +209,15 @@ def dip(fit: Fit) -> str:
     return f"{fit['hover_power_w'] - float(_model(fit).power_w(fit['v_me_mps'])):.0f} W"
 
 
+def v_me(fit: Fit) -> str:
+    """The fitted V_me ± 1σ against the speed range of the kept data (m/s)."""
+    low, high = fit["speed_range_mps"]
+    return (
+        f"V_me = {pm(fit['v_me_mps'], fit['v_me_stderr_mps'], '.1f')} m/s is inside the data "
+        f"({low:.1f}–{high:.1f} m/s)"
+    )
+
+
 def theory_against_polynomial(fit: Fit) -> str:
     models = fit["models"]
     return f"{models['theory']['rmse_w']:.1f} W vs {models['polynomial']['rmse_w']:.1f} W"

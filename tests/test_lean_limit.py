@@ -9,12 +9,17 @@ from pathlib import Path
 
 import pytest
 from pymavlink import mavutil
+from tlog_builder import flight_frames, write_tlog
 
 from estimator.analysis.mission_energy import mission_energy
-from estimator.analysis.mission_validation import check_recording, leg_checks, truth_conditions
+from estimator.analysis.mission_validation import (
+    check_recording,
+    leg_checks,
+    mission_item_starts,
+    truth_conditions,
+)
 from estimator.errors import UserError
 from estimator.logs.mission_files import load_mission
-from estimator.logs.mission_progress import mission_item_starts
 from estimator.physics.lean_limit import DragLaw, along_track_limit_mps
 from estimator.physics.vehicle import default_vehicle, load_vehicle, vehicle_from_toml
 
@@ -137,7 +142,6 @@ def test_the_legs_planned_and_flown_add_up_to_the_mission(tmp_path: Path) -> Non
         assert sum(c.planned_wh for c in legs) == pytest.approx(whole.predicted_wh, rel=1e-9)
         assert sum(c.flown_wh for c in legs) == pytest.approx(whole.measured_wh, rel=0.005)
         assert legs[0].kind == "takeoff" and legs[-1].kind in ("rtl", "land")
-    empty = tmp_path / "no_mission.tlog"
-    empty.write_bytes(b"")
+    guided = write_tlog(tmp_path / "no_mission.tlog", flight_frames(10.0))
     with pytest.raises(UserError, match="no MISSION_CURRENT"):
-        mission_item_starts(empty)
+        mission_item_starts(guided)

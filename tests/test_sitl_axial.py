@@ -22,16 +22,13 @@ import numpy as np
 import pytest
 import vertical_fit
 
-from estimator.analysis.residual_samples import ResidualOptions, Samples, prepare
-from estimator.logs import load_flights
 from estimator.physics.effects import Climb, Effect, Heave
 from estimator.physics.model import G_MPS2
 from estimator.physics.vehicle import Vehicle, load_vehicle
 
 REPO = Path(__file__).resolve().parent.parent
-RECORDINGS = REPO / "replay" / "sitl_axial"
 VEHICLE = REPO / "config" / "vehicles" / "ardupilot_sitl_quad.toml"
-FLIGHTS = ("axial_rates", "axial_rates_held")
+FLIGHTS = vertical_fit.AXIAL_FLIGHTS
 #: Vertical speed (m/s) beyond which a sample is a climb or a descent.
 MOVING_MPS = 0.5
 #: Vertical acceleration (m/s²) beyond which a sample starts or stops a climb or descent.
@@ -43,9 +40,7 @@ def sitl_vehicle() -> Vehicle:
     return load_vehicle(VEHICLE)
 
 
-@cache
-def samples(name: str) -> Samples:
-    return prepare(load_flights([RECORDINGS / name / "flight.tlog"], "tlog"), ResidualOptions())
+samples = vertical_fit.axial_samples
 
 
 def residual_w(name: str, extra: tuple[Effect, ...] = ()) -> np.ndarray:
@@ -71,14 +66,8 @@ def file_effect(name: str) -> Effect:
 
 
 def vertical_response(name: str) -> np.ndarray:
-    """SITL's residual against the level-flight model, least squares on
-    [v_c, v_c |v_c|, a_z, 1] (v_c up, m/s; a_z up, m/s²): W per m/s, W per (m/s)², W per m/s²."""
-    s = samples(name)
-    climb = -s.state.vd_mps
-    accel = np.gradient(climb, s.state.time_s)
-    design = np.column_stack([climb, climb * np.abs(climb), accel, np.ones_like(climb)])
-    coef, *_ = np.linalg.lstsq(design, residual_w(name), rcond=None)
-    return np.asarray(coef[:3])
+    """SITL's vertical law on one flight (:func:`vertical_fit.vertical_response`)."""
+    return vertical_fit.vertical_response([samples(name)], sitl_vehicle())
 
 
 @pytest.mark.parametrize("name", FLIGHTS)

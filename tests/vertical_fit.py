@@ -1,19 +1,36 @@
 """Least-squares fits of the vertical effects (``climb``, ``heave``) on one flight's analysed
-samples, against a vehicle file's level-flight model: shared by the SITL tests that check the
-file's vertical effects (``tests/test_sitl_axial.py``, ``tests/test_sitl_held_out.py``)."""
+samples, against a vehicle file's level-flight model, and SITL's own vertical law on its climbs
+and descents in place (``replay/sitl_axial/``): shared by the SITL tests that check the file's
+vertical effects (``tests/test_sitl_axial.py``, ``tests/test_sitl_held_out.py``) and
+``scripts/figures.py`` (docs/plan.md's climb power)."""
 
 from __future__ import annotations
+
+from collections.abc import Sequence
+from functools import cache
+from pathlib import Path
 
 import numpy as np
 from scipy.optimize import minimize_scalar
 
-from estimator.analysis.residual_samples import Samples
+from estimator.analysis.residual_samples import ResidualOptions, Samples, prepare
+from estimator.logs import load_flights
 from estimator.physics.effect_tables import effects_from_tables
 from estimator.physics.effects import Climb, Effect, Heave, predict_power_w
 from estimator.physics.vehicle import Vehicle
 
 #: The vehicle file's effects for vertical flight.
 VERTICAL = ("climb", "heave")
+#: ArduCopter SITL's climbs and descents in place at several rates (its SOURCE.md).
+AXIAL_RECORDINGS = Path(__file__).resolve().parent.parent / "replay" / "sitl_axial"
+AXIAL_FLIGHTS = ("axial_rates", "axial_rates_held")
+
+
+@cache
+def axial_samples(name: str) -> Samples:
+    """The analysed samples of the flight ``name`` of :data:`AXIAL_RECORDINGS`."""
+    flights = load_flights([AXIAL_RECORDINGS / name / "flight.tlog"], "tlog")
+    return prepare(flights, ResidualOptions())
 
 
 def level_effects(vehicle: Vehicle) -> list[Effect]:
@@ -56,3 +73,17 @@ def fitted_heave(samples: Samples, vehicle: Vehicle, climb: Climb) -> Heave:
         method="bounded",
     )
     return Heave(float(fit.x))
+
+
+def vertical_response(flights: Sequence[Samples], vehicle: Vehicle) -> np.ndarray:
+    """The residual against the level-flight model, least squares on [v_c, v_c |v_c|, a_z, 1]
+    (v_c up, m/s; a_z up, m/s²) over the samples of ``flights`` pooled: W per m/s, W per
+    (m/s)², W per m/s²."""
+    rows, residuals = [], []
+    for samples in flights:
+        climb = -samples.state.vd_mps
+        accel = np.gradient(climb, samples.state.time_s)
+        rows.append(np.column_stack([climb, climb * np.abs(climb), accel, np.ones_like(climb)]))
+        residuals.append(residual_w(samples, vehicle))
+    coef, *_ = np.linalg.lstsq(np.vstack(rows), np.concatenate(residuals), rcond=None)
+    return np.asarray(coef[:3])

@@ -7,8 +7,8 @@ them), integrated by trapezoids from the mission start (MAV_CMD_MISSION_START ac
 the disarm after landing. Predicted: :func:`~estimator.analysis.mission_energy.mission_energy`
 on the mission file with the wind and payload of the truth, and the PX4-style estimate beside.
 Per leg (:func:`leg_checks`): each planned leg against the stretch of the flight from the
-first report of its mission item (MISSION_CURRENT, :mod:`estimator.logs.mission_progress`) to
-the next planned item's (the disarm for the last).
+first report of its mission item (MISSION_CURRENT, :func:`mission_item_starts`) to the next
+planned item's (the disarm for the last).
 """
 
 from __future__ import annotations
@@ -22,11 +22,11 @@ import numpy as np
 
 from estimator.analysis.mission_energy import FlightSettings, MissionEnergy, mission_energy
 from estimator.errors import UserError
-from estimator.logs import load_flights
+from estimator.logs import iter_samples, load_flights
 from estimator.logs.mission_files import load_mission
-from estimator.logs.mission_progress import mission_item_starts
 from estimator.physics.route_energy import Conditions
 from estimator.physics.vehicle import Vehicle
+from estimator.telemetry.samples import MissionCurrentSample
 
 
 @dataclass(frozen=True)
@@ -81,6 +81,18 @@ def measured_energy(tlog: Path, start_s: float, end_s: float) -> tuple[float, fl
     if len(t) < 2:
         raise UserError(f"{tlog}: no battery readings between {start_s:g} and {end_s:g} s")
     return float(np.trapezoid(p, t) / 3600.0), float(t[-1] - t[0])
+
+
+def mission_item_starts(tlog: Path) -> list[tuple[int, float]]:
+    """(mission item, autopilot time in s) of each item's first MISSION_CURRENT in ``tlog``,
+    in the order reported; UserError when the log reports no mission progress."""
+    starts: list[tuple[int, float]] = []
+    for sample in iter_samples(tlog):
+        if isinstance(sample, MissionCurrentSample) and all(s != sample.seq for s, _ in starts):
+            starts.append((sample.seq, sample.time_s))
+    if not starts:
+        raise UserError(f"{tlog}: no MISSION_CURRENT from the autopilot (not an AUTO mission?)")
+    return starts
 
 
 def truth_conditions(truth: dict, wind_sigma_mps: float = 0.0) -> Conditions:
