@@ -23,18 +23,8 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from estimator.telemetry.samples import (
-    ArmedSample,
-    BatterySample,
-    GripperSample,
-    HomeSample,
-    LandedSample,
-    MissionCurrentSample,
-    PositionSample,
-    Sample,
-    VelocitySample,
-    WindSample,
-)
+from estimator.telemetry import samples as sample_types
+from estimator.telemetry.samples import BatterySample, Sample, VelocitySample, WindSample
 
 if TYPE_CHECKING:
     from estimator.telemetry.plausibility import ClockSettings, InputLimits
@@ -54,12 +44,12 @@ _KINDS = {
     WindSample: 3,
     **dict.fromkeys(
         (
-            ArmedSample,
-            LandedSample,
-            GripperSample,
-            PositionSample,
-            HomeSample,
-            MissionCurrentSample,
+            sample_types.ArmedSample,
+            sample_types.LandedSample,
+            sample_types.GripperSample,
+            sample_types.PositionSample,
+            sample_types.HomeSample,
+            sample_types.MissionCurrentSample,
         ),
         0,
     ),
