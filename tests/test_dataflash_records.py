@@ -13,6 +13,7 @@ from fixtures.flight import make_truth, write_bin, write_copter32_bin
 from pymavlink.DFReader import DFReader_binary
 
 from estimator.logs import dataflash_records, iter_samples
+from estimator.telemetry.samples import BatterySample
 
 DATA = Path(__file__).parent / "data"
 REPO = Path(__file__).parent.parent
@@ -113,3 +114,20 @@ def test_a_format_that_does_not_fill_its_record_is_read_by_the_library(tmp_path:
     stream = iter_samples(forged)
     samples = list(stream)
     assert samples and stream.bad_frames > 0
+
+
+def test_a_column_named_beyond_its_format_is_a_bad_frame_not_a_crash(tmp_path: Path) -> None:
+    """A forged FMT naming more columns than it has fields, RemPct among the extra ones:
+    pymavlink's message raises IndexError on reading it (the reader used to stop with that
+    traceback); a row has no such column, and each BAT record is a counted bad frame."""
+    data = bytearray(write_bin(tmp_path / "f.bin", make_truth()).read_bytes())
+    columns = b"TimeUS,Inst,Volt,VoltR,Curr,CurrTot,EnrgTot,Temp,Res,Pad,RemPct"
+    at = data.index(columns.replace(b",Pad", b""))
+    data[at : at + len(columns)] = columns  # over the column string's NUL padding
+    forged = tmp_path / "forged.bin"
+    forged.write_bytes(bytes(data))
+    stream = iter_samples(forged)
+    samples = list(stream)
+    bat = DFReader_binary(str(forged))
+    assert stream.bad_frames == bat.counts[bat.name_to_id["BAT"]]
+    assert samples and not any(isinstance(s, BatterySample) for s in samples)

@@ -1,7 +1,9 @@
 """ArduPilot DataFlash (.bin) logs → :mod:`estimator.telemetry.samples` samples.
 
-Records are read with pymavlink's ``DFReader_binary``, whose per-type offset index lets us
-parse only the types we use (no ``mavutil`` connection, no process-wide state). Time is
+Records are indexed by pymavlink's ``DFReader_binary`` (no ``mavutil`` connection, no
+process-wide state); those of the types we use are decoded column-wise from its index and
+format tables (:mod:`estimator.logs.dataflash_records`), or read as its messages where a
+damaged or forged format makes its own read differ from that. Time is
 seconds since the autopilot's boot: each record's ``TimeUS`` (µs; Copter ≥ 3.3), else its
 ``TimeMS`` (ms; Copter ≤ 3.2, whose ``GPS.TimeMS`` is the GPS time of week and ``GPS.T`` the
 boot time); a record without a time column (Copter 3.2's ``EV`` and ``MSG``) takes the time of
