@@ -68,6 +68,40 @@ class GuardLimits:
     max_wind_mps: float
 
 
+#: :class:`RunSearch`: the samples a run is looked for in, at first and at most; the run
+#: worth a search (a search costs about what checking a few dozen samples one by one
+#: does); the samples checked one by one after a run stops, at first and at most.
+FIRST_RUN_WINDOW = 64
+MAX_RUN_WINDOW = 4096
+WORTHWHILE_RUN = 128
+SEQUENTIAL_SPAN = 16
+MAX_SEQUENTIAL_SPAN = 1024
+
+
+@dataclass(slots=True)
+class RunSearch:
+    """Where a guard looks for clean runs: in a ``window`` of samples, doubled while it is
+    clean; after a run stops, ``one_by_one`` samples (``span``, doubled after each run of
+    fewer than :data:`WORTHWHILE_RUN` samples, reset after a longer one) are checked one by
+    one before the next search, so a hostile stream costs about what checking every sample
+    one by one does. ``clean``: the samples of the run so far (it may span searches)."""
+
+    window: int = FIRST_RUN_WINDOW
+    span: int = SEQUENTIAL_SPAN
+    one_by_one: int = 0
+    clean: int = 0
+
+    def stopped(self, run: int, looked_at: int) -> None:
+        """A search found ``run`` clean samples at the head of ``looked_at``."""
+        self.clean += run
+        if run == looked_at:
+            self.window = min(2 * self.window, MAX_RUN_WINDOW)
+            return
+        short, self.clean, self.window = self.clean < WORTHWHILE_RUN, 0, FIRST_RUN_WINDOW
+        self.span = min(2 * self.span, MAX_SEQUENTIAL_SPAN) if short else SEQUENTIAL_SPAN
+        self.one_by_one = self.span
+
+
 def clean_run(
     samples: list[Sample],
     clock_s: float,

@@ -34,7 +34,7 @@ from collections import Counter
 from dataclasses import dataclass, replace
 from operator import attrgetter
 
-from estimator.telemetry.guard_runs import GuardLimits, clean_run
+from estimator.telemetry.guard_runs import GuardLimits, RunSearch, clean_run
 from estimator.telemetry.samples import (
     BatterySample,
     RebootSample,
@@ -505,12 +505,6 @@ class ClockFilter:
         return old + out
 
 
-#: Samples :meth:`SampleGuard.check_many` checks one by one after a clean run stops, at
-#: first and at most.
-SEQUENTIAL_SPAN = 16
-MAX_SEQUENTIAL_SPAN = 1024
-
-
 class SampleGuard:
     """Value and time checks on a log reader's samples, each stamped with its own time: a
     sample beyond ``limits`` is dropped and counted under the reason; times go through a
@@ -529,6 +523,7 @@ class SampleGuard:
             MAX_ACCELERATION_MPS2,
             MAX_WIND_MPS,
         )
+        self._search = RunSearch()
 
     def check(self, sample: Sample) -> list[Sample]:
         """The samples to deliver for ``sample`` (none, it, or held ones before it)."""
@@ -552,20 +547,24 @@ class SampleGuard:
     def check_many(self, samples: list[Sample]) -> list[Sample]:
         """The samples to deliver for ``samples`` in turn, as :meth:`check` one by one would
         give them. Runs of samples that change nothing but the clock and the believed
-        velocity are found column-wise (:func:`~estimator.telemetry.guard_runs.clean_run`);
-        after a sample such a run stops at, the next :data:`SEQUENTIAL_SPAN` samples (twice
-        as many after each run shorter than that) are checked one by one."""
+        velocity are found column-wise (:func:`~estimator.telemetry.guard_runs.clean_run`),
+        the other samples checked one by one; :class:`~estimator.telemetry.guard_runs.
+        RunSearch` says where to look for a run and how many samples to check one by one."""
         out: list[Sample] = []
-        start, span = 0, SEQUENTIAL_SPAN
+        start, search = 0, self._search
         while start < len(samples):
-            run = self._clean_run(samples[start:])
-            out += samples[start : start + run]
-            self._passed(samples[start : start + run])
+            if search.one_by_one:
+                part = samples[start : start + search.one_by_one]
+                for sample in part:
+                    out += self.check(sample)
+                start, search.one_by_one = start + len(part), search.one_by_one - len(part)
+                continue
+            window = samples[start : start + search.window]
+            run = self._clean_run(window)
+            out += window[:run]
+            self._passed(window[:run])
             start += run
-            span = SEQUENTIAL_SPAN if run >= span else min(2 * span, MAX_SEQUENTIAL_SPAN)
-            for sample in samples[start : start + span]:
-                out += self.check(sample)
-            start += span
+            search.stopped(run, len(window))
         return out
 
     def _clean_run(self, samples: list[Sample]) -> int:
