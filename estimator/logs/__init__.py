@@ -20,6 +20,7 @@ the last two live in their own modules, imported only when such a file is met.
 from __future__ import annotations
 
 import importlib
+import itertools
 import os
 from collections import Counter
 from collections.abc import Iterable, Iterator, Sequence
@@ -60,6 +61,8 @@ _MAVLINK_STX = (0xFE, 0xFD)
 #: year 2112), so 1 in ~10⁴ random heads passes, not 1 in 128 as on the STX byte alone.
 _TLOG_MAX_TIME_US = 2**52
 _MODULES = {"tlog": "tlog", "cmu-csv": "cmu", "dataflash": "dataflash", "ulog": "ulog"}
+#: Samples a log reader gives the value and time checks at once.
+_GUARD_BATCH = 512
 
 
 @dataclass
@@ -224,8 +227,8 @@ def iter_samples(
 def _guarded(
     samples: Iterator[Sample], stream: SampleStream, guard: SampleGuard
 ) -> Iterator[Sample]:
-    for sample in samples:
-        yield from guard.check(sample)
+    while batch := list(itertools.islice(samples, _GUARD_BATCH)):
+        yield from guard.check_many(batch)
     yield from guard.flush()
     stream.count_checks(guard.counts)
 

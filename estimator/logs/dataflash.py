@@ -1,7 +1,9 @@
 """ArduPilot DataFlash (.bin) logs → :mod:`estimator.telemetry.samples` samples.
 
-Records are read with pymavlink's ``DFReader_binary``, whose per-type offset index lets us
-parse only the types we use (no ``mavutil`` connection, no process-wide state). Time is
+Records are indexed by pymavlink's ``DFReader_binary`` (no ``mavutil`` connection, no
+process-wide state); those of the types we use are decoded column-wise from its index and
+format tables (:mod:`estimator.logs.dataflash_records`), or read as its messages where a
+damaged or forged format makes its own read differ from that. Time is
 seconds since the autopilot's boot: each record's ``TimeUS`` (µs; Copter ≥ 3.3), else its
 ``TimeMS`` (ms; Copter ≤ 3.2, whose ``GPS.TimeMS`` is the GPS time of week and ``GPS.T`` the
 boot time); a record without a time column (Copter 3.2's ``EV`` and ``MSG``) takes the time of
@@ -37,6 +39,7 @@ from __future__ import annotations
 import contextlib
 import heapq
 import io
+import itertools
 import math
 import os
 import re
@@ -49,7 +52,7 @@ import numpy as np
 from pymavlink.DFReader import DFReader_binary
 
 from estimator.errors import UserError
-from estimator.logs import SampleStream
+from estimator.logs import SampleStream, dataflash_records
 from estimator.telemetry.decode import gripper_released
 from estimator.telemetry.samples import (
     ArmedSample,
@@ -72,9 +75,19 @@ GPS_FIX_3D = 3
 FIRMWARE_TEXT = re.compile(r"^(?:Ardu\w+|APM:\w+) V?\d+\.\d+")
 #: Records are re-sorted by time within this window (ArduPilot logs from several threads).
 REORDER_WINDOW_S = 0.5
-#: Records parsed between yields (pymavlink's diagnostics are silenced per batch).
+#: Records the library parses between yields (its diagnostics are silenced per batch).
 _BATCH = 2000
 _INSTANCE_COLUMNS = ("Inst", "Instance", "I")
+_CLOCK_COLUMNS = ("TimeUS", "T", "TimeMS")
+#: Every column the record handlers read.
+_COLUMNS = (
+    *_CLOCK_COLUMNS,
+    *_INSTANCE_COLUMNS,
+    *("C", "VN", "VE", "VD", "PD"),  # EKF
+    *("Status", "Alt", "GCrs", "Spd", "VZ"),  # GPS
+    *("Volt", "Curr", "CurrTot", "RemPct"),  # battery
+    *("ArmState", "Id", "Message"),
+)
 _INTEGER_CHARS = frozenset("bBhHiI")
 FMT_TYPE = 0x80
 
@@ -161,16 +174,14 @@ class _Decoder:
         if self._bat_instance is None or self.count(self._battery_type) == 0:
             return 0
         readings: dict[int, int] = {}
-        with _quiet_python_output():
-            while (msg := self._log.recv_match(type={self._battery_type}, strict=True)) is not None:
-                try:
-                    instance = int(getattr(msg, self._bat_instance))
-                    current_a = float(msg.Curr)
-                except (AttributeError, KeyError, TypeError, ValueError):
-                    continue  # a corrupt FMT: counted when the records are read
-                measured = math.isfinite(current_a) and current_a != 0.0
-                readings[instance] = readings.get(instance, 0) + int(measured)
-            self._log.rewind()
+        for msg in itertools.chain.from_iterable(self._records({self._battery_type})):
+            try:
+                instance = int(getattr(msg, self._bat_instance))
+                current_a = float(msg.Curr)
+            except (AttributeError, KeyError, TypeError, ValueError):
+                continue  # a corrupt FMT: counted when the records are read
+            measured = math.isfinite(current_a) and current_a != 0.0
+            readings[instance] = readings.get(instance, 0) + int(measured)
         if not readings or not any(readings.values()):
             return 0
         return min(readings, key=lambda i: (-readings[i], i))
@@ -179,21 +190,15 @@ class _Decoder:
         """Whether the log's first arming record (ARM, else EV 10/11) is a disarm."""
         if self.count(self._arming_type) == 0:
             return False
-        first: bool | None = None
-        with _quiet_python_output():
-            while first is None:
-                msg = self._log.recv_match(type={self._arming_type}, strict=True)
-                if msg is None:
-                    break
-                try:
-                    if msg.get_type() == "ARM":
-                        first = bool(msg.ArmState)
-                    elif msg.Id in (EVENT_ARMED, EVENT_DISARMED):
-                        first = msg.Id == EVENT_ARMED
-                except (AttributeError, KeyError, TypeError, ValueError):
-                    continue  # a corrupt FMT: counted when the records are read
-            self._log.rewind()
-        return first is False
+        for msg in itertools.chain.from_iterable(self._records({self._arming_type})):
+            try:
+                if msg.get_type() == "ARM":
+                    return not msg.ArmState
+                if msg.Id in (EVENT_ARMED, EVENT_DISARMED):
+                    return bool(msg.Id == EVENT_DISARMED)
+            except (AttributeError, KeyError, TypeError, ValueError):
+                continue  # a corrupt FMT: counted when the records are read
+        return False
 
     def samples(self) -> Iterator[Sample]:
         self._check_framing()
@@ -203,16 +208,7 @@ class _Decoder:
         heap: list[tuple[float, int, Sample]] = []
         last_out_s = -math.inf
         seq = 0
-        done = not wanted
-        while not done:
-            batch = []
-            with _quiet_python_output():
-                for _ in range(_BATCH):
-                    msg = self._log.recv_match(type=wanted, strict=True)
-                    if msg is None:
-                        done = True
-                        break
-                    batch.append(msg)
+        for batch in self._records(wanted) if wanted else ():
             for msg in batch:
                 try:
                     self._clock_in(msg)
@@ -239,6 +235,27 @@ class _Decoder:
             yield heapq.heappop(heap)[2]
         self._stream.missing = self.missing()
         self._log.close()
+
+    def _records(self, names: set[str]) -> Iterator[list[Any]]:
+        """The records of message types ``names`` in file order, in batches: rows decoded
+        column-wise (:mod:`estimator.logs.dataflash_records`), else (a damaged or forged
+        format) the library's own messages, read from the start of the log."""
+        plan = dataflash_records.plan(self._log, names, _COLUMNS)
+        if plan is not None:
+            yield from plan.rows()
+            return
+        self._log.rewind()
+        done = False
+        while not done:
+            batch = []
+            with _quiet_python_output():
+                for _ in range(_BATCH):
+                    msg = self._log.recv_match(type=names, strict=True)
+                    if msg is None:
+                        done = True
+                        break
+                    batch.append(msg)
+            yield batch
 
     def _check_framing(self) -> None:
         """Count gaps between indexed records (corruption) and a cut-off last record."""
@@ -400,7 +417,7 @@ def _column(log: _DataFlashIndex, name: str, candidates: tuple[str, ...]) -> str
 
 def _clock(log: _DataFlashIndex, name: str) -> tuple[str, float] | None:
     """Message ``name``'s boot-time column and its units per second; None without one."""
-    column = _column(log, name, ("TimeUS", "T", "TimeMS"))
+    column = _column(log, name, _CLOCK_COLUMNS)
     return None if column is None else (column, 1e6 if column == "TimeUS" else 1e3)
 
 

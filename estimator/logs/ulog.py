@@ -66,13 +66,18 @@ ARMING_STATE_ARMED = 2
 _RELEASE_TYPE = 0xFF
 
 
+_buffered_read = io.BufferedReader.read
+
+
 class _ReadProbe(io.BufferedReader):
     """A file whose last read tells whether pyulog stopped inside a message."""
 
     last_read_short = False
 
     def read(self, size: int | None = -1) -> bytes:
-        data = super().read(size)
+        # the unbound C method, not super(): pyulog reads each message header and body
+        # separately, and super()'s lookup doubled the cost of a read
+        data = _buffered_read(self, size)
         self.last_read_short = size is not None and 0 < len(data) < size
         return data
 

@@ -32,7 +32,9 @@ import enum
 import math
 from collections import Counter
 from dataclasses import dataclass, replace
+from operator import attrgetter
 
+from estimator.telemetry.guard_runs import GuardLimits, RunSearch, clean_run
 from estimator.telemetry.samples import (
     BatterySample,
     RebootSample,
@@ -514,6 +516,14 @@ class SampleGuard:
         self.counts: Counter[str] = Counter()
         self._time = ClockFilter(self.counts)
         self._jumps = VelocityJumps(self.counts)
+        self._run_limits = GuardLimits(
+            self.limits,
+            self._time.clock.settings,
+            VELOCITY_STEP_FLOOR_MPS,
+            MAX_ACCELERATION_MPS2,
+            MAX_WIND_MPS,
+        )
+        self._search = RunSearch()
 
     def check(self, sample: Sample) -> list[Sample]:
         """The samples to deliver for ``sample`` (none, it, or held ones before it)."""
@@ -533,6 +543,51 @@ class SampleGuard:
             return self._jumps.filter(self._time.take_pending())
         out = self._time.stamped(sample.time_s, sample)
         return [] if out is None else self._jumps.filter([*out, sample])
+
+    def check_many(self, samples: list[Sample]) -> list[Sample]:
+        """The samples to deliver for ``samples`` in turn, as :meth:`check` one by one would
+        give them. Runs of samples that change nothing but the clock and the believed
+        velocity are found column-wise (:func:`~estimator.telemetry.guard_runs.clean_run`),
+        the other samples checked one by one; :class:`~estimator.telemetry.guard_runs.
+        RunSearch` says where to look for a run and how many samples to check one by one."""
+        out: list[Sample] = []
+        start, search = 0, self._search
+        while start < len(samples):
+            if search.one_by_one:
+                part = samples[start : start + search.one_by_one]
+                for sample in part:
+                    out += self.check(sample)
+                start, search.one_by_one = start + len(part), search.one_by_one - len(part)
+                continue
+            window = samples[start : start + search.window]
+            run = self._clean_run(window)
+            out += window[:run]
+            self._passed(window[:run])
+            start += run
+            search.stopped(run, len(window))
+        return out
+
+    def _clean_run(self, samples: list[Sample]) -> int:
+        time, clock = self._time, self._time.clock
+        if clock.time_s is None or clock.candidates or time._held or time._pending_out:
+            return 0
+        return clean_run(samples, clock.time_s, self._jumps._believed, self._run_limits)
+
+    def _passed(self, samples: list[Sample]) -> None:
+        """Move the clock and the believed velocity past ``samples``, a clean run."""
+        if not samples:
+            return
+        clock = self._time.clock
+        newest_s = max(map(attrgetter("time_s"), samples))
+        if clock.time_s is not None and newest_s > clock.time_s:
+            clock.time_s = newest_s
+            if clock._before_reboot_s is not None and newest_s > clock._before_reboot_s:
+                clock._before_reboot_s = None
+        clock.joined = None
+        self._time.verdict = ClockVerdict.ACCEPT
+        last = next((s for s in reversed(samples) if isinstance(s, VelocitySample)), None)
+        if last is not None:
+            self._jumps._believed, self._jumps._outliers = last, []
 
     def flush(self) -> list[Sample]:
         """End of the log: what is still held (see :meth:`ClockFilter.flush`)."""
