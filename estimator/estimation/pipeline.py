@@ -55,6 +55,7 @@ from estimator.estimation.online_effects import OnlineEffects, TrackerReading
 from estimator.estimation.pack_bank import PackBank
 from estimator.estimation.pack_learning import PackLearning
 from estimator.estimation.pack_state import PackPrior
+from estimator.estimation.period_estimate import period_estimate
 from estimator.estimation.pipeline_settings import PipelineSettings
 from estimator.estimation.pipeline_snapshot import Resume, parse_snapshot, take_snapshot
 from estimator.estimation.return_home import (
@@ -583,69 +584,16 @@ class Pipeline:
 
     def _emit(self, time_s: float) -> Estimate:
         est = self.energy.estimate()
-        state = self._state
         steady_w = est.bias * self._steady_power_w
-        power = self.power
-        model_w = np.array([self._endurance_power_w(), power.p_hover_w, power.p_me_w, power.p_mr_w])
-        times_s, sigmas_s = self.energy.endurance_s(est.bias * model_w, est)
-        endurance_s, hover_s, vme_s, vmr_s = (float(x) for x in times_s)
-        endurance_sigma_s, hover_sigma_s, vme_sigma_s, vmr_sigma_s = (float(x) for x in sigmas_s)
-        # changing speed, the speed it will hold is not known: from the one before to this one
-        endurance_sigma_s = math.hypot(endurance_sigma_s, power.change_spread * endurance_s)
+        endurance_model_w = self._endurance_power_w()
         battery = self._battery
         stale = battery is None or time_s - battery.time_s > self.settings.battery_stale_s
-        voltage = self.energy.voltage
         back = self.returning.figures(time_s, self._return_inputs(est, steady_w))
-        pack = self.packs.estimate
-        estimate = Estimate(
-            time_s=time_s,
-            speed_mps=0.0 if state is None else state.speed_mps,
-            accel_tangential_mps2=0.0 if state is None else state.accel_tangential_mps2,
-            accel_centripetal_mps2=0.0 if state is None else state.accel_centripetal_mps2,
-            climb_mps=0.0 if state is None else state.climb_mps,
-            power_model_w=self._power_model_w,
-            power_measured_w=None if battery is None else battery.power_w,
-            energy_remaining_wh=est.energy_wh,
-            energy_remaining_sigma_wh=est.energy_sigma_wh,
-            endurance_s=endurance_s,
-            endurance_sigma_s=endurance_sigma_s,
-            hover_endurance_s=hover_s,
-            vme_endurance_s=vme_s,
-            v_me_mps=power.v_me_mps,
-            range_vmr_m=power.v_mr_mps * vmr_s,
-            bias=est.bias,
-            bias_sigma=est.bias_sigma,
-            model_only=self.energy.model_only,
-            voltage_follows_load=self.energy.voltage_follows_load,
-            stale=stale,
-            soc=self.energy.soc,
-            voltage_v=math.nan if battery is None else battery.voltage_v,
-            resistance_ohm=math.nan if voltage is None else voltage.resistance_ohm,
-            pack_soc=math.nan if pack is None else pack.soc,
-            pack_soc_sigma=math.nan if pack is None else pack.soc_sigma,
-            capacity_ah=math.nan if pack is None else pack.capacity_ah,
-            capacity_sigma_ah=math.nan if pack is None else pack.capacity_sigma_ah,
-            pack_resistance_ohm=math.nan if pack is None else pack.resistance_ohm,
-            steady_power_w=steady_w,
-            hover_endurance_sigma_s=hover_sigma_s,
-            vme_endurance_sigma_s=vme_sigma_s,
-            range_vmr_sigma_m=power.v_mr_mps * vmr_sigma_s,
-            endurance_valid=self.endurance_valid,
-            home_distance_m=back.home_distance_m,
-            rth_energy_wh=back.energy_wh,
-            rth_sigma_wh=back.sigma_wh,
-            rth_time_s=back.time_s,
-            rth_speed_mps=back.speed_mps,
-            rth_wind_mps=back.wind_mps,
-            rth_wind_from_deg=back.wind_from_deg,
-            margin_wh=back.margin_wh,
-            margin_sigma_wh=back.margin_sigma_wh,
-            pnr_s=back.pnr_s,
-            mission_energy_wh=back.mission_energy_wh,
-            mission_sigma_wh=back.mission_sigma_wh,
-            mission_feasible=back.mission_feasible,
-            rth_flags=back.flags,
-        )
+        estimate = period_estimate(
+            time_s, self.energy, est, self.power, endurance_model_w, self._power_model_w,
+            self._state, battery, self.packs.estimate, back, stale, self.endurance_valid,
+            steady_w,
+        )  # fmt: skip
         self.last = estimate
         self.counts["estimates"] += 1
         return estimate
