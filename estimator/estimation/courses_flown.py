@@ -113,14 +113,16 @@ class CoursesFlown:
         back = np.stack((north[::-1], east[::-1]))  # newest first
         sums = np.concatenate((np.zeros((2, 1)), np.cumsum(back, axis=1)), axis=1)
         squares = np.concatenate(([0.0], np.cumsum((back**2).sum(axis=0))))
+        mean = sums[:, 2 * shifts] / (2 * shifts)
+        spread = 2.0 * (squares[2 * shifts] / (2 * shifts) - (mean**2).sum(axis=0))
+        if not (spread >= PATTERN_SPREAD_MIN_M2PS2).any():
+            return None  # steady at every period: the products below would find nothing
         steps = np.arange(shifts[-1])[:, None]  # i < k: the last period's i-th newest step
         inside = steps < shifts[None, :]
         later = back[:, np.minimum(steps, n - 1)]
         earlier = back[:, np.minimum(steps + shifts[None, :], n - 1)]
         cross = np.where(inside, (later * earlier).sum(axis=0), 0.0).sum(axis=0)
         mismatch = (squares[2 * shifts] - 2.0 * cross) / shifts
-        mean = sums[:, 2 * shifts] / (2 * shifts)
-        spread = 2.0 * (squares[2 * shifts] / (2 * shifts) - (mean**2).sum(axis=0))
         ratio = np.where(
             spread >= PATTERN_SPREAD_MIN_M2PS2,  # a steady flight is no pattern
             mismatch / np.maximum(spread, PATTERN_SPREAD_MIN_M2PS2),

@@ -129,7 +129,7 @@ class FlightPower:
             rows[k:, 5] = north * accel_centripetal_mps2
         rows[k:, 1] = north * steady_speeds_mps
         rows[k:, 2] = east * steady_speeds_mps
-        flight = FlightState(*rows.T)
+        flight = FlightState.of_columns(rows.T)
         if effects is None:
             effects = self.effects
         power = predict_power_w(self.vehicle.model, self.vehicle.mass_kg, flight, effects)
@@ -174,6 +174,10 @@ class FlightPower:
         turn held."""
         speed = np.array([speed_mps])
         return float(self.predict((), speed, latest_v, self.held_accel_mps2, time_s=time_s)[0])
+
+    def hover_w(self, latest_v: float, effects: Sequence[Effect]) -> float:
+        """Model power (W) in hover with ``effects`` (at time 0, ``latest_v``)."""
+        return float(self.predict((), np.zeros(1), latest_v, effects=effects)[0])
 
     def endurance_w(
         self, state: KinematicState, steady_w: float, time_s: float, latest_v: float

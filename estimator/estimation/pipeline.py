@@ -45,8 +45,6 @@ from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 from typing import Any
 
-import numpy as np
-
 from estimator.estimation.airborne import AirborneGate, Phase
 from estimator.estimation.estimate import Estimate, PowerReading
 from estimator.estimation.flight_power import FlightPower, PowerEvent
@@ -61,6 +59,7 @@ from estimator.estimation.pipeline_snapshot import Resume, parse_snapshot, take_
 from estimator.estimation.return_home import (
     MissionEnergyFn,
     MissionSample,
+    ReturnFigures,
     ReturnHome,
     ReturnInputs,
 )
@@ -334,9 +333,7 @@ class Pipeline:
             snapshot,
             lambda: EnergyFilter(self.pack, self.settings.fusion),
             self.packs.new_bank,
-            lambda effects: float(
-                self.power.predict((), np.zeros(1), self._latest_v(), effects=effects)[0]
-            ),
+            lambda effects: self.power.hover_w(self._latest_v(), effects),
             self.vehicle.model.hover_power_w,
         )
 
@@ -549,17 +546,19 @@ class Pipeline:
             self._refresh_speeds()
             self._speeds_time_s = time_s
 
-    def _return_inputs(self, est: EnergyEstimate, steady_w: float) -> ReturnInputs:
-        """The state the return figures rest on (:mod:`estimator.estimation.return_home`)."""
+    def _return_figures(self, time_s: float, est: EnergyEstimate, steady_w: float) -> ReturnFigures:
+        """The return figures (:mod:`estimator.estimation.return_home`), and the state they
+        rest on, gathered only once the vehicle and home are located."""
+        if not self.returning.located:
+            return self.returning.unlocated(self.endurance_valid)
         settings, state = self.settings.return_home, self._state
         if self.online is not None:
             sigma = self.online.sigma
-            wind_sigma = (sigma["wind_n_mps"], sigma["wind_e_mps"])
-            mass_sigma_kg = sigma["mass_kg"]
+            wind_sigma, mass_sigma_kg = (sigma["wind_n_mps"], sigma["wind_e_mps"]), sigma["mass_kg"]
         else:
             wind_sigma = (settings.untracked_wind_sigma_mps,) * 2
             mass_sigma_kg = settings.untracked_mass_sigma_fraction * self.vehicle.mass_kg
-        return ReturnInputs(
+        inputs = ReturnInputs(
             time_s=self._time_s or 0.0,
             velocity_ne_mps=(0.0, 0.0) if state is None else (state.vn_mps, state.ve_mps),
             effects=self.power.effects,
@@ -573,6 +572,7 @@ class Pipeline:
             steady_power_w=steady_w,
             flying=self.endurance_valid,
         )
+        return self.returning.figures(time_s, inputs)
 
     def _endurance_power_w(self) -> float:
         """Model power (W) the endurance holds (:meth:`FlightPower.endurance_w`)."""
@@ -588,7 +588,7 @@ class Pipeline:
         endurance_model_w = self._endurance_power_w()
         battery = self._battery
         stale = battery is None or time_s - battery.time_s > self.settings.battery_stale_s
-        back = self.returning.figures(time_s, self._return_inputs(est, steady_w))
+        back = self._return_figures(time_s, est, steady_w)
         estimate = period_estimate(
             time_s, self.energy, est, self.power, endurance_model_w, self._power_model_w,
             self._state, battery, self.packs.estimate, back, stale, self.endurance_valid,
