@@ -197,18 +197,19 @@ class Pipeline:
     def _refresh_speeds(self) -> None:
         self.power.refresh_speeds(self._time_s or 0.0, self._latest_v())
 
-    def _event_powers_w(self, events: Sequence[PowerEvent], time_s: float) -> list[float]:
+    def _event_powers_w(
+        self, events: Sequence[PowerEvent], time_s: float, endurance: bool = False
+    ) -> list[float]:
         """Model power after each of ``events`` (W); also sets the steady power of the latest
-        state (:meth:`FlightPower.event_powers_w`)."""
+        state, and with ``endurance`` the endurance's (:meth:`FlightPower.event_powers_w`)."""
         powers_w, self._steady_power_w = self.power.event_powers_w(
-            events, self._state, self._armed, self._latest_v(), time_s
+            events, self._state, self._armed, self._latest_v(), time_s, endurance
         )
         return powers_w
 
     def _kinetic_sigma_w(self) -> float:
         """1σ of the kinetic term m vᵀa from the filtered acceleration's uncertainty, W."""
-        state = self._state
-        if state is None:
+        if (state := self._state) is None:
             return 0.0
         return self.vehicle.mass_kg * state.speed_mps * state.accel_sigma_mps2
 
@@ -305,8 +306,7 @@ class Pipeline:
         return False
 
     def _queue_event(self, time_s: float) -> None:
-        voltage_v = math.nan if self._battery is None else self._battery.voltage_v
-        self._events.append(PowerEvent(time_s, self._state, self._armed, voltage_v))
+        self._events.append(PowerEvent(time_s, self._state, self._armed, self._latest_v()))
 
     # -- continuing after a restart ---------------------------------------------------------------
 
@@ -409,7 +409,7 @@ class Pipeline:
 
     def _close_period(self, time_s: float) -> Estimate:
         self._classify_readings()
-        powers_w = self._event_powers_w(self._events, time_s)
+        powers_w = self._event_powers_w(self._events, time_s, endurance=True)
         self._integrate(time_s, powers_w)
         # each reading against the power in force when it arrived
         model_w = [
