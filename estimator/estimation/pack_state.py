@@ -86,7 +86,8 @@ def _dot(a: Sequence[float], b: Sequence[float]) -> float:
 
 def _quadratic(p: Sequence[Sequence[float]], j: Sequence[float]) -> float:
     """jᵀ P j of a 4-vector ``j`` and a 4 × 4 matrix ``p`` (nested lists)."""
-    return _dot(j, [_dot(row, j) for row in p])
+    j0, j1, j2, j3 = j
+    return _dot(j, [r[0] * j0 + r[1] * j1 + r[2] * j2 + r[3] * j3 for r in p])
 
 
 def _joseph(
@@ -95,16 +96,21 @@ def _joseph(
     """The covariance after a scalar update, Joseph form (I − K h) P (I − K h)ᵀ + K r Kᵀ
     (symmetric and positive), for the gain ``gain``, the gradient ``h`` and the reading's
     variance ``r_var``: with A = I − K h, A P = P − K (hᵀP) and (A P) Aᵀ = A P − (A P h) Kᵀ."""
-    hp = [h[0] * p[0][j] + h[1] * p[1][j] + h[2] * p[2][j] + h[3] * p[3][j] for j in range(4)]
-    ap = [
-        [pij - gi * hpj for pij, hpj in zip(row, hp, strict=True)]
-        for row, gi in zip(p, gain, strict=True)
-    ]
-    aph = [_dot(row, h) for row in ap]
-    return [
-        [apij - aphi * gj + r_var * gi * gj for apij, gj in zip(row, gain, strict=True)]
-        for row, aphi, gi in zip(ap, aph, gain, strict=True)
-    ]
+    h0, h1, h2, h3 = h
+    p0, p1, p2, p3 = p
+    hp = [h0 * p0[j] + h1 * p1[j] + h2 * p2[j] + h3 * p3[j] for j in range(4)]
+    hp0, hp1, hp2, hp3 = hp
+    g0, g1, g2, g3 = gain
+    out = []
+    for row, gi in zip(p, gain, strict=True):
+        a0, a1, a2, a3 = row[0] - gi * hp0, row[1] - gi * hp1, row[2] - gi * hp2, row[3] - gi * hp3
+        aph = a0 * h0 + a1 * h1 + a2 * h2 + a3 * h3
+        r_gi = r_var * gi
+        out.append(
+            [a0 - aph * g0 + r_gi * g0, a1 - aph * g1 + r_gi * g1, a2 - aph * g2 + r_gi * g2,
+             a3 - aph * g3 + r_gi * g3]
+        )  # fmt: skip
+    return out
 
 
 @dataclass(frozen=True, slots=True)
