@@ -13,6 +13,7 @@ from __future__ import annotations
 import math
 from collections.abc import Sequence
 from dataclasses import dataclass
+from typing import NamedTuple
 
 import numpy as np
 
@@ -52,6 +53,15 @@ class PowerEvent:
     voltage_v: float
 
 
+class _Ahead(NamedTuple):
+    """The endurance's mean as a period's prediction made it: with ``effects``, the rows and
+    weights (:meth:`FlightPower._mean_rows`; None: the steady power) and their mean (W)."""
+
+    effects: tuple[Effect, ...]
+    mean: tuple[np.ndarray, np.ndarray] | None
+    mean_w: float | None
+
+
 class FlightPower:
     """The effects in use and the model power of the flight with them."""
 
@@ -71,8 +81,8 @@ class FlightPower:
         self.change_spread = 0.0
         self._held_turn = HeldTurn()
         self.held_accel_mps2 = 0.0  # the a⊥ steady figures assume, m/s²
-        #: (effects, W): the mean :meth:`endurance_w` holds, made by the period's prediction.
-        self._ahead: tuple[tuple[Effect, ...], float] | None = None
+        #: The endurance's mean made with the period's prediction (:meth:`event_powers_w`).
+        self._ahead: _Ahead | None = None
         self.v_me_mps = self.v_mr_mps = 0.0
         self.p_hover_w = self.p_me_w = self.p_mr_w = 0.0
 
@@ -188,15 +198,17 @@ class FlightPower:
             voltages_v = [e.voltage_v for e in rows]
             accel = self.held_accel_mps2
             now = self._rows(event_states, speeds, latest_v, accel, voltages_v, time_s, None)
-            mean = None
+            mean = mean_w = None
             if endurance and steady and state is not None:
                 mean = self._mean_rows(state, latest_v, time_s)
             if mean is None:
                 predicted = self._predict_rows(now).tolist()
             else:  # one prediction for both
                 power = self._predict_rows(np.concatenate((now, mean[0])))
-                self._ahead = (self.effects, float(power[len(now) :] @ mean[1]))
+                mean_w = float(power[len(now) :] @ mean[1])
                 predicted = power[: len(now)].tolist()
+            if endurance and steady:
+                self._ahead = _Ahead(self.effects, mean, mean_w)
         idle_w = 0.0 if armed is False else self.p_hover_w
         steady_w = predicted.pop() if steady else idle_w
         rows_w = iter(predicted)
@@ -228,11 +240,12 @@ class FlightPower:
         is the one :meth:`event_powers_w` made, unless the effects changed since."""
         self.change_spread = 0.0
         ahead, self._ahead = self._ahead, None
-        if ahead is not None and ahead[0] is self.effects:
-            mean_w: float | None = ahead[1]
-        else:
-            mean = self._mean_rows(state, latest_v, time_s)
-            mean_w = None if mean is None else float(self._predict_rows(mean[0]) @ mean[1])
+        if ahead is None:  # not made with a period's prediction
+            mean, mean_w = self._mean_rows(state, latest_v, time_s), None
+        else:  # the same rows; predicted again when the effects changed
+            mean, mean_w = ahead.mean, ahead.mean_w if ahead.effects is self.effects else None
+        if mean is not None and mean_w is None:
+            mean_w = float(self._predict_rows(mean[0]) @ mean[1])
         if mean_w is not None:
             self._held_w = mean_w
         elif self.courses.pattern() is None and abs(state.accel_tangential_mps2) > (
