@@ -1,12 +1,13 @@
 """Kalman fusion of the power model with the battery: remaining energy, model bias, endurance.
 
-Two linear Kalman filters (:mod:`estimator.estimation.kalman`), both driven only by sample
-times:
+Two linear Kalman filters, in scalar arithmetic (at two states and one, numpy's calls cost
+more than the products), both driven only by sample times:
 
-- :class:`EnergyFilter`, state ``[E, b]``: E is the usable chemical energy left above the
-  reserve (Wh), b the scale between the model's power and the power actually drawn (1 = the
-  model is right). Predict: E decreases by ``b · P_model · k · dt`` where k = OCV / V is the
-  pack's internal loss factor (chemical energy leaves at OCV·I, the terminals see V·I).
+- :class:`EnergyFilter`, state ``[E, b]`` (:class:`~estimator.estimation.kalman.LinearKalman`):
+  E is the usable chemical energy left above the reserve (Wh), b the scale between the
+  model's power and the power actually drawn (1 = the model is right). Predict: E decreases
+  by ``b · P_model · k · dt`` where k = OCV / V is the pack's internal loss factor (chemical
+  energy leaves at OCV·I, the terminals see V·I).
   Updates: measured power V·I (observes b·P_model), and the charge the autopilot counted
   (consumed mAh from a resting-voltage state of charge, via :class:`PackModel`; observes E).
   The starting-charge uncertainty (resting voltage, capacity) is an offset that no later
@@ -211,8 +212,8 @@ class EnergyEstimate:
     energy_sigma_wh: float
     bias: float
     bias_sigma: float
-    covariance: tuple[tuple[float, float], tuple[float, float]]  # 2×2 over [E, b], with the
-    # starting-charge offset
+    #: 2 × 2 over [E, b] (Wh², Wh, 1), including the starting-charge offset.
+    covariance: tuple[tuple[float, float], tuple[float, float]]
 
 
 class EnergyFilter:

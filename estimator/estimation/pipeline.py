@@ -9,8 +9,8 @@ each battery sample is queued in the period its time falls in. The sample that r
 of a period closes it (a velocity sample as the period's last event, a battery reading as the
 next period's first), and then, once for the whole period:
 
-1. the model power after every queued velocity sample, in one vectorized call of
-   :func:`estimator.physics.effects.predict_power_w` (the one place power is predicted);
+1. the model power after every queued velocity sample and the endurance's (step 5), in one
+   call of :func:`estimator.physics.effects.predict_power_w` (the one place power is predicted);
 2. the energy filter integrates that power over the period (each power holds until the next
    sample);
 3. the period's battery readings update the fusion (:mod:`estimator.estimation.fusion`): their mean
