@@ -3,11 +3,12 @@
 
 The pipeline does most of its work once per period of sample clock
 (:meth:`~estimator.estimation.pipeline.Pipeline._close_period`): the power after each
-queued sample, the energy filter, the fusion and the pack filter, the online tracker every
-``track_period_s``, and the estimate with its endurance and return figures. This bench replays
-one log twice (the first run warms up), timing the stages below with a wall clock around each
-call, and prints each stage's time per period (µs) and its share of the pipeline. Stages nest
-(a stage's time includes the stages it calls); the wrappers cost about 0.3 µs per call.
+queued sample (and, in the same prediction, the endurance's mean power), the energy filter,
+the fusion and the pack filter, the online tracker every ``track_period_s``, and the estimate
+with its endurance and return figures. This bench replays one log twice (the first run warms
+up), timing the stages below with a wall clock around each call, and prints each stage's time
+per period (µs) and its share of the pipeline. Stages nest (a stage's time includes the stages
+it calls); the wrappers cost about 0.3 µs per call.
 
 Default log: the largest IRIS+ tlog with its fitted vehicle file (as ``bench.replay``).
 Skips with a message when ``../shared`` is absent.
@@ -36,7 +37,7 @@ IRIS_VEHICLE = REPO / "config" / "vehicles" / "iris_plus_2016_06_08.toml"
 STAGES = (
     ("estimator.estimation.pipeline", "Pipeline", "process", "process (every sample)"),
     ("estimator.estimation.pipeline", "Pipeline", "_close_period", "  a period's close"),
-    ("estimator.estimation.pipeline", "Pipeline", "_event_powers_w", "    model power per sample"),
+    ("estimator.estimation.pipeline", "Pipeline", "_event_powers_w", "    model power, all rows"),
     ("estimator.estimation.pipeline", "Pipeline", "_integrate", "    energy predict"),
     ("estimator.estimation.pipeline", "Pipeline", "_fuse", "    fusion"),
     ("estimator.estimation.pack_learning", "PackLearning", "period_end", "      pack filter"),

@@ -22,6 +22,7 @@ the autopilot's clock (s).
 
 from __future__ import annotations
 
+import itertools
 import math
 from collections import deque
 
@@ -96,7 +97,10 @@ class CoursesFlown:
         flown = self._flown
         if not flown or flown[-1][0] - flown[0][0] < 2 * PERIOD_MIN_S:
             return None
-        time_s, speed_mps, course_rad, _ = np.array(flown, dtype=float).T
+        records = itertools.chain.from_iterable(flown)
+        time_s, speed_mps, course_rad, _ = (
+            np.fromiter(records, float, 4 * len(flown)).reshape(-1, 4).T
+        )
         # the ground velocity on a grid of PERIOD_STEP_S, so that a period is a shift
         grid_s = np.arange(time_s[0], time_s[-1] + 1e-9, PERIOD_STEP_S)
         north = np.interp(grid_s, time_s, speed_mps * np.cos(course_rad))
@@ -113,14 +117,24 @@ class CoursesFlown:
         back = np.stack((north[::-1], east[::-1]))  # newest first
         sums = np.concatenate((np.zeros((2, 1)), np.cumsum(back, axis=1)), axis=1)
         squares = np.concatenate(([0.0], np.cumsum((back**2).sum(axis=0))))
-        steps = np.arange(shifts[-1])[:, None]  # i < k: the last period's i-th newest step
-        inside = steps < shifts[None, :]
-        later = back[:, np.minimum(steps, n - 1)]
-        earlier = back[:, np.minimum(steps + shifts[None, :], n - 1)]
-        cross = np.where(inside, (later * earlier).sum(axis=0), 0.0).sum(axis=0)
-        mismatch = (squares[2 * shifts] - 2.0 * cross) / shifts
         mean = sums[:, 2 * shifts] / (2 * shifts)
         spread = 2.0 * (squares[2 * shifts] / (2 * shifts) - (mean**2).sum(axis=0))
+        if not (spread >= PATTERN_SPREAD_MIN_M2PS2).any():
+            return None  # steady at every period: the products below would find nothing
+        longest = shifts[-1]  # 2 × longest ≤ n
+        steps = np.arange(longest)[:, None]  # i < k: the last period's i-th newest step
+        inside = steps < shifts[None, :]
+        later = back[:, :longest, None]
+        # back[:, i + k] at step i and period k (a view: the periods are consecutive)
+        earlier = np.lib.stride_tricks.as_strided(
+            back[:, shifts[0] :],
+            shape=(2, longest, len(shifts)),
+            strides=(back.strides[0], back.strides[1], back.strides[1]),
+            writeable=False,
+        )
+        products = later[0] * earlier[0] + later[1] * earlier[1]
+        cross = np.where(inside, products, 0.0).sum(axis=0)
+        mismatch = (squares[2 * shifts] - 2.0 * cross) / shifts
         ratio = np.where(
             spread >= PATTERN_SPREAD_MIN_M2PS2,  # a steady flight is no pattern
             mismatch / np.maximum(spread, PATTERN_SPREAD_MIN_M2PS2),

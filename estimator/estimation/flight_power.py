@@ -13,6 +13,7 @@ from __future__ import annotations
 import math
 from collections.abc import Sequence
 from dataclasses import dataclass
+from typing import NamedTuple
 
 import numpy as np
 
@@ -52,6 +53,15 @@ class PowerEvent:
     voltage_v: float
 
 
+class _Ahead(NamedTuple):
+    """The endurance's mean as a period's prediction made it: with ``effects``, the rows and
+    weights (:meth:`FlightPower._mean_rows`; None: the steady power) and their mean (W)."""
+
+    effects: tuple[Effect, ...]
+    mean: tuple[np.ndarray, np.ndarray] | None
+    mean_w: float | None
+
+
 class FlightPower:
     """The effects in use and the model power of the flight with them."""
 
@@ -71,6 +81,8 @@ class FlightPower:
         self.change_spread = 0.0
         self._held_turn = HeldTurn()
         self.held_accel_mps2 = 0.0  # the a⊥ steady figures assume, m/s²
+        #: The endurance's mean made with the period's prediction (:meth:`event_powers_w`).
+        self._ahead: _Ahead | None = None
         self.v_me_mps = self.v_mr_mps = 0.0
         self.p_hover_w = self.p_me_w = self.p_mr_w = 0.0
 
@@ -110,6 +122,24 @@ class FlightPower:
         the course (it matters in wind) in a steady turn of a⊥ ``accel_centripetal_mps2``, at
         ``time_s`` and ``latest_v``; with ``effects`` (default: those in use); along
         ``tracks_rad`` (one course per steady speed, rad from north) instead."""
+        rows = self._rows(
+            states, steady_speeds_mps, latest_v, accel_centripetal_mps2, voltages_v, time_s,
+            tracks_rad,
+        )  # fmt: skip
+        return self._predict_rows(rows, effects)
+
+    def _rows(
+        self,
+        states: Sequence[KinematicState],
+        steady_speeds_mps: np.ndarray,
+        latest_v: float,
+        accel_centripetal_mps2: float,
+        voltages_v: Sequence[float],
+        time_s: float,
+        tracks_rad: np.ndarray | None,
+    ) -> np.ndarray:
+        """The flight states :meth:`predict` predicts, one row each (the
+        :class:`~estimator.physics.effects.FlightState` fields in order)."""
         k = len(states)
         rows = np.empty((k + len(steady_speeds_mps), 9))
         if k:
@@ -129,7 +159,14 @@ class FlightPower:
             rows[k:, 5] = north * accel_centripetal_mps2
         rows[k:, 1] = north * steady_speeds_mps
         rows[k:, 2] = east * steady_speeds_mps
-        flight = FlightState(*rows.T)
+        return rows
+
+    def _predict_rows(
+        self, rows: np.ndarray, effects: Sequence[Effect] | None = None
+    ) -> np.ndarray:
+        """Model power (W, ≥ 0) of each row of :meth:`_rows` with ``effects`` (default: those
+        in use)."""
+        flight = FlightState.of_columns(rows.T)
         if effects is None:
             effects = self.effects
         power = predict_power_w(self.vehicle.model, self.vehicle.mass_kg, flight, effects)
@@ -142,23 +179,36 @@ class FlightPower:
         armed: bool | None,
         latest_v: float,
         time_s: float,
+        endurance: bool = False,
     ) -> tuple[list[float], float]:
         """Model power after each of ``events`` (W), in one prediction, and the steady power
         of ``state``, the latest kinematic state (W, at ``time_s``; ``armed`` then, ``latest_v``
-        the newest battery voltage). Disarmed: 0; armed with no kinematic state yet: hover."""
+        the newest battery voltage). Disarmed: 0; armed with no kinematic state yet: hover.
+        With ``endurance`` (a period's close, whose estimate follows), the same prediction
+        also makes the mean :meth:`endurance_w` then takes, while the effects stay those in
+        use."""
+        self._ahead = None
         rows = [e for e in events if e.state is not None and e.armed is not False]
         steady = state is not None and armed is not False
         predicted: list[float] = []
         if rows or steady:
             self.follow_track(state)
-            predicted = self.predict(
-                [e.state for e in rows if e.state is not None],
-                np.array([state.speed_mps] if steady and state is not None else []),
-                latest_v,
-                self.held_accel_mps2,
-                voltages_v=[e.voltage_v for e in rows],
-                time_s=time_s,
-            ).tolist()
+            event_states = [e.state for e in rows if e.state is not None]
+            speeds = np.array([state.speed_mps] if steady and state is not None else [])
+            voltages_v = [e.voltage_v for e in rows]
+            accel = self.held_accel_mps2
+            now = self._rows(event_states, speeds, latest_v, accel, voltages_v, time_s, None)
+            mean = mean_w = None
+            if endurance and steady and state is not None:
+                mean = self._mean_rows(state, latest_v, time_s)
+            if mean is None:
+                predicted = self._predict_rows(now).tolist()
+            else:  # one prediction for both
+                power = self._predict_rows(np.concatenate((now, mean[0])))
+                mean_w = float(power[len(now) :] @ mean[1])
+                predicted = power[: len(now)].tolist()
+            if endurance and steady:
+                self._ahead = _Ahead(self.effects, mean, mean_w)
         idle_w = 0.0 if armed is False else self.p_hover_w
         steady_w = predicted.pop() if steady else idle_w
         rows_w = iter(predicted)
@@ -175,6 +225,10 @@ class FlightPower:
         speed = np.array([speed_mps])
         return float(self.predict((), speed, latest_v, self.held_accel_mps2, time_s=time_s)[0])
 
+    def hover_w(self, latest_v: float, effects: Sequence[Effect]) -> float:
+        """Model power (W) in hover with ``effects`` (at time 0, ``latest_v``)."""
+        return float(self.predict((), np.zeros(1), latest_v, effects=effects)[0])
+
     def endurance_w(
         self, state: KinematicState, steady_w: float, time_s: float, latest_v: float
     ) -> float:
@@ -182,34 +236,61 @@ class FlightPower:
         over the last period as flown (each speed and course, no turn); else the courses'
         mean at the present speed (:meth:`course_mean_w`), or the steady power ``steady_w``
         (W) when none was flown or while the vehicle changes speed (a speed it does not
-        hold; :attr:`change_spread` says how far that is from the figure before)."""
+        hold; :attr:`change_spread` says how far that is from the figure before). The mean
+        is the one :meth:`event_powers_w` made, unless the effects changed since."""
         self.change_spread = 0.0
-        pattern = self.courses.pattern()
-        if pattern is not None:
-            speeds, tracks_rad, weights = pattern
-            power = self.predict((), speeds, latest_v, time_s=time_s, tracks_rad=tracks_rad)
-            self._held_w = float(power @ weights)
-        elif abs(state.accel_tangential_mps2) > _CHANGING_SPEED_MPS2:
+        ahead, self._ahead = self._ahead, None
+        if ahead is None:  # not made with a period's prediction
+            mean, mean_w = self._mean_rows(state, latest_v, time_s), None
+        else:  # the same rows; predicted again when the effects changed
+            mean, mean_w = ahead.mean, ahead.mean_w if ahead.effects is self.effects else None
+        if mean is not None and mean_w is None:
+            mean_w = float(self._predict_rows(mean[0]) @ mean[1])
+        if mean_w is not None:
+            self._held_w = mean_w
+        elif self.courses.pattern() is None and abs(state.accel_tangential_mps2) > (
+            _CHANGING_SPEED_MPS2
+        ):
             if self._held_w > 0 and steady_w > 0:
                 self.change_spread = abs(steady_w - self._held_w) / steady_w
             return steady_w
         else:
-            mean_w = self.course_mean_w(state.speed_mps, time_s, latest_v)
-            self._held_w = steady_w if mean_w is None else mean_w
+            self._held_w = steady_w
         return self._held_w
 
-    def course_mean_w(self, speed_mps: float, time_s: float, latest_v: float) -> float | None:
-        """Model power (W) in steady level flight at ``speed_mps`` in the turn held, averaged
-        over the courses held lately at about that speed
-        (:mod:`estimator.estimation.courses_flown`); None when none was."""
+    def _mean_rows(
+        self, state: KinematicState, latest_v: float, time_s: float
+    ) -> tuple[np.ndarray, np.ndarray] | None:
+        """The rows (:meth:`_rows`) whose weighted mean the endurance holds, and their
+        weights (summing to 1): the pattern's last period as flown, else the courses held
+        at the present speed (:meth:`_course_rows`); None: neither (the steady power)."""
+        pattern = self.courses.pattern()
+        if pattern is not None:
+            speeds, tracks_rad, weights = pattern
+            return self._rows((), speeds, latest_v, 0.0, (), time_s, tracks_rad), weights
+        if abs(state.accel_tangential_mps2) > _CHANGING_SPEED_MPS2:
+            return None
+        return self._course_rows(state.speed_mps, latest_v, time_s)
+
+    def _course_rows(
+        self, speed_mps: float, latest_v: float, time_s: float
+    ) -> tuple[np.ndarray, np.ndarray] | None:
+        """Rows of steady level flight at ``speed_mps`` in the turn held along each course
+        held lately at about that speed (:mod:`estimator.estimation.courses_flown`), and the
+        fraction of them on each; None when none was."""
         tracks_rad, weights = self.courses.near(speed_mps)
         if not len(tracks_rad):
             return None
         speeds = np.full(len(tracks_rad), speed_mps)
-        power = self.predict(
-            (), speeds, latest_v, self.held_accel_mps2, time_s=time_s, tracks_rad=tracks_rad
-        )
-        return float(power @ weights)
+        accel = self.held_accel_mps2
+        return self._rows((), speeds, latest_v, accel, (), time_s, tracks_rad), weights
+
+    def course_mean_w(self, speed_mps: float, time_s: float, latest_v: float) -> float | None:
+        """Model power (W) in steady level flight at ``speed_mps`` in the turn held, averaged
+        over the courses held lately at about that speed (:meth:`_course_rows`); None when
+        none was."""
+        course = self._course_rows(speed_mps, latest_v, time_s)
+        return None if course is None else float(self._predict_rows(course[0]) @ course[1])
 
     def refresh_speeds(self, time_s: float, latest_v: float) -> None:
         """V_me, V_mr and their powers, and the hover power, with the effects in use."""

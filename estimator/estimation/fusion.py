@@ -1,12 +1,13 @@
 """Kalman fusion of the power model with the battery: remaining energy, model bias, endurance.
 
-Two linear Kalman filters (:mod:`estimator.estimation.kalman`), both driven only by sample
-times:
+Two linear Kalman filters, in scalar arithmetic (at two states and one, numpy's calls cost
+more than the products), both driven only by sample times:
 
-- :class:`EnergyFilter`, state ``[E, b]``: E is the usable chemical energy left above the
-  reserve (Wh), b the scale between the model's power and the power actually drawn (1 = the
-  model is right). Predict: E decreases by ``b · P_model · k · dt`` where k = OCV / V is the
-  pack's internal loss factor (chemical energy leaves at OCV·I, the terminals see V·I).
+- :class:`EnergyFilter`, state ``[E, b]`` (:class:`~estimator.estimation.kalman.LinearKalman`):
+  E is the usable chemical energy left above the reserve (Wh), b the scale between the
+  model's power and the power actually drawn (1 = the model is right). Predict: E decreases
+  by ``b · P_model · k · dt`` where k = OCV / V is the pack's internal loss factor (chemical
+  energy leaves at OCV·I, the terminals see V·I).
   Updates: measured power V·I (observes b·P_model), and the charge the autopilot counted
   (consumed mAh from a resting-voltage state of charge, via :class:`PackModel`; observes E).
   The starting-charge uncertainty (resting voltage, capacity) is an offset that no later
@@ -104,52 +105,56 @@ class ResistanceFilter:
         self.pack = pack
         self.settings = settings
         cells = pack.spec.cells
-        self._kf = self._prior()
+        self.ohm, self.var_ohm2 = self._prior()
         ocv_sigma_v = settings.ocv_curve_sigma_v_per_cell * cells
         self._voltage_var_v2 = settings.voltage_noise_v**2 + ocv_sigma_v**2
         self._fixed = settings.internal_resistance_ohm is not None
         #: Whether the voltage follows the load at all.
         self.load = LoadResponse(cells)
 
-    def _prior(self) -> LinearKalman:
-        """R at its start: the fixed value, else the per-cell prior with its variance."""
+    def _prior(self) -> tuple[float, float]:
+        """R (Ω) at its start and its variance (Ω²): the fixed value, else the per-cell
+        prior."""
         fixed = self.settings.internal_resistance_ohm
+        if fixed is not None:
+            return fixed, 0.0
         prior = self.settings.resistance_prior_ohm_per_cell * self.pack.spec.cells
-        return LinearKalman(
-            np.array([prior if fixed is None else fixed]),
-            np.array([[0.0 if fixed is not None else prior**2]]),
-        )
+        return prior, prior**2
 
     @property
     def resistance_ohm(self) -> float:
-        return max(float(self._kf.x[0]), 0.0)
+        return max(self.ohm, 0.0)
 
     def snapshot(self) -> dict[str, float]:
         """R (Ω) and its variance (Ω²), to continue from after a restart."""
-        return {"ohm": float(self._kf.x[0]), "var_ohm2": float(self._kf.P[0, 0])}
+        return {"ohm": self.ohm, "var_ohm2": self.var_ohm2}
 
     def restore(self, state: Mapping[str, Any]) -> None:
         """Continue from :meth:`snapshot` (a fixed resistance stays fixed)."""
         if not self._fixed:
-            self._kf.x = np.array([_finite(state["ohm"], 0.0, 1.0, "resistance (Ω)")])
-            self._kf.P = np.array([[_finite(state["var_ohm2"], 0.0, 1.0, "resistance variance")]])
+            self.ohm = _finite(state["ohm"], 0.0, 1.0, "resistance (Ω)")
+            self.var_ohm2 = _finite(state["var_ohm2"], 0.0, 1.0, "resistance variance")
 
     def update(self, dt_s: float, soc: float, voltage_v: float, current_a: float) -> None:
         """Fold in a terminal voltage (V) at ``current_a`` (A, measured or modelled) and state
         of charge ``soc``, ``dt_s`` (s) after the last; once the voltage is found not to follow
-        the load, R is its prior again and learns no more."""
+        the load, R is its prior again and learns no more. One state: the Kalman step
+        (Joseph form) in scalars."""
         if self.load.take(dt_s, voltage_v, current_a):
-            self._kf = self._prior()
+            self.ohm, self.var_ohm2 = self._prior()
         if self._fixed or self.load.unresponsive:
             return
-        kf = self._kf
         if dt_s > 0:
-            kf.P += self.settings.resistance_walk_ohm_per_sqrt_s**2 * dt_s
+            self.var_ohm2 += self.settings.resistance_walk_ohm_per_sqrt_s**2 * dt_s
         if abs(current_a) < self.settings.resistance_min_current_a:
             return  # the drop I·R is lost in the voltage noise (a pack at rest)
-        ocv_v = self.pack.ocv_scalar_v(soc)
-        kf.update(ocv_v - voltage_v, np.array([current_a]), self._voltage_var_v2)
-        kf.x[0] = min(max(kf.x[0], 0.0), 1.0)
+        drop_v = self.pack.ocv_scalar_v(soc) - voltage_v  # = I·R + noise
+        r_var = self._voltage_var_v2
+        gain = self.var_ohm2 * current_a / (current_a * (self.var_ohm2 * current_a) + r_var)
+        ohm = self.ohm + gain * (drop_v - current_a * self.ohm)
+        keep = 1.0 - gain * current_a
+        self.var_ohm2 = keep * self.var_ohm2 * keep + r_var * (gain * gain)
+        self.ohm = min(max(ohm, 0.0), 1.0)
 
     def terminal_voltage_v(self, ocv_v: ArrayLike, power_w: ArrayLike) -> FloatArray:
         """Terminal voltage at terminal power ``power_w``: the root of V² − OCV·V + P·R = 0."""
@@ -184,6 +189,14 @@ def _flag(value: Any) -> bool:
     return value
 
 
+def _scale_bias_row_column(p: list[list[float]], factor: float) -> None:
+    """Scale the bias's row and column of the [E, b] covariance ``p`` by ``factor`` (its
+    variance by factor²), in place."""
+    p[0][1] *= factor
+    p[1][0] *= factor
+    p[1][1] = p[1][1] * factor * factor  # as a row, then a column, scaled
+
+
 def _ocv_slope_v(pack: PackModel, soc: float) -> float:
     """dOCV/dSoC of the pack at ``soc`` (V per unit SoC), by a central difference."""
     h = 0.01
@@ -199,7 +212,8 @@ class EnergyEstimate:
     energy_sigma_wh: float
     bias: float
     bias_sigma: float
-    covariance: np.ndarray  # 2×2 over [E, b], including the starting-charge offset
+    #: 2 × 2 over [E, b] (Wh², Wh, 1), including the starting-charge offset.
+    covariance: tuple[tuple[float, float], tuple[float, float]]
 
 
 class EnergyFilter:
@@ -251,24 +265,24 @@ class EnergyFilter:
     def soc(self) -> float:
         """State of charge that the energy state implies."""
         kf = self._require()
-        return self.real_pack.soc_from_energy_scalar(max(float(kf.x[0]), 0.0) + self._reserve_wh)
+        return self.real_pack.soc_from_energy_scalar(max(kf.x[0], 0.0) + self._reserve_wh)
 
     def estimate(self) -> EnergyEstimate:
         kf = self._require()
-        cov = np.array(kf.P, dtype=float)
-        cov[0, 0] += self._offset_sigma_wh**2
+        (p_ee, p_eb), (p_be, p_bb) = kf.P
+        p_ee += self._offset_sigma_wh**2
         if self.has_current and not self.anchored:
             # A current-sensor gain error g scales both the measured drain and the bias.
-            sigma_g = self.settings.current_gain_sigma_fraction
-            used_wh = self._initial_wh - float(kf.x[0])
-            j = np.array([-used_wh, float(kf.x[1])])
-            cov += sigma_g**2 * np.outer(j, j)
+            var_g = self.settings.current_gain_sigma_fraction**2
+            j_e, j_b = -(self._initial_wh - kf.x[0]), kf.x[1]
+            p_ee, p_eb = p_ee + var_g * (j_e * j_e), p_eb + var_g * (j_e * j_b)
+            p_be, p_bb = p_be + var_g * (j_b * j_e), p_bb + var_g * (j_b * j_b)
         return EnergyEstimate(
-            energy_wh=max(float(kf.x[0]), 0.0),
-            energy_sigma_wh=math.sqrt(cov[0, 0]),
-            bias=float(kf.x[1]),
-            bias_sigma=math.sqrt(cov[1, 1]),
-            covariance=cov,
+            energy_wh=max(kf.x[0], 0.0),
+            energy_sigma_wh=math.sqrt(p_ee),
+            bias=kf.x[1],
+            bias_sigma=math.sqrt(p_bb),
+            covariance=((p_ee, p_eb), (p_be, p_bb)),
         )
 
     def _require(self) -> LinearKalman:
@@ -302,7 +316,7 @@ class EnergyFilter:
         self._offset_sigma_wh = math.hypot(
             min(sigma_soc, 0.5) * slope_wh, s.capacity_sigma_fraction * energy_wh
         )
-        self._kf = LinearKalman(np.array([energy_wh, 1.0]), np.diag([0.0, s.bias_prior_sigma**2]))
+        self._kf = LinearKalman([energy_wh, 1.0], [[0.0, 0.0], [0.0, s.bias_prior_sigma**2]])
         self._initial_wh = energy_wh
         self._time_s = sample.time_s
         self.voltage = ResistanceFilter(pack, s)
@@ -316,8 +330,8 @@ class EnergyFilter:
         assert self.voltage is not None
         return {
             "time_s": self._time_s,
-            "x": [float(v) for v in kf.x],
-            "P": [[float(v) for v in row] for row in kf.P],
+            "x": list(kf.x),
+            "P": [list(row) for row in kf.P],
             "soc_ref": self._soc_ref,
             "offset_sigma_wh": self._offset_sigma_wh,
             "initial_wh": self._initial_wh,
@@ -343,7 +357,7 @@ class EnergyFilter:
         voltage = ResistanceFilter(self.pack, self.settings)
         voltage.restore(state["resistance"])
         anchor = state["anchor_power_w"]
-        self._kf, self.voltage = LinearKalman(x, p), voltage
+        self._kf, self.voltage = LinearKalman(x.tolist(), p.tolist()), voltage
         self._time_s = _finite(state["time_s"], 0.0, _MAX_CLOCK_S, "time (s)")
         # the counter's zero lies above full after a reboot the counter did not follow
         self._soc_ref = _finite(state["soc_ref"], 0.0, 2.0, "soc_ref")
@@ -386,11 +400,11 @@ class EnergyFilter:
         if measured:
             q_e = (s.power_noise_fraction * drain_wh) ** 2
             kf.x[0] -= drain_wh
-            kf.predict(np.eye(2), np.diag([q_e, q_b]))
+            f = ((1.0, 0.0), (0.0, 1.0))
         else:
-            f = np.array([[1.0, -drain_wh], [0.0, 1.0]])
+            f = ((1.0, -drain_wh), (0.0, 1.0))
             q_e = (s.model_power_noise_fraction * drain_wh) ** 2
-            kf.predict(f, np.diag([q_e, q_b]))
+        kf.predict(f, ((q_e, 0.0), (0.0, q_b)))
         self._cap_bias_variance()
 
     def flight_state_changed(self, steady_power_w: float) -> None:
@@ -406,7 +420,7 @@ class EnergyFilter:
             return
         move = abs(steady_power_w - self._anchor_power_w) / self._anchor_power_w
         if move > s.state_change_step:
-            kf.P[1, 1] += (s.state_change_bias_sigma * move) ** 2
+            kf.P[1][1] += (s.state_change_bias_sigma * move) ** 2
             self._anchor_power_w = steady_power_w
             self._cap_bias_variance()
 
@@ -419,8 +433,7 @@ class EnergyFilter:
         if not (math.isfinite(factor) and factor > 0):
             return
         kf.x[1] *= factor
-        kf.P[1, :] *= factor
-        kf.P[:, 1] *= factor
+        _scale_bias_row_column(kf.P, factor)
         if self._anchor_power_w is not None:
             self._anchor_power_w /= factor
         self._cap_bias_variance()
@@ -431,10 +444,8 @@ class EnergyFilter:
         together, so P stays positive semi-definite)."""
         kf = self._require()
         cap = self.settings.bias_prior_sigma**2
-        if kf.P[1, 1] > cap:
-            factor = math.sqrt(cap / kf.P[1, 1])
-            kf.P[1, :] *= factor
-            kf.P[:, 1] *= factor
+        if kf.P[1][1] > cap:
+            _scale_bias_row_column(kf.P, math.sqrt(cap / kf.P[1][1]))
 
     def update_power(
         self,
@@ -452,7 +463,7 @@ class EnergyFilter:
         s = self.settings
         reading_sigma_w = s.power_noise_fraction * abs(measured_w) + s.power_noise_floor_w
         sigma_w = math.hypot(reading_sigma_w / math.sqrt(readings), model_sigma_w)
-        kf.update(measured_w, np.array([0.0, power_model_w]), sigma_w**2)
+        kf.update(measured_w, (0.0, power_model_w), sigma_w**2)
 
     def anchor(self, pack: PackEstimate) -> None:
         """The pack filter (:mod:`estimator.estimation.pack_state`) knows the energy left
@@ -464,8 +475,8 @@ class EnergyFilter:
         self.real_pack = self.pack.with_capacity(pack.capacity_ah)
         self._reserve_wh = self.real_pack.energy_scalar_wh(self.pack.spec.reserve_fraction)
         kf.x[0] = pack.energy_wh
-        kf.P[0, 0] = pack.energy_sigma_wh**2
-        kf.P[0, 1] = kf.P[1, 0] = 0.0
+        kf.P[0][0] = pack.energy_sigma_wh**2
+        kf.P[0][1] = kf.P[1][0] = 0.0
         self._offset_sigma_wh = 0.0
 
     def update_charge(self, consumed_mah: float) -> None:
@@ -480,13 +491,13 @@ class EnergyFilter:
         energy_wh = float(pack.usable_energy_wh(soc_now))
         used_wh = float(pack.energy_wh(self._soc_ref) - pack.energy_wh(soc_now))
         sigma_wh = self.settings.charge_sigma_fraction * abs(used_wh) + 0.2
-        kf.update(energy_wh, np.array([1.0, 0.0]), sigma_wh**2)
+        kf.update(energy_wh, (1.0, 0.0), sigma_wh**2)
 
     # -- endurance --------------------------------------------------------------------------
 
     @property
     def bias(self) -> float:
-        return float(self._require().x[1])
+        return self._require().x[1]
 
     def endurance_s(
         self, terminal_power_w: ArrayLike, est: EnergyEstimate | None = None
@@ -515,8 +526,8 @@ class EnergyFilter:
         )
         d_energy = 3600.0 * inv_drain[:, -1]
         d_bias = -time_s / max(est.bias, 1e-3)
-        cov = est.covariance
-        var = d_energy**2 * cov[0, 0] + 2 * d_energy * d_bias * cov[0, 1] + d_bias**2 * cov[1, 1]
+        (var_e, cov_eb), (_, var_b) = est.covariance
+        var = d_energy**2 * var_e + 2 * d_energy * d_bias * cov_eb + d_bias**2 * var_b
         sigma_s = np.sqrt(np.maximum(var, 0.0))
         off = power_w <= 0
         time_s[off] = sigma_s[off] = np.inf

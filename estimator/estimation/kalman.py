@@ -1,43 +1,65 @@
-"""Closed-form Kalman steps in numpy for the daemon's small filters (scalar measurements).
+"""Closed-form Kalman steps for the daemon's small filters (scalar measurements): the linear
+one in scalar arithmetic, the unscented one in numpy.
 
 The steps are filterpy's (``KalmanFilter.predict``/``update`` with the Joseph-form
 covariance; ``UnscentedKalmanFilter`` with ``MerweScaledSigmaPoints``), written out for the
-shapes used here: states of 1–3 elements and one measurement. Importing filterpy runs its
-package ``__init__``, which loads every submodule and with them ``scipy.stats``,
-``scipy.linalg`` and ``scipy.ndimage``: about 60 MB of the daemon's resident memory and
-0.7 s of its start-up for a few 3 × 3 products. tests/test_kalman.py checks every step
+shapes used here: two states (linear), three or four (unscented), and one measurement.
+Importing filterpy runs its package ``__init__``, which loads every submodule and with them
+``scipy.stats``, ``scipy.linalg`` and ``scipy.ndimage``: about 60 MB of the daemon's resident
+memory and 0.7 s of its start-up for a few 3 × 3 products. tests/test_kalman.py checks every step
 here against filterpy's on random inputs (equal to 1e-12).
 """
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from typing import Any, NamedTuple
 
 import numpy as np
 
 
 class LinearKalman:
-    """A linear Kalman filter: state ``x`` (n,) and covariance ``P`` (n × n), both updated
-    in place by :meth:`predict` and :meth:`update` (the caller may also edit them)."""
+    """A linear Kalman filter of two states: state ``x`` (2 floats) and covariance ``P``
+    (2 × 2, nested lists), both replaced by :meth:`predict` and :meth:`update` (the caller
+    may also edit them). Written out in scalar arithmetic: once per period, numpy's calls on
+    2 × 2 arrays cost more than the products they save."""
 
-    def __init__(self, x: np.ndarray, p: np.ndarray) -> None:
-        self.x = np.array(x, dtype=float)
-        self.P = np.array(p, dtype=float)
+    def __init__(self, x: Sequence[float], p: Sequence[Sequence[float]]) -> None:
+        self.x = [float(v) for v in x]
+        self.P = [[float(v) for v in row] for row in p]
 
-    def predict(self, f: np.ndarray, q: np.ndarray) -> None:
+    def predict(self, f: Sequence[Sequence[float]], q: Sequence[Sequence[float]]) -> None:
         """x ← F x, P ← F P Fᵀ + Q."""
-        self.x = f @ self.x
-        self.P = f @ self.P @ f.T + q
+        (f00, f01), (f10, f11) = f
+        (p00, p01), (p10, p11) = self.P
+        x0, x1 = self.x
+        self.x = [f00 * x0 + f01 * x1, f10 * x0 + f11 * x1]
+        a00, a01 = f00 * p00 + f01 * p10, f00 * p01 + f01 * p11  # F P
+        a10, a11 = f10 * p00 + f11 * p10, f10 * p01 + f11 * p11
+        (q00, q01), (q10, q11) = q
+        self.P = [
+            [a00 * f00 + a01 * f01 + q00, a00 * f10 + a01 * f11 + q01],
+            [a10 * f00 + a11 * f01 + q10, a10 * f10 + a11 * f11 + q11],
+        ]
 
-    def update(self, z: float, h: np.ndarray, r_var: float) -> None:
+    def update(self, z: float, h: Sequence[float], r_var: float) -> None:
         """Fold in one measurement ``z = h · x + noise`` of variance ``r_var``; the Joseph
         form P ← (I − K h) P (I − K h)ᵀ + K r Kᵀ keeps P symmetric and positive."""
-        pht = self.P @ h
-        s_var = float(h @ pht) + r_var
-        gain = pht / s_var
-        self.x = self.x + gain * (z - float(h @ self.x))
-        i_kh = np.eye(len(self.x)) - np.outer(gain, h)
-        self.P = i_kh @ self.P @ i_kh.T + r_var * np.outer(gain, gain)
+        h0, h1 = h
+        (p00, p01), (p10, p11) = self.P
+        x0, x1 = self.x
+        pht0, pht1 = p00 * h0 + p01 * h1, p10 * h0 + p11 * h1
+        s_var = h0 * pht0 + h1 * pht1 + r_var
+        g0, g1 = pht0 / s_var, pht1 / s_var
+        innovation = z - (h0 * x0 + h1 * x1)
+        self.x = [x0 + g0 * innovation, x1 + g1 * innovation]
+        a00, a01, a10, a11 = 1.0 - g0 * h0, -g0 * h1, -g1 * h0, 1.0 - g1 * h1  # I − K h
+        b00, b01 = a00 * p00 + a01 * p10, a00 * p01 + a01 * p11  # (I − K h) P
+        b10, b11 = a10 * p00 + a11 * p10, a10 * p01 + a11 * p11
+        self.P = [
+            [b00 * a00 + b01 * a01 + r_var * (g0 * g0), b00 * a10 + b01 * a11 + r_var * (g0 * g1)],
+            [b10 * a00 + b11 * a01 + r_var * (g1 * g0), b10 * a10 + b11 * a11 + r_var * (g1 * g1)],
+        ]
 
 
 class UnscentedUpdate(NamedTuple):

@@ -345,7 +345,7 @@ class OnlineEffects:
         columns[2] -= np.repeat(points[:, 1], k)
         floor_kg = (self.settings.min_mass_fraction - 1.0) * self.mass_kg
         mass = SampleMass(np.repeat(np.maximum(points[:, 2], floor_kg), k))
-        state = FlightState(*columns)
+        state = FlightState.of_columns(columns)
         power = predict_power_w(self.model, self.mass_kg, state, (mass, *self.others))
         return power.reshape(m, k) + (points[:, 3:4] if points.shape[1] > 3 else 0.0)
 

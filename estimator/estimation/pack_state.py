@@ -86,27 +86,31 @@ def _dot(a: Sequence[float], b: Sequence[float]) -> float:
 
 def _quadratic(p: Sequence[Sequence[float]], j: Sequence[float]) -> float:
     """jᵀ P j of a 4-vector ``j`` and a 4 × 4 matrix ``p`` (nested lists)."""
-    return _dot(j, [_dot(row, j) for row in p])
+    j0, j1, j2, j3 = j
+    return _dot(j, [r[0] * j0 + r[1] * j1 + r[2] * j2 + r[3] * j3 for r in p])
 
 
 def _joseph(
     p: Sequence[Sequence[float]], gain: Sequence[float], h: Sequence[float], r_var: float
-) -> np.ndarray:
+) -> list[list[float]]:
     """The covariance after a scalar update, Joseph form (I − K h) P (I − K h)ᵀ + K r Kᵀ
     (symmetric and positive), for the gain ``gain``, the gradient ``h`` and the reading's
     variance ``r_var``: with A = I − K h, A P = P − K (hᵀP) and (A P) Aᵀ = A P − (A P h) Kᵀ."""
-    hp = [h[0] * p[0][j] + h[1] * p[1][j] + h[2] * p[2][j] + h[3] * p[3][j] for j in range(4)]
-    ap = [
-        [pij - gi * hpj for pij, hpj in zip(row, hp, strict=True)]
-        for row, gi in zip(p, gain, strict=True)
-    ]
-    aph = [_dot(row, h) for row in ap]
-    return np.array(
-        [
-            [apij - aphi * gj + r_var * gi * gj for apij, gj in zip(row, gain, strict=True)]
-            for row, aphi, gi in zip(ap, aph, gain, strict=True)
-        ]
-    )
+    h0, h1, h2, h3 = h
+    p0, p1, p2, p3 = p
+    hp = [h0 * p0[j] + h1 * p1[j] + h2 * p2[j] + h3 * p3[j] for j in range(4)]
+    hp0, hp1, hp2, hp3 = hp
+    g0, g1, g2, g3 = gain
+    out = []
+    for row, gi in zip(p, gain, strict=True):
+        a0, a1, a2, a3 = row[0] - gi * hp0, row[1] - gi * hp1, row[2] - gi * hp2, row[3] - gi * hp3
+        aph = a0 * h0 + a1 * h1 + a2 * h2 + a3 * h3
+        r_gi = r_var * gi
+        out.append(
+            [a0 - aph * g0 + r_gi * g0, a1 - aph * g1 + r_gi * g1, a2 - aph * g2 + r_gi * g2,
+             a3 - aph * g3 + r_gi * g3]
+        )  # fmt: skip
+    return out
 
 
 @dataclass(frozen=True, slots=True)
@@ -186,8 +190,10 @@ class PackFilter:
         self.prior = prior
         self.cells = pack.spec.cells
         self.label_ah = pack.spec.capacity_ah
-        self.x = np.zeros(4)
-        self.P = np.zeros((4, 4))
+        #: The state [s, q, R, d] and its covariance (4 × 4, nested lists: scalar arithmetic,
+        #: numpy costs more than it saves at this size).
+        self.x = [0.0] * 4
+        self.P = [[0.0] * 4 for _ in range(4)]
         self.charge_ah = 0.0  # drawn since the start
         self._counter_base: tuple[float, float] | None = None  # (charge_ah, counter Ah) then
         self.rejected = 0
@@ -252,8 +258,9 @@ class PackFilter:
         ocv_v = voltage_v + max(current_a, 0.0) * r0
         s0 = float(np.clip(self.pack.soc_from_ocv(ocv_v), 0.0, 1.0))
         self.started = True
-        self.x = np.array([s0, q0, r0, 0.0])
-        self.P = np.diag([_S_PRIOR_SIGMA**2, q_sigma**2, r_sigma**2, self.curve_sigma_v**2])
+        self.x = [s0, q0, r0, 0.0]
+        diagonal = (_S_PRIOR_SIGMA**2, q_sigma**2, r_sigma**2, self.curve_sigma_v**2)
+        self.P = [[var if i == j else 0.0 for j in range(4)] for i, var in enumerate(diagonal)]
         self._update(voltage_v, current_a, _FIRST_UPDATE_ITERATIONS, gate=False)
 
     def take(
@@ -266,7 +273,7 @@ class PackFilter:
             self.start(voltage_v, current_a)
             if consumed_mah is not None:
                 self.count(consumed_mah)
-            self.steps.take(time_s, voltage_v, current_a, 0.0, float(self.x[2]))
+            self.steps.take(time_s, voltage_v, current_a, 0.0, self.x[2])
         else:
             last_s = time_s if self.last_time_s is None else self.last_time_s
             dt_s = max(time_s - last_s, 0.0)
@@ -275,7 +282,7 @@ class PackFilter:
             else:
                 self.draw(current_a, dt_s)
             drift_v_per_ah = self._resting_drift_v(1.0)
-            step = self.steps.take(time_s, voltage_v, current_a, drift_v_per_ah, float(self.x[2]))
+            step = self.steps.take(time_s, voltage_v, current_a, drift_v_per_ah, self.x[2])
             if step is not None and self.settings.internal_resistance_ohm is None:
                 self._update_resistance(step)
             self.update(dt_s, voltage_v, current_a, learn_resistance=not self.steps.within_noise)
@@ -302,14 +309,14 @@ class PackFilter:
         if not (math.isfinite(var_ohm2) and math.isfinite(resistance_ohm)):
             return
         h = (0.0, 0.0, 1.0, 0.0)
-        innovation = resistance_ohm - float(self.x[2])
-        s_var = float(self.P[2, 2]) + var_ohm2
+        innovation = resistance_ohm - self.x[2]
+        s_var = self.P[2][2] + var_ohm2
         if innovation**2 > self.settings.innovation_gate_sigma**2 * s_var:
             return
         self.log_likelihood -= 0.5 * (innovation**2 / s_var + math.log(2.0 * math.pi * s_var))
-        p = self.P.tolist()
+        p = self.P
         gain = [row[2] / s_var for row in p]
-        self.x = self.x + np.array(gain) * innovation
+        self.x = [xi + gi * innovation for xi, gi in zip(self.x, gain, strict=True)]
         self.P = _joseph(p, gain, h, var_ohm2)
         self.x[2] = min(max(self.x[2], _R_RANGE[0]), _R_RANGE[1])
 
@@ -342,9 +349,11 @@ class PackFilter:
             s = self.settings
             phi = math.exp(-delta_soc / s.ocv_curve_correlation_soc)
             self.x[3] *= phi
-            self.P[3, :] *= phi
-            self.P[:, 3] *= phi
-            self.P[3, 3] += self.curve_sigma_v**2 * (1.0 - phi * phi)
+            p = self.P
+            p[3] = [v * phi for v in p[3]]
+            for row in p:
+                row[3] *= phi
+            p[3][3] += self.curve_sigma_v**2 * (1.0 - phi * phi)
 
     # -- voltage ------------------------------------------------------------------------------
 
@@ -355,7 +364,7 @@ class PackFilter:
         without ``learn_resistance`` the resistance's uncertainty is weighed but the reading
         does not move it (a current that moved only by its noise: errors in variables)."""
         if dt_s > 0 and self.settings.internal_resistance_ohm is None:
-            self.P[2, 2] += self.settings.resistance_walk_ohm_per_sqrt_s**2 * dt_s
+            self.P[2][2] += self.settings.resistance_walk_ohm_per_sqrt_s**2 * dt_s
         self._update(voltage_v, current_a, 1, gate=True, learn_resistance=learn_resistance)
 
     def _measurement(
@@ -384,7 +393,7 @@ class PackFilter:
         gate: bool,
         learn_resistance: bool = True,
     ) -> None:
-        x0, p0 = self.x.tolist(), self.P.tolist()
+        x0, p0 = self.x, self.P
         r_var = self.noise_var_v2
         x = list(x0)
         for _ in range(iterations):
@@ -407,11 +416,11 @@ class PackFilter:
         if gate:
             # residual after the update, plus what the state's remaining uncertainty explains
             residual_v = innovation * (1.0 - _dot(h, gain))
-            self._learn_noise(residual_v**2 + _quadratic(self.P.tolist(), h))
+            self._learn_noise(residual_v**2 + _quadratic(self.P, h))
         x[0] = min(max(x[0], _S_RANGE[0]), _S_RANGE[1])
         x[1] = min(max(x[1], _Q_RANGE[0]), _Q_RANGE[1])
         x[2] = min(max(x[2], _R_RANGE[0]), _R_RANGE[1])
-        self.x = np.array(x)
+        self.x = x
         self.updates += 1
 
     def _learn_noise(self, sample_v2: float) -> None:
@@ -451,10 +460,10 @@ class PackFilter:
 
     @property
     def resistance_ohm(self) -> float:
-        return float(self.x[2])
+        return self.x[2]
 
     def estimate(self) -> PackEstimate:
-        s, q, resistance_ohm, d = self.x.tolist()
+        s, q, resistance_ohm, d = self.x
         label, cells, c = self.label_ah, self.cells, self.charge_ah
         reserve = self.pack.spec.reserve_fraction
         soc = s - q * c / label
@@ -472,7 +481,7 @@ class PackFilter:
         )  # fmt: skip
         j_soc = (1.0, -c / label, 0.0, 0.0)
         j_capacity = (0.0, -label / (q * q), 0.0, 0.0)
-        p = self.P.tolist()
+        p = self.P
         return PackEstimate(
             soc=min(max(soc, 0.0), 1.0),
             soc_sigma=math.sqrt(max(_quadratic(p, j_soc), 0.0)),
@@ -489,8 +498,8 @@ class PackFilter:
     def snapshot(self) -> dict[str, Any]:
         """The state, its covariance and the charge accounting (JSON-ready)."""
         return {
-            "x": [float(v) for v in self.x],
-            "P": [[float(v) for v in row] for row in self.P],
+            "x": list(self.x),
+            "P": [list(row) for row in self.P],
             "charge_ah": self.charge_ah,
             "counter_base": None if self._counter_base is None else list(self._counter_base),
         }
@@ -513,5 +522,6 @@ class PackFilter:
             0.0 <= counter_base[0] <= 10.0 * self.label_ah and 0.0 <= counter_base[1] <= 1e3
         ):  # the charge drawn, and a consumed-charge counter (Ah) the decoder believes
             raise ValueError("counter base is not within the pack's reach")
-        self.x, self.P, self.charge_ah, self._counter_base = x, p, charge_ah, counter_base
+        self.x, self.P = x.tolist(), p.tolist()
+        self.charge_ah, self._counter_base = charge_ah, counter_base
         self.started = True

@@ -9,8 +9,8 @@ each battery sample is queued in the period its time falls in. The sample that r
 of a period closes it (a velocity sample as the period's last event, a battery reading as the
 next period's first), and then, once for the whole period:
 
-1. the model power after every queued velocity sample, in one vectorized call of
-   :func:`estimator.physics.effects.predict_power_w` (the one place power is predicted);
+1. the model power after every queued velocity sample and the endurance's (step 5), in one
+   call of :func:`estimator.physics.effects.predict_power_w` (the one place power is predicted);
 2. the energy filter integrates that power over the period (each power holds until the next
    sample);
 3. the period's battery readings update the fusion (:mod:`estimator.estimation.fusion`): their mean
@@ -45,8 +45,6 @@ from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 from typing import Any
 
-import numpy as np
-
 from estimator.estimation.airborne import AirborneGate, Phase
 from estimator.estimation.estimate import Estimate, PowerReading
 from estimator.estimation.flight_power import FlightPower, PowerEvent
@@ -55,11 +53,13 @@ from estimator.estimation.online_effects import OnlineEffects, TrackerReading
 from estimator.estimation.pack_bank import PackBank
 from estimator.estimation.pack_learning import PackLearning
 from estimator.estimation.pack_state import PackPrior
+from estimator.estimation.period_estimate import period_estimate
 from estimator.estimation.pipeline_settings import PipelineSettings
 from estimator.estimation.pipeline_snapshot import Resume, parse_snapshot, take_snapshot
 from estimator.estimation.return_home import (
     MissionEnergyFn,
     MissionSample,
+    ReturnFigures,
     ReturnHome,
     ReturnInputs,
 )
@@ -197,18 +197,19 @@ class Pipeline:
     def _refresh_speeds(self) -> None:
         self.power.refresh_speeds(self._time_s or 0.0, self._latest_v())
 
-    def _event_powers_w(self, events: Sequence[PowerEvent], time_s: float) -> list[float]:
+    def _event_powers_w(
+        self, events: Sequence[PowerEvent], time_s: float, endurance: bool = False
+    ) -> list[float]:
         """Model power after each of ``events`` (W); also sets the steady power of the latest
-        state (:meth:`FlightPower.event_powers_w`)."""
+        state, and with ``endurance`` the endurance's (:meth:`FlightPower.event_powers_w`)."""
         powers_w, self._steady_power_w = self.power.event_powers_w(
-            events, self._state, self._armed, self._latest_v(), time_s
+            events, self._state, self._armed, self._latest_v(), time_s, endurance
         )
         return powers_w
 
     def _kinetic_sigma_w(self) -> float:
         """1σ of the kinetic term m vᵀa from the filtered acceleration's uncertainty, W."""
-        state = self._state
-        if state is None:
+        if (state := self._state) is None:
             return 0.0
         return self.vehicle.mass_kg * state.speed_mps * state.accel_sigma_mps2
 
@@ -305,8 +306,7 @@ class Pipeline:
         return False
 
     def _queue_event(self, time_s: float) -> None:
-        voltage_v = math.nan if self._battery is None else self._battery.voltage_v
-        self._events.append(PowerEvent(time_s, self._state, self._armed, voltage_v))
+        self._events.append(PowerEvent(time_s, self._state, self._armed, self._latest_v()))
 
     # -- continuing after a restart ---------------------------------------------------------------
 
@@ -333,9 +333,7 @@ class Pipeline:
             snapshot,
             lambda: EnergyFilter(self.pack, self.settings.fusion),
             self.packs.new_bank,
-            lambda effects: float(
-                self.power.predict((), np.zeros(1), self._latest_v(), effects=effects)[0]
-            ),
+            lambda effects: self.power.hover_w(self._latest_v(), effects),
             self.vehicle.model.hover_power_w,
         )
 
@@ -411,7 +409,7 @@ class Pipeline:
 
     def _close_period(self, time_s: float) -> Estimate:
         self._classify_readings()
-        powers_w = self._event_powers_w(self._events, time_s)
+        powers_w = self._event_powers_w(self._events, time_s, endurance=True)
         self._integrate(time_s, powers_w)
         # each reading against the power in force when it arrived
         model_w = [
@@ -548,17 +546,19 @@ class Pipeline:
             self._refresh_speeds()
             self._speeds_time_s = time_s
 
-    def _return_inputs(self, est: EnergyEstimate, steady_w: float) -> ReturnInputs:
-        """The state the return figures rest on (:mod:`estimator.estimation.return_home`)."""
+    def _return_figures(self, time_s: float, est: EnergyEstimate, steady_w: float) -> ReturnFigures:
+        """The return figures (:mod:`estimator.estimation.return_home`), and the state they
+        rest on, gathered only once the vehicle and home are located."""
+        if not self.returning.located:
+            return self.returning.unlocated(self.endurance_valid)
         settings, state = self.settings.return_home, self._state
         if self.online is not None:
             sigma = self.online.sigma
-            wind_sigma = (sigma["wind_n_mps"], sigma["wind_e_mps"])
-            mass_sigma_kg = sigma["mass_kg"]
+            wind_sigma, mass_sigma_kg = (sigma["wind_n_mps"], sigma["wind_e_mps"]), sigma["mass_kg"]
         else:
             wind_sigma = (settings.untracked_wind_sigma_mps,) * 2
             mass_sigma_kg = settings.untracked_mass_sigma_fraction * self.vehicle.mass_kg
-        return ReturnInputs(
+        inputs = ReturnInputs(
             time_s=self._time_s or 0.0,
             velocity_ne_mps=(0.0, 0.0) if state is None else (state.vn_mps, state.ve_mps),
             effects=self.power.effects,
@@ -572,6 +572,7 @@ class Pipeline:
             steady_power_w=steady_w,
             flying=self.endurance_valid,
         )
+        return self.returning.figures(time_s, inputs)
 
     def _endurance_power_w(self) -> float:
         """Model power (W) the endurance holds (:meth:`FlightPower.endurance_w`)."""
@@ -583,69 +584,16 @@ class Pipeline:
 
     def _emit(self, time_s: float) -> Estimate:
         est = self.energy.estimate()
-        state = self._state
         steady_w = est.bias * self._steady_power_w
-        power = self.power
-        model_w = np.array([self._endurance_power_w(), power.p_hover_w, power.p_me_w, power.p_mr_w])
-        times_s, sigmas_s = self.energy.endurance_s(est.bias * model_w, est)
-        endurance_s, hover_s, vme_s, vmr_s = (float(x) for x in times_s)
-        endurance_sigma_s, hover_sigma_s, vme_sigma_s, vmr_sigma_s = (float(x) for x in sigmas_s)
-        # changing speed, the speed it will hold is not known: from the one before to this one
-        endurance_sigma_s = math.hypot(endurance_sigma_s, power.change_spread * endurance_s)
+        endurance_model_w = self._endurance_power_w()
         battery = self._battery
         stale = battery is None or time_s - battery.time_s > self.settings.battery_stale_s
-        voltage = self.energy.voltage
-        back = self.returning.figures(time_s, self._return_inputs(est, steady_w))
-        pack = self.packs.estimate
-        estimate = Estimate(
-            time_s=time_s,
-            speed_mps=0.0 if state is None else state.speed_mps,
-            accel_tangential_mps2=0.0 if state is None else state.accel_tangential_mps2,
-            accel_centripetal_mps2=0.0 if state is None else state.accel_centripetal_mps2,
-            climb_mps=0.0 if state is None else state.climb_mps,
-            power_model_w=self._power_model_w,
-            power_measured_w=None if battery is None else battery.power_w,
-            energy_remaining_wh=est.energy_wh,
-            energy_remaining_sigma_wh=est.energy_sigma_wh,
-            endurance_s=endurance_s,
-            endurance_sigma_s=endurance_sigma_s,
-            hover_endurance_s=hover_s,
-            vme_endurance_s=vme_s,
-            v_me_mps=power.v_me_mps,
-            range_vmr_m=power.v_mr_mps * vmr_s,
-            bias=est.bias,
-            bias_sigma=est.bias_sigma,
-            model_only=self.energy.model_only,
-            voltage_follows_load=self.energy.voltage_follows_load,
-            stale=stale,
-            soc=self.energy.soc,
-            voltage_v=math.nan if battery is None else battery.voltage_v,
-            resistance_ohm=math.nan if voltage is None else voltage.resistance_ohm,
-            pack_soc=math.nan if pack is None else pack.soc,
-            pack_soc_sigma=math.nan if pack is None else pack.soc_sigma,
-            capacity_ah=math.nan if pack is None else pack.capacity_ah,
-            capacity_sigma_ah=math.nan if pack is None else pack.capacity_sigma_ah,
-            pack_resistance_ohm=math.nan if pack is None else pack.resistance_ohm,
-            steady_power_w=steady_w,
-            hover_endurance_sigma_s=hover_sigma_s,
-            vme_endurance_sigma_s=vme_sigma_s,
-            range_vmr_sigma_m=power.v_mr_mps * vmr_sigma_s,
-            endurance_valid=self.endurance_valid,
-            home_distance_m=back.home_distance_m,
-            rth_energy_wh=back.energy_wh,
-            rth_sigma_wh=back.sigma_wh,
-            rth_time_s=back.time_s,
-            rth_speed_mps=back.speed_mps,
-            rth_wind_mps=back.wind_mps,
-            rth_wind_from_deg=back.wind_from_deg,
-            margin_wh=back.margin_wh,
-            margin_sigma_wh=back.margin_sigma_wh,
-            pnr_s=back.pnr_s,
-            mission_energy_wh=back.mission_energy_wh,
-            mission_sigma_wh=back.mission_sigma_wh,
-            mission_feasible=back.mission_feasible,
-            rth_flags=back.flags,
-        )
+        back = self._return_figures(time_s, est, steady_w)
+        estimate = period_estimate(
+            time_s, self.energy, est, self.power, endurance_model_w, self._power_model_w,
+            self._state, battery, self.packs.estimate, back, stale, self.endurance_valid,
+            steady_w,
+        )  # fmt: skip
         self.last = estimate
         self.counts["estimates"] += 1
         return estimate

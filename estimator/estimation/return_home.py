@@ -287,18 +287,31 @@ class ReturnHome:
         """The autopilot rebooted: its position and home are gone (the mission stays)."""
         self.position, self.home, self._last, self._rate_wh_per_s = None, None, None, 0.0
 
-    def figures(self, time_s: float, inputs: ReturnInputs) -> ReturnFigures:
-        flags = 0 if inputs.flying else FLAG_NOT_FLYING
+    @property
+    def located(self) -> bool:
+        """The vehicle's position and home are both known: :meth:`figures` can be made."""
+        return self.position is not None and self.home is not None
+
+    def unlocated(self, flying: bool) -> ReturnFigures:
+        """The figures while not :attr:`located`: NaN, with the flags saying why (and
+        ``flying`` whether the estimate rests on flight)."""
+        flags = 0 if flying else FLAG_NOT_FLYING
         if self.home is None:
             flags |= FLAG_NO_HOME
         if self.position is None:
             flags |= FLAG_NO_POSITION
         if self.mission is None:
             flags |= FLAG_NO_MISSION
+        self._last = None
+        return ReturnFigures(flags=flags)
+
+    def figures(self, time_s: float, inputs: ReturnInputs) -> ReturnFigures:
         position, home = self.position, self.home
         if position is None or home is None:
-            self._last = None
-            return ReturnFigures(flags=flags)
+            return self.unlocated(inputs.flying)
+        flags = 0 if inputs.flying else FLAG_NOT_FLYING
+        if self.mission is None:
+            flags |= FLAG_NO_MISSION
         distance_m, bearing_rad = distance_bearing(
             position.lat_deg, position.lon_deg, home.lat_deg, home.lon_deg
         )

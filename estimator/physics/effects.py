@@ -86,6 +86,16 @@ class FlightState:
         return len(self.time_s)
 
     @classmethod
+    def of_columns(cls, columns: FloatArray) -> FlightState:
+        """A state from a 9 × n float array whose rows are the fields in their order
+        (``ad_mps2`` last), taken as they are: the checks of the constructor are the
+        caller's (the pipeline builds the array, once per prediction)."""
+        state = object.__new__(cls)
+        for name, column in zip(_FLIGHT_STATE_FIELDS, columns, strict=True):
+            object.__setattr__(state, name, column)
+        return state
+
+    @classmethod
     def from_velocity(
         cls,
         time_s: ArrayLike,
