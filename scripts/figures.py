@@ -102,6 +102,7 @@ from estimator.errors import UserError
 from estimator.logs import iter_samples, sanity
 from estimator.logs.mission_files import load_mission
 from estimator.logs.sanity import SanityRecorder
+from estimator.physics.lean_limit import along_track_limit_mps
 from estimator.physics.route_energy import Conditions, RouteVehicle, steady_power_w
 from estimator.physics.vehicle import BatterySpec, Vehicle, default_vehicle, load_vehicle
 from estimator.reports.doc_blocks import Block, blocks_in, rewrite
@@ -620,6 +621,21 @@ def plan_example_upwind() -> str:
         f"{asked_mps:g} m/s, the SITL quad makes {upwind.energy.ground_speed_mps:.1f} m/s over "
         f"ground at its airspeed limit, and that one leg takes {share:.0f} % of the energy"
     )
+
+
+#: The crosswind (m/s, across a track the nose follows) docs/plan.md gives the headway it costs.
+CROSSWIND_MPS = 7.0
+
+
+@generator("plan-crosswind-headway")
+def plan_crosswind_headway() -> str:
+    """The SITL quad's airspeed limit along its track (nose on it) in :data:`CROSSWIND_MPS`
+    across, against its limit straight ahead (m/s)."""
+    vehicle = load_vehicle(sitl.SITL_VEHICLE)
+    assert vehicle.drag is not None and vehicle.max_airspeed_mps is not None
+    straight = vehicle.max_airspeed_mps
+    along = along_track_limit_mps(vehicle.drag, straight, (0.0, CROSSWIND_MPS), 0.0, 0.0)
+    return f"{along:.1f} m/s along the track in {CROSSWIND_MPS:g} m/s across, against {straight:g}"
 
 
 @generator("plan-headline")
