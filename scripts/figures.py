@@ -86,6 +86,7 @@ from estimator.analysis.mission_energy import FlightSettings, LegResult, Mission
 from estimator.analysis.mission_validation import (
     MissionCheck,
     check_recording,
+    item_ground_speeds_mps,
     leg_checks,
     predict_recording,
     truth_conditions,
@@ -109,7 +110,6 @@ from estimator.reports.doc_blocks import Block, blocks_in, rewrite
 from estimator.reports.fit_report import circles_markdown
 from estimator.sim.experiments import Experiments, curve_table, reproduce
 from estimator.sitl.truth_check import angle_deg
-from estimator.telemetry.samples import MissionCurrentSample, VelocitySample
 
 REPO = Path(__file__).resolve().parent.parent
 DOCUMENTS = (REPO / "README.md", *sorted((REPO / "docs").glob("*.md")))
@@ -576,18 +576,6 @@ def plan_climb_power() -> str:
 HEADWIND_MISSION = MISSIONS / "outback_wind8"
 
 
-def flown_ground_speed_mps(tlog: Path, seq: int) -> float:
-    """The median horizontal ground speed (m/s) of a recording while the autopilot flew to
-    mission item ``seq`` (MISSION_CURRENT)."""
-    flying, speeds = False, []
-    for sample in iter_samples(tlog):
-        if isinstance(sample, MissionCurrentSample):
-            flying = sample.seq == seq
-        elif flying and isinstance(sample, VelocitySample):
-            speeds.append(math.hypot(sample.vn_mps, sample.ve_mps))
-    return float(np.median(speeds))
-
-
 def upwind_leg(plan: MissionEnergy) -> LegResult:
     """The waypoint leg of ``plan`` flown most nearly into its wind."""
     legs = [r for r in plan.legs if r.leg.kind == "waypoint"]
@@ -600,7 +588,9 @@ def plan_headwind_leg() -> str:
     flew: its ground speed as flown (the median) and as planned (m/s)."""
     plan = predict_recording(HEADWIND_MISSION, load_vehicle(sitl.SITL_VEHICLE))
     upwind = upwind_leg(plan)
-    flown_mps = flown_ground_speed_mps(HEADWIND_MISSION / "flight.tlog", upwind.leg.seq)
+    flown_mps = float(
+        np.median(item_ground_speeds_mps(HEADWIND_MISSION / "flight.tlog", upwind.leg.seq))
+    )
     return (
         f"`{HEADWIND_MISSION.name}`: the quad makes {flown_mps:.1f} m/s into "
         f"{plan.conditions.wind_speed_mps:g} m/s, planned {upwind.energy.ground_speed_mps:.1f}"

@@ -7,13 +7,14 @@ import json
 import math
 from pathlib import Path
 
+import numpy as np
 import pytest
-from pymavlink import mavutil
 from tlog_builder import flight_frames, write_tlog
 
 from estimator.analysis.mission_energy import mission_energy
 from estimator.analysis.mission_validation import (
     check_recording,
+    item_ground_speeds_mps,
     leg_checks,
     mission_item_starts,
     truth_conditions,
@@ -79,21 +80,12 @@ def test_the_vehicle_files_drag_table_is_checked_and_written_back() -> None:
             vehicle_from_toml({**doc, "drag": bad})
 
 
-def _rtl_ground_speed_mps(tlog: Path) -> float:
-    """The median ground speed (m/s) over the last mission item's steady part (its fastest
-    90 % of samples above 90 % of its 95th percentile)."""
-    conn = mavutil.mavlink_connection(str(tlog))
-    seq, speeds = None, []
-    while (msg := conn.recv_match(type=["MISSION_CURRENT", "LOCAL_POSITION_NED"])) is not None:
-        if msg.get_type() == "MISSION_CURRENT":
-            seq = msg.seq
-        elif seq is not None:
-            speeds.append((seq, math.hypot(msg.vx, msg.vy)))
-    last = max(s for s, _ in speeds)
-    flown = sorted(v for s, v in speeds if s == last)
-    top = flown[int(0.95 * len(flown))]
-    steady = [v for v in flown if v > 0.9 * top]
-    return steady[len(steady) // 2]
+def _steady_ground_speed_mps(tlog: Path, seq: int) -> float:
+    """The median ground speed (m/s) of item ``seq``'s steady part: its readings above 90 % of
+    their 95th percentile (the flight home, not the pause, the ramps or the landing)."""
+    speeds = np.sort(item_ground_speeds_mps(tlog, seq))
+    steady = speeds[speeds > 0.9 * speeds[int(0.95 * len(speeds))]]
+    return float(steady[len(steady) // 2])
 
 
 def test_the_planned_rtl_speed_off_the_nose_is_the_speed_sitl_flew() -> None:
@@ -105,7 +97,8 @@ def test_the_planned_rtl_speed_off_the_nose_is_the_speed_sitl_flew() -> None:
     told = truth_conditions(json.loads((TALL / "truth.json").read_text()))
     plan = mission_energy(legs, vehicle, told)
     planned = plan.legs[-1].energy.ground_speed_mps
-    assert planned == pytest.approx(_rtl_ground_speed_mps(TALL / "flight.tlog"), rel=0.03)
+    flown = _steady_ground_speed_mps(TALL / "flight.tlog", plan.legs[-1].leg.seq)
+    assert planned == pytest.approx(flown, rel=0.03)
 
 
 MISSIONS = REPO / "replay/sitl/missions"

@@ -26,7 +26,7 @@ from estimator.logs import iter_samples, load_flights
 from estimator.logs.mission_files import load_mission
 from estimator.physics.route_energy import Conditions
 from estimator.physics.vehicle import Vehicle
-from estimator.telemetry.samples import MissionCurrentSample
+from estimator.telemetry.samples import MissionCurrentSample, VelocitySample
 
 
 @dataclass(frozen=True)
@@ -72,15 +72,40 @@ class LegCheck:
 def measured_energy(tlog: Path, start_s: float, end_s: float) -> tuple[float, float]:
     """Battery energy (Wh) and duration (s) between ``start_s`` and ``end_s`` of the
     autopilot's clock in ``tlog``."""
+    return _energy_between(tlog, *_battery_power(tlog), start_s, end_s)
+
+
+def _battery_power(tlog: Path) -> tuple[np.ndarray, np.ndarray]:
+    """Autopilot time (s) and battery power (W, finite readings) of ``tlog``'s longest flight."""
     flights = load_flights([tlog])
     if not flights:
         raise UserError(f"{tlog}: no battery telemetry")
     f = max(flights, key=len)
-    inside = (f.time_s >= start_s) & (f.time_s <= end_s) & np.isfinite(f.power_w)
-    t, p = f.time_s[inside], f.power_w[inside]
+    finite = np.isfinite(f.power_w)
+    return f.time_s[finite], f.power_w[finite]
+
+
+def _energy_between(
+    tlog: Path, time_s: np.ndarray, power_w: np.ndarray, start_s: float, end_s: float
+) -> tuple[float, float]:
+    """Energy (Wh) and duration (s) of the readings between ``start_s`` and ``end_s``."""
+    inside = (time_s >= start_s) & (time_s <= end_s)
+    t, p = time_s[inside], power_w[inside]
     if len(t) < 2:
         raise UserError(f"{tlog}: no battery readings between {start_s:g} and {end_s:g} s")
     return float(np.trapezoid(p, t) / 3600.0), float(t[-1] - t[0])
+
+
+def item_ground_speeds_mps(tlog: Path, seq: int) -> np.ndarray:
+    """Horizontal ground speeds (m/s) of ``tlog``'s velocity readings while the autopilot
+    flew to mission item ``seq`` (MISSION_CURRENT)."""
+    flying, speeds = False, []
+    for sample in iter_samples(tlog):
+        if isinstance(sample, MissionCurrentSample):
+            flying = sample.seq == seq
+        elif flying and isinstance(sample, VelocitySample):
+            speeds.append(math.hypot(sample.vn_mps, sample.ve_mps))
+    return np.asarray(speeds, dtype=float)
 
 
 def mission_item_starts(tlog: Path) -> list[tuple[int, float]]:
@@ -169,8 +194,9 @@ def leg_checks(directory: Path, vehicle: Vehicle) -> list[LegCheck]:
     starts = [next((t for s, t in reached if s >= seq), math.nan) for seq, *_ in rows]
     starts[0] = events["mission_start_s"]
     ends = [*starts[1:], events["disarmed_s"]]
+    power = _battery_power(tlog)
     checks = []
     for (seq, kind, time_s, wh), start_s, end_s in zip(rows, starts, ends, strict=True):
-        flown_wh, flown_s = measured_energy(tlog, start_s, end_s)
+        flown_wh, flown_s = _energy_between(tlog, *power, start_s, end_s)
         checks.append(LegCheck(seq, kind, time_s, wh, flown_s, flown_wh))
     return checks
