@@ -82,49 +82,46 @@ ABOVE_FLOOR = {
 }
 #: Flights whose running mass or wind misses the tracker's aim, and why (times from take-off).
 #: The wind follows the autopilot's WIND, which lags a gust's start by ~30 s and holds after
-#: its end; the landing descent's start, or a release in a hover, reads as a mass step for a
+#: its end (in a hover ArduCopter's EKF holds its wind): the steps before it moves are beyond
+#: 3σ; once it moves, its lag and gap widen the 1σ. The landing descent's start, or a release
+#: in a hover, reads as a mass step for a
 #: step or two; without a payload the mass is read 0.03 kg light at 1σ 0.02 kg (the model's
 #: form term is a fraction of the mass difference: of none, nothing). The payloads read a few
 #: percent heavy now lie within the reported 1σ (``OnlineSettings.mass_form_sigma_fraction``).
 TRACKER_SHORT = {
-    "held_clean_climbing_legs": "mass 76 % within 2σ (-0.026 kg median at 1σ 0.020 kg, no payload)",
-    "held_gust_30s_hover": "wind 6.3σ (5.4 m/s off) as the gust starts; mass 8.2σ "
-    "(-0.94 kg) as the landing descent starts",
-    "held_gust_60s": "wind 59 % within 2σ, 13.5σ (8.7 m/s off) in the gust; mass 4.6σ",
-    "held_gust_90s_circles": "wind 9.7σ (6.1 m/s off) at the gust's end; mass 4.1σ",
-    "held_gust_vertical": "wind 5.1σ (6.3 m/s off) in the gust",
-    "held_onset_vertical": "mass 8.4σ (-0.98 kg) as the landing descent starts; wind 5.4σ "
-    "after the onset",
-    "held_payload_gust": "wind 77 % within 2σ, 5.7σ (6.0 m/s off) in the gust",
-    "held_two_gusts": "wind 63 % within 2σ, 7.5σ as the second gust starts",
-    "held2_gust_70s_circles": "wind 88 % within 2σ, 7.4σ at the gust's start; mass 4.0σ as "
-    "the landing descent starts",
-    "held2_gust_85s_legs": "wind 85 % within 2σ, 6.4σ (6.3 m/s off) at the gust's start",
-    "held2_gust_90s_hovers": "wind 70 % within 2σ, 8.8σ at the gust's end; mass 5.2σ then",
-    "held2_gust_payload_circles": "wind 21 % within 2σ: 4.2 m/s off through the gust, 6.8σ; "
-    "mass 8.0σ (-0.91 kg) as the landing descent starts",
-    "held2_onset_climbing_legs": "wind 89 % within 2σ, 7.3σ at the onset; mass 7.6σ as the "
-    "landing descent starts",
-    "held2_release_low": "mass 6.2σ (+0.48 kg) for the step after the release",
-    "held2_turn_climbs": "wind 7.0σ (6.9 m/s off) after the turn",
-    "held2_wind_stop_vertical": "wind 9.8σ after the stop (6.8 m/s off)",
-    "held3_gust_45s_legs": "wind 80 % within 2σ, 9.2σ (7.2 m/s off) after the gust; mass "
-    "80 %, 5.1σ",
-    "held3_gust_75s_vertical": "wind 81 % within 2σ, 6.0σ (7.2 m/s off) at the gust's start; "
-    "mass 3.0σ",
-    "held3_gust_payload_vertical": "wind 57 % within 2σ, 5.7σ (4.5 m/s off) in the gust",
-    "held3_onset_climbing_circles": "wind 9.6σ (6.0 m/s off) at the onset",
-    "held3_release_high": "mass 5.2σ (-0.67 kg) after the release",
-    "held3_two_turns_vertical": "wind 7.5σ (6.7 m/s off) after the turn",
-    "held3_wind_stop_climbing_legs": "wind 10.4σ (6.7 m/s off) after the stop; mass 8.4σ "
-    "(-0.75 kg) then",
-    "held4_onset_legs": "wind 9.3σ (6.3 m/s off) at the onset",
-    "held4_payload_gust_80s": "wind 90 % within 2σ, 7.0σ (4.5 m/s off) in the gust; mass "
-    "7.6σ (-0.93 kg) as the landing descent starts",
-    "held4_release_wind_legs": "mass 7.3σ (-0.84 kg) as the landing descent starts",
-    "held4_wind_light_mixed": "mass 88 % within 2σ (-0.026 kg median at 1σ 0.018 kg, no payload)",
-    "held4_wind_strong_legs": "mass 84 % within 2σ (-0.030 kg median at 1σ 0.019 kg, no "
-    "payload), 3.2σ at the take-off climb's end",
+    "held2_gust_70s_circles": "wind 3.6σ (5.0 m/s off) at 94 s; mass 4.0σ (-0.27 kg) at 192 s",
+    "held2_gust_85s_legs": "wind 6.2σ (6.3 m/s off) at 84 s",
+    "held2_gust_90s_hovers": "wind 87 % within 2σ, 8.7σ (8.4 m/s off) at 174 s; mass 89 % within "
+    "2σ (median -0.017 kg at 1σ 0.030 kg), 5.2σ (-0.68 kg) at 176 s",
+    "held2_gust_payload_circles": "wind 68 % within 2σ, 5.1σ (3.3 m/s off) at 240 s; mass 8.0σ "
+    "(-0.91 kg) at 240 s",
+    "held2_onset_climbing_legs": "mass 7.6σ (-0.86 kg) at 270 s",
+    "held2_release_low": "mass 6.2σ (+0.48 kg) at 129 s",
+    "held2_wind_stop_vertical": "wind 6.3σ (6.8 m/s off) at 114 s",
+    "held3_gust_45s_legs": "wind 87 % within 2σ, 8.8σ (7.4 m/s off) at 190 s; mass 80 % within 2σ "
+    "(median -0.010 kg at 1σ 0.035 kg), 5.1σ (+0.16 kg) at 142 s",
+    "held3_gust_75s_vertical": "wind 6.0σ (7.2 m/s off) at 84 s",
+    "held3_release_high": "mass 90 % within 2σ (median +0.006 kg at 1σ 0.058 kg), 5.2σ (-0.67 kg) "
+    "at 152 s",
+    "held3_wind_stop_climbing_legs": "wind 10.4σ (6.6 m/s off) at 116 s; mass 8.4σ (-0.75 kg) at "
+    "122 s",
+    "held4_onset_legs": "wind 5.4σ (6.3 m/s off) at 116 s",
+    "held4_payload_gust_80s": "mass 7.6σ (-0.93 kg) at 268 s",
+    "held4_release_wind_legs": "mass 7.3σ (-0.84 kg) at 282 s",
+    "held4_wind_light_mixed": "mass 88 % within 2σ (median -0.021 kg at 1σ 0.019 kg), 2.5σ (-0.05 "
+    "kg) at 248 s",
+    "held4_wind_strong_legs": "mass 84 % within 2σ (median -0.028 kg at 1σ 0.020 kg), 3.2σ (+0.09 "
+    "kg) at 20 s",
+    "held_clean_climbing_legs": "mass 76 % within 2σ (median -0.028 kg at 1σ 0.022 kg), 2.8σ "
+    "(-0.08 kg) at 100 s",
+    "held_gust_30s_hover": "wind 3.3σ (5.4 m/s off) at 114 s; mass 8.2σ (-0.94 kg) at 240 s",
+    "held_gust_60s": "wind 75 % within 2σ, 13.5σ (8.7 m/s off) at 124 s; mass 4.6σ (+0.13 kg) at "
+    "154 s",
+    "held_gust_90s_circles": "wind 9.6σ (6.1 m/s off) at 146 s; mass 4.1σ (+0.23 kg) at 72 s",
+    "held_gust_vertical": "wind 5.1σ (6.3 m/s off) at 84 s",
+    "held_onset_vertical": "wind 3.4σ (5.0 m/s off) at 114 s; mass 8.4σ (-0.98 kg) at 236 s",
+    "held_payload_gust": "wind 3.5σ (6.1 m/s off) at 155 s",
+    "held_two_gusts": "wind 4.5σ (6.1 m/s off) at 180 s",
 }
 
 

@@ -14,6 +14,15 @@ airspeed sensor) reports exactly zero: reports count only once one above
 ``autopilot_wind_active_mps`` has come since boot. A report far from the estimate on several
 steps in a row is a wind change the autopilot saw (:meth:`AutopilotWind.saw_a_change`).
 
+The report lags the wind: the EKF follows a change with a time constant of ~10 s (ArduCopter
+SITL: 9 s after an onset, 15 s after a stop; docs/residuals.md). While it moves, the wind
+already differs from it by about the lag times its rate (a first-order lag r' = (w − r)/τ gives
+w − r = τ r'): :meth:`AutopilotWind.lag_ne_mps`. And it can stop: in hover ArduCopter's EKF
+holds its wind (an onset or a stop arrives only once the vehicle moves). Where the report and
+the tracker's wind disagree beyond both their 1σ, one of them is wrong:
+:meth:`AutopilotWind.gap_ne_mps`. The tracker adds both to the 1σ it reports, not to its
+covariance (its estimate is unchanged).
+
 States: the tracker's [w_n, w_e, …] (NED m/s first, then its other states); times in s of
 the autopilot's clock.
 """
@@ -44,6 +53,8 @@ class AutopilotWind:
         self.report: WindSample | None = None
         self._active = False  # it has reported a wind since boot
         self._apart = 0  # steps in a row its report was far from the estimate
+        self._anchor: WindSample | None = None  # the report the rate is measured from
+        self._rate_ne_mps2 = (0.0, 0.0)
 
     def take(self, sample: WindSample) -> None:
         """Keep ``sample`` for the next steps (non-finite values are ignored)."""
@@ -52,24 +63,63 @@ class AutopilotWind:
             return
         self.report = sample
         self._active |= math.hypot(*wind) > self.settings.autopilot_wind_active_mps
+        anchor, span_s = self._anchor, self.settings.autopilot_wind_rate_span_s
+        if anchor is None or not 0.0 <= sample.time_s - anchor.time_s <= 2.0 * span_s:
+            self._anchor, self._rate_ne_mps2 = sample, (0.0, 0.0)
+        elif sample.time_s - anchor.time_s >= span_s:
+            dt = sample.time_s - anchor.time_s
+            self._rate_ne_mps2 = (
+                (sample.wind_n_mps - anchor.wind_n_mps) / dt,
+                (sample.wind_e_mps - anchor.wind_e_mps) / dt,
+            )
+            self._anchor = sample
+
+    def lag_ne_mps(self, time_s: float) -> tuple[float, float]:
+        """How far the wind may already be from the latest report (m/s, north and east): the
+        report's rate over the last ``autopilot_wind_rate_span_s`` times the EKF's time
+        constant ``autopilot_wind_lag_s``; zero without a fresh report from an autopilot that
+        estimates the wind."""
+        if not self.fresh(time_s):
+            return 0.0, 0.0
+        lag_s = self.settings.autopilot_wind_lag_s
+        return lag_s * self._rate_ne_mps2[0], lag_s * self._rate_ne_mps2[1]
 
     def restart(self) -> None:
         """The autopilot rebooted: its reports count again once they are not zero."""
         self.report, self._active = None, False
+        self._anchor, self._rate_ne_mps2 = None, (0.0, 0.0)
+
+    def fresh(self, time_s: float) -> bool:
+        """Whether there is a report at most ``autopilot_wind_max_age_s`` old at ``time_s`` from
+        an autopilot that estimates the wind."""
+        wind = self.report
+        return (
+            wind is not None
+            and self._active
+            and 0.0 <= time_s - wind.time_s <= self.settings.autopilot_wind_max_age_s
+        )
 
     def variance(self, time_s: float, dt: float) -> float | None:
         """The variance (m²/s², per component) the report takes in a step of ``dt`` s ending
-        at ``time_s``; None when there is no fresh report from an autopilot that estimates
-        the wind."""
-        s, wind = self.settings, self.report
-        if (
-            wind is None
-            or not self._active
-            or dt <= 0.0
-            or not 0.0 <= time_s - wind.time_s <= s.autopilot_wind_max_age_s
-        ):
+        at ``time_s``; None when there is no fresh report (:meth:`fresh`)."""
+        s = self.settings
+        if dt <= 0.0 or not self.fresh(time_s):
             return None
         return s.autopilot_wind_sigma_mps**2 * max(s.autopilot_wind_correlation_s / dt, 1.0)
+
+    def gap_ne_mps(self, x: np.ndarray, p: np.ndarray, time_s: float) -> tuple[float, float]:
+        """How far the latest fresh report is from the wind of state ``x`` (covariance ``p``;
+        m/s, north and east) when the two disagree beyond both their 1σ (squared Mahalanobis
+        distance beyond ``autopilot_wind_gap_chi2``): one of them is wrong — a change the
+        tracker has not taken up, or a report the EKF holds after the wind changed — and
+        the tracker's reported 1σ covers the gap. Zero when they agree or without a fresh
+        report."""
+        if not self.fresh(time_s):
+            return 0.0, 0.0
+        gap, _, distance2 = self._innovation(x, p, self.settings.autopilot_wind_sigma_mps**2)
+        if distance2 <= self.settings.autopilot_wind_gap_chi2:
+            return 0.0, 0.0
+        return float(gap[0]), float(gap[1])
 
     def _innovation(
         self, x: np.ndarray, p: np.ndarray, var: float

@@ -266,14 +266,19 @@ class OnlineEffects:
     @property
     def sigma(self) -> dict[str, float]:
         """1σ of the wind components (m/s) and of the mass difference (kg): the filter's own,
-        and what the model's form leaves unknown (:class:`OnlineSettings`
-        ``wind_form_sigma_mps``, ``mass_form_sigma_fraction`` of the mass difference)."""
+        what the model's form leaves unknown (:class:`OnlineSettings` ``wind_form_sigma_mps``,
+        ``mass_form_sigma_fraction`` of the mass difference), and for the wind what the
+        autopilot's report says is on its way (its lag, and its gap from the estimate:
+        :meth:`AutopilotWind.lag_ne_mps`, :meth:`AutopilotWind.gap_ne_mps`)."""
         p, s = self._p, self.settings
         wind_form_var = s.wind_form_sigma_mps**2
         mass_form_var = (s.mass_form_sigma_fraction * float(self._x[2])) ** 2
+        time_s = self._time_s or 0.0
+        lag_n, lag_e = self.autopilot.lag_ne_mps(time_s)
+        gap_n, gap_e = self.autopilot.gap_ne_mps(self._x, p, time_s)
         return {
-            "wind_n_mps": math.sqrt(max(float(p[0, 0]), 0.0) + wind_form_var),
-            "wind_e_mps": math.sqrt(max(float(p[1, 1]), 0.0) + wind_form_var),
+            "wind_n_mps": math.sqrt(max(float(p[0, 0]), 0.0) + wind_form_var + lag_n**2 + gap_n**2),
+            "wind_e_mps": math.sqrt(max(float(p[1, 1]), 0.0) + wind_form_var + lag_e**2 + gap_e**2),
             "mass_kg": math.sqrt(max(float(p[2, 2]), 0.0) + mass_form_var),
         }
 

@@ -78,6 +78,15 @@ class OnlineSettings:
     #: in a row reopens the wind's variance, as a change found in the power does.
     autopilot_wind_change_chi2: float = 13.8
     autopilot_wind_change_steps: int = 3
+    #: Added to the reported wind 1σ, not to the covariance: the report's lag behind the wind
+    #: (``AutopilotWind.lag_ne_mps``), the EKF's time constant (s; ArduCopter SITL's wind
+    #: reports follow an onset with 9 s, a stop with 15 s) and the span (s) the report's rate
+    #: is measured over; and its gap from the estimate when the two disagree beyond this
+    #: squared Mahalanobis distance with both their variances (``AutopilotWind.gap_ne_mps``;
+    #: 5.99 = χ²₂ at 5 %). Set on the recordings of replay/sitl and replay/sitl_held.
+    autopilot_wind_lag_s: float = 10.0
+    autopilot_wind_rate_span_s: float = 2.0
+    autopilot_wind_gap_chi2: float = 5.99
     #: A wind in use this far from the estimate (squared Mahalanobis distance with the
     #: estimate's covariance; χ²₂ at 0.1 %) is refuted: the estimate replaces it even before
     #: it is identified (after a change, the old wind is worse than the new one's first guess).
