@@ -228,18 +228,19 @@ def _steady_state(
     ae_mps2: FloatArray | float,
 ) -> FlightState:
     """A flight state of these velocities (NED, m/s) and horizontal accelerations (NED, m/s²),
-    broadcast to one shape; no time, altitude or voltage (steady flight anywhere)."""
-    vn, ve, vd, an, ae = (
-        np.array(x, dtype=float)  # copies: the prediction may not share the caller's arrays
-        for x in np.broadcast_arrays(
-            *(
-                np.atleast_1d(np.asarray(x, dtype=float))
-                for x in (vn_mps, ve_mps, vd_mps, an_mps2, ae_mps2)
-            )
-        )
-    )
-    nan = np.full(vn.shape, np.nan)
-    return FlightState(np.zeros(vn.shape), vn, ve, vd, an, ae, nan, nan.copy())
+    broadcast to one length (scalars and 1-D arrays); no time, altitude or voltage (steady
+    flight anywhere). One 9 × n array, copied from the inputs (the prediction may not share
+    the caller's arrays), without the constructor's checks (the shape is made here)."""
+    given = (vn_mps, ve_mps, vd_mps, an_mps2, ae_mps2)
+    shapes = [np.shape(x) for x in given]
+    if any(len(shape) > 1 for shape in shapes):
+        raise ValueError(f"steady states are scalars or 1-D arrays, got the shapes {shapes}")
+    columns = np.empty((9, max((shape[0] for shape in shapes if shape), default=1)))
+    columns[0] = columns[8] = 0.0
+    for row, x in enumerate(given, start=1):
+        columns[row] = x
+    columns[6:8] = np.nan
+    return FlightState.of_columns(columns)
 
 
 def steady_power_w(
@@ -360,16 +361,15 @@ def _energies_wh(
     if missing:
         missing = list(dict.fromkeys([*missing, *carried]))
         m, n = len(hypotheses), len(missing)
-        h = np.array([hyp[2:] for hyp in hypotheses], dtype=float)  # m × (wind n, e, payload)
-        columns = np.tile(np.array(missing, dtype=float).T, m)  # 5 × (m·n), hypothesis-major
+        pairs = [(hyp, s) for hyp in hypotheses for s in missing]  # hypothesis-major
         state = _steady_state(
-            columns[0] - np.repeat(h[:, 0], n),
-            columns[1] - np.repeat(h[:, 1], n),
-            columns[2],
-            columns[3],
-            columns[4],
+            np.array([s.vn_mps - hyp.wind_n_mps for hyp, s in pairs]),
+            np.array([s.ve_mps - hyp.wind_e_mps for hyp, s in pairs]),
+            np.array([s.vd_mps for _, s in pairs]),
+            np.array([s.an_mps2 for _, s in pairs]),
+            np.array([s.ae_mps2 for _, s in pairs]),
         )
-        effects = (*vehicle.effects, SampleMass(np.repeat(h[:, 2], n)))
+        effects = (*vehicle.effects, SampleMass(np.array([hyp.payload_kg for hyp, _ in pairs])))
         power_w = predict_power_w(vehicle.model, vehicle.mass_kg, state, effects).reshape(m, n)
         for s, powers in zip(missing, power_w.T.tolist(), strict=True):
             table[s] = tuple(powers)
