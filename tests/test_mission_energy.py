@@ -26,6 +26,7 @@ from estimator.physics.route_energy import (
     Conditions,
     InfeasibleTrack,
     RouteVehicle,
+    optimal_ground_speed_mps,
     optimal_speed,
     steady_power_w,
 )
@@ -64,6 +65,18 @@ def test_still_air_optimum_is_the_models_max_range_speed() -> None:
     best = optimal_speed(rv, Conditions(), 37.0, max_ground_speed_mps=30, max_airspeed_mps=30)
     assert best.ground_speed_mps == pytest.approx(vehicle.model.max_range_speed_mps(), abs=0.01)
     assert best.airspeed_mps == pytest.approx(best.ground_speed_mps)
+
+
+def test_the_speed_alone_is_the_optimal_speeds_ground_speed() -> None:
+    rv = _rv()
+    for wind, track_deg, along in (
+        (Conditions(), 37.0, False),
+        (Conditions(6.0, 200.0), 10.0, True),
+    ):
+        limits = {"max_ground_speed_mps": 18.0, "max_airspeed_mps": 14.0, "along_track": along}
+        best = optimal_speed(rv, wind, track_deg, **limits)  # type: ignore[arg-type]
+        alone = optimal_ground_speed_mps(rv, wind, track_deg, **limits)  # type: ignore[arg-type]
+        assert alone == best.ground_speed_mps
 
 
 def test_headwind_raises_the_optimal_airspeed_and_the_energy_per_metre() -> None:

@@ -20,8 +20,9 @@ from estimator.estimation.return_home import (
     ReturnSettings,
     distance_bearing,
 )
+from estimator.estimation.rtl_profiles import px4_rtl
 from estimator.logs.mission_files import MissionItem
-from estimator.physics.effects import Wind
+from estimator.physics.effects import Mass, Wind
 from estimator.physics.vehicle import default_vehicle
 from estimator.telemetry.samples import (
     HomeSample,
@@ -142,6 +143,39 @@ def test_stopping_a_flight_away_from_home_adds_its_time_and_distance() -> None:
     assert fleeing.energy_wh > resting.energy_wh
     towards = returning(at(500.0)).figures(10.0, inputs(velocity_ne_mps=(-10.0, 0.0)))
     assert towards.time_s == pytest.approx(resting.time_s + stop_s, rel=0.02)
+
+
+def test_kept_segments_and_powers_give_the_figures_of_a_fresh_return_bit_for_bit() -> None:
+    """One return asked along a flight (its hover, vertical and landing segments kept per
+    conditions and settings, a new wind's powers predicted with the states asked before)
+    gives exactly what a fresh return computes at each step: heights below and above the
+    return height, a wind and payload that move and come back, a stop, other settings."""
+    wind = (Wind(speed_mps=4.0, from_deg=30.0),)
+    steps = [
+        (at(400.0, alt_m=10.0), inputs()),
+        (at(400.0, alt_m=10.0), inputs()),  # all kept
+        (at(380.0, alt_m=10.5), inputs(velocity_ne_mps=(-3.0, 1.0))),
+        (at(380.0, alt_m=25.0), inputs(effects=wind)),
+        (at(360.0, alt_m=25.0), inputs(effects=wind, mass_sigma_kg=0.2)),
+        (at(360.0, alt_m=25.25), inputs(effects=wind, wind_sigma_ne_mps=(0.9, 0.5))),
+        (at(340.0, alt_m=30.0), inputs(effects=(*wind, Mass(delta_kg=0.4)))),
+        (at(340.0, alt_m=10.0), inputs()),  # back to the first conditions
+    ]
+    kept = ReturnHome(default_vehicle())
+    slower = ReturnSettings(land_speed_mps=0.7, touchdown_s=1.0)  # only the landing differs
+    for settings in (ReturnSettings(), slower, px4_rtl(ReturnSettings())):
+        kept.settings = settings
+        for position, given in steps:
+            fresh = returning(position, settings).figures(10.0, given)
+            kept.take(position)
+            kept.take(HOME)
+            figures = kept.figures(10.0, given)
+            assert (figures.energy_wh, figures.sigma_wh, figures.time_s, figures.speed_mps) == (
+                fresh.energy_wh,
+                fresh.sigma_wh,
+                fresh.time_s,
+                fresh.speed_mps,
+            )
 
 
 def test_point_of_no_return_from_the_drain_and_the_growth_of_the_return() -> None:

@@ -55,7 +55,7 @@ from estimator.physics.route_energy import (
     InfeasibleTrack,
     RouteEnergy,
     RouteVehicle,
-    optimal_speed,
+    optimal_ground_speed_mps,
 )
 from estimator.physics.route_segments import (
     Kinematics,
@@ -99,6 +99,9 @@ class MissionSample:
 
 #: Wind-optimal speeds kept (the cache starts over when full).
 _SPEED_CACHE_SIZE = 4096
+#: Hover, vertical and landing segments of the return kept for one set of conditions and
+#: settings (the memo starts over when full, or when either changes).
+_SEGMENTS_KEPT = 256
 ReturnSample = PositionSample | HomeSample | MissionSample | MissionCurrentSample | WindSample
 WIND_SOURCES = ("tracked", "autopilot")
 
@@ -256,6 +259,10 @@ class ReturnHome:
         self._vehicle = replace(RouteVehicle.from_vehicle(vehicle), model_stderr=(0.0,) * 5)
         self._mission_energy = mission_energy
         self._speeds: dict[tuple[float, ...], float] = {}  # _best_speed_mps's cache
+        # _segments' memo: the segments by (kind, metres or seconds, m/s), for these
+        # conditions and settings
+        self._segments: dict[tuple[str, float, float], tuple[RouteEnergy, ...]] = {}
+        self._segments_for: tuple[Conditions, ReturnSettings] | None = None
         self._mission_time_s = -math.inf  # sample clock of the last mission figure
         self._mission_figures: tuple[float, float, bool | None, int] = (math.nan, math.nan, None, 0)
         self.settings = settings or ReturnSettings()
@@ -449,14 +456,14 @@ class ReturnHome:
                 conditions, wind_speed_mps=key[1], wind_from_deg=key[2], payload_kg=key[3]
             )
             try:
-                speed = optimal_speed(
+                speed = optimal_ground_speed_mps(
                     self._vehicle,
                     rounded,
                     key[0],
                     max_airspeed_mps=self._max_airspeed_mps,
                     max_ground_speed_mps=self.settings.max_ground_speed_mps,
                     along_track=self.settings.airspeed_along_track,
-                ).ground_speed_mps
+                )
             except InfeasibleTrack:
                 speed = MIN_GROUND_SPEED_MPS
             self._speeds[key] = speed
@@ -530,17 +537,43 @@ class ReturnHome:
             loiter_m = min(height_m, s.descend_alt_m)
         total = sum_energies(
             [
-                hover_energy(rv, conditions, stop_s + s.pause_s),
-                vertical_energy(rv, conditions, height_m - alt_m, s.climb_rate_mps, kinematics=k),
+                *self._segments_of(conditions, "hover", stop_s + s.pause_s),
+                *self._segments_of(conditions, "vertical", height_m - alt_m, s.climb_rate_mps),
                 leg,
-                vertical_energy(
-                    rv, conditions, loiter_m - height_m, s.descent_rate_mps, kinematics=k
-                ),
-                hover_energy(rv, conditions, s.loiter_s),
-                *self.landing(conditions, loiter_m),
+                *self._segments_of(conditions, "vertical", loiter_m - height_m, s.descent_rate_mps),
+                *self._segments_of(conditions, "hover", s.loiter_s),
+                *self._segments_of(conditions, "landing", loiter_m),
             ]
         )
         return total, leg.ground_speed_mps
+
+    def _segments_of(
+        self, conditions: Conditions, kind: str, amount: float, rate_mps: float = 0.0
+    ) -> tuple[RouteEnergy, ...]:
+        """The return's segments that do not depend on where home is: a hover of ``amount``
+        s, a vertical move of ``amount`` m (+ up) at ``rate_mps`` m/s, or the landing from
+        ``amount`` m over home. Each is a function of exactly the conditions, the settings and
+        these arguments, so it is kept (memo) and computed again only when one of them moves:
+        in flight the wind, payload and their σ move at the tracker's steps, the height with
+        the position, the loiter and landing not at all below the return height."""
+        held = self._segments_for
+        if held is None or held[1] is not self.settings or held[0] != conditions:
+            self._segments.clear()
+            self._segments_for = (conditions, self.settings)
+        key = (kind, amount, rate_mps)
+        segments = self._segments.get(key)
+        if segments is None:
+            if len(self._segments) >= _SEGMENTS_KEPT:
+                self._segments.clear()
+            rv, k = self._vehicle, self.settings.kinematics
+            if kind == "hover":
+                segments = (hover_energy(rv, conditions, amount),)
+            elif kind == "vertical":
+                segments = (vertical_energy(rv, conditions, amount, rate_mps, kinematics=k),)
+            else:
+                segments = tuple(self.landing(conditions, amount))
+            self._segments[key] = segments
+        return segments
 
     def landing(self, conditions: Conditions, height_m: float) -> list[RouteEnergy]:
         """The landing from ``height_m`` (m over home): fast, (PX4) blended, slow, and the

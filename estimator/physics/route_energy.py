@@ -88,6 +88,9 @@ _OUT_OF_RANGE = 1e12
 #: hypotheses it keeps (each starts over when full).
 _PHASE_POWERS_SIZE = 4096
 _HYPOTHESES_KEPT = 8
+#: A new set of hypotheses predicts, with its first missing states, the states of the set
+#: before it when that held at most this many (:func:`_energies_wh`).
+_CARRIED_STATES = 64
 
 
 class InfeasibleTrack(ValueError):
@@ -225,18 +228,19 @@ def _steady_state(
     ae_mps2: FloatArray | float,
 ) -> FlightState:
     """A flight state of these velocities (NED, m/s) and horizontal accelerations (NED, m/s²),
-    broadcast to one shape; no time, altitude or voltage (steady flight anywhere)."""
-    vn, ve, vd, an, ae = (
-        np.array(x, dtype=float)  # copies: the prediction may not share the caller's arrays
-        for x in np.broadcast_arrays(
-            *(
-                np.atleast_1d(np.asarray(x, dtype=float))
-                for x in (vn_mps, ve_mps, vd_mps, an_mps2, ae_mps2)
-            )
-        )
-    )
-    nan = np.full(vn.shape, np.nan)
-    return FlightState(np.zeros(vn.shape), vn, ve, vd, an, ae, nan, nan.copy())
+    broadcast to one length (scalars and 1-D arrays); no time, altitude or voltage (steady
+    flight anywhere). One 9 × n array, copied from the inputs (the prediction may not share
+    the caller's arrays), without the constructor's checks (the shape is made here)."""
+    given = (vn_mps, ve_mps, vd_mps, an_mps2, ae_mps2)
+    shapes = [np.shape(x) for x in given]
+    if any(len(shape) > 1 for shape in shapes):
+        raise ValueError(f"steady states are scalars or 1-D arrays, got the shapes {shapes}")
+    columns = np.empty((9, max((shape[0] for shape in shapes if shape), default=1)))
+    columns[0] = columns[8] = 0.0
+    for row, x in enumerate(given, start=1):
+        columns[row] = x
+    columns[6:8] = np.nan
+    return FlightState.of_columns(columns)
 
 
 def steady_power_w(
@@ -337,28 +341,35 @@ def _energies_wh(
     """Energy (Wh) of ``phases`` under each hypothesis. The powers of phase states not yet in
     the vehicle's :attr:`~RouteVehicle.phase_powers_w` come from one prediction over those
     states × hypotheses: the wind taken out of the ground velocity (what :class:`Wind` does),
-    the payload as a per-row :class:`SampleMass` (what :class:`Mass` does)."""
+    the payload as a per-row :class:`SampleMass` (what :class:`Mass` does). A new set of
+    hypotheses (a live return's wind or payload moved) predicts in that call the states of the
+    set before it too (up to :data:`_CARRIED_STATES`): the return's next segments ask them
+    again, and each row's power is the same whichever rows it is predicted with."""
     tables = vehicle.phase_powers_w
     key = tuple(hypotheses)
     table = tables.get(key)
+    carried: list[_PhaseState] = []
     if table is None or len(table) >= _PHASE_POWERS_SIZE:
+        before = next(reversed(tables.values()), {}) if table is None else {}
+        if len(before) <= _CARRIED_STATES:
+            carried = list(before)
         if len(tables) >= _HYPOTHESES_KEPT:
             tables.clear()
         table = tables[key] = {}
     states = [ph.state for ph in phases]
     missing = list(dict.fromkeys(s for s in states if s not in table))
     if missing:
+        missing = list(dict.fromkeys([*missing, *carried]))
         m, n = len(hypotheses), len(missing)
-        h = np.array([hyp[2:] for hyp in hypotheses], dtype=float)  # m × (wind n, e, payload)
-        columns = np.tile(np.array(missing, dtype=float).T, m)  # 5 × (m·n), hypothesis-major
+        pairs = [(hyp, s) for hyp in hypotheses for s in missing]  # hypothesis-major
         state = _steady_state(
-            columns[0] - np.repeat(h[:, 0], n),
-            columns[1] - np.repeat(h[:, 1], n),
-            columns[2],
-            columns[3],
-            columns[4],
+            np.array([s.vn_mps - hyp.wind_n_mps for hyp, s in pairs]),
+            np.array([s.ve_mps - hyp.wind_e_mps for hyp, s in pairs]),
+            np.array([s.vd_mps for _, s in pairs]),
+            np.array([s.an_mps2 for _, s in pairs]),
+            np.array([s.ae_mps2 for _, s in pairs]),
         )
-        effects = (*vehicle.effects, SampleMass(np.repeat(h[:, 2], n)))
+        effects = (*vehicle.effects, SampleMass(np.array([hyp.payload_kg for hyp, _ in pairs])))
         power_w = predict_power_w(vehicle.model, vehicle.mass_kg, state, effects).reshape(m, n)
         for s, powers in zip(missing, power_w.T.tolist(), strict=True):
             table[s] = tuple(powers)
@@ -413,28 +424,67 @@ def optimal_speed(
     :func:`~estimator.physics.route_segments.reachable_ground_speed_mps`); in still air this is
     the model's V_mr. InfeasibleTrack when no ground speed in range keeps the airspeed within
     its limit."""
-    wn, we = conditions.wind_ne_mps()
-    un, ue = math.cos(math.radians(track_deg)), math.sin(math.radians(track_deg))
+    search = _SpeedSearch(vehicle, conditions, track_deg, max_airspeed_mps, along_track)
+    vg = search.best_mps(max_ground_speed_mps)
+    per_m = float(search.cost(np.array([vg]))[0])
+    return SpeedChoice(track_deg, vg, float(search.airspeed(np.array([vg]))[0]), per_m * vg, per_m)
 
-    def airspeed(vg: FloatArray) -> FloatArray:
+
+def optimal_ground_speed_mps(
+    vehicle: RouteVehicle,
+    conditions: Conditions,
+    track_deg: float,
+    *,
+    max_ground_speed_mps: float = DEFAULT_MAX_GROUND_SPEED_MPS,
+    max_airspeed_mps: float = DEFAULT_MAX_AIRSPEED_MPS,
+    along_track: bool = False,
+) -> float:
+    """:func:`optimal_speed`'s ground speed (m/s) alone, without the power and airspeed at it
+    (one prediction fewer: the live return needs only the speed)."""
+    search = _SpeedSearch(vehicle, conditions, track_deg, max_airspeed_mps, along_track)
+    return search.best_mps(max_ground_speed_mps)
+
+
+@dataclass(frozen=True)
+class _SpeedSearch:
+    """The wind-optimal speed search along ``track_deg`` (:func:`optimal_speed`): airspeed
+    (m/s), whether within the limit, and energy per metre over ground (J/m) at ground speeds
+    (m/s)."""
+
+    vehicle: RouteVehicle
+    conditions: Conditions
+    track_deg: float
+    max_airspeed_mps: float
+    along_track: bool
+
+    def airspeed(self, vg: FloatArray) -> FloatArray:
+        wn, we = self.conditions.wind_ne_mps()
+        rad = math.radians(self.track_deg)
+        un, ue = math.cos(rad), math.sin(rad)
         return np.asarray(np.hypot(vg * un - wn, vg * ue - we), dtype=float)
 
-    def within(vg: FloatArray) -> FloatArray:
-        limited = vg - (wn * un + we * ue) if along_track else airspeed(vg)
-        return np.asarray(limited <= max_airspeed_mps)
+    def within(self, vg: FloatArray) -> FloatArray:
+        if self.along_track:
+            wn, we = self.conditions.wind_ne_mps()
+            rad = math.radians(self.track_deg)
+            limited = vg - (wn * math.cos(rad) + we * math.sin(rad))
+        else:
+            limited = self.airspeed(vg)
+        return np.asarray(limited <= self.max_airspeed_mps)
 
-    def cost(vg: FloatArray) -> FloatArray:
-        vn, ve = _velocity_ne(track_deg, vg)
-        per_m = steady_power_w(vehicle, conditions, vn, ve) / vg
-        return np.asarray(np.where(within(vg), per_m, _OUT_OF_RANGE))
+    def cost(self, vg: FloatArray) -> FloatArray:
+        vn, ve = _velocity_ne(self.track_deg, vg)
+        per_m = steady_power_w(self.vehicle, self.conditions, vn, ve) / vg
+        return np.asarray(np.where(self.within(vg), per_m, _OUT_OF_RANGE))
 
-    lo, hi = MIN_GROUND_SPEED_MPS, max(max_ground_speed_mps, MIN_GROUND_SPEED_MPS)
-    grid = np.linspace(lo, hi, 601)
-    if not np.any(within(grid)):
-        raise InfeasibleTrack(
-            f"a {conditions.wind_speed_mps:g} m/s wind from {conditions.wind_from_deg:g}° allows "
-            f"no ground speed along {track_deg:.0f}° within {max_airspeed_mps:g} m/s airspeed"
-        )
-    vg = argmin_on_grid(cost, lo, hi)
-    per_m = float(cost(np.array([vg]))[0])
-    return SpeedChoice(track_deg, vg, float(airspeed(np.array([vg]))[0]), per_m * vg, per_m)
+    def best_mps(self, max_ground_speed_mps: float) -> float:
+        """The ground speed of least :meth:`cost` in [:data:`MIN_GROUND_SPEED_MPS`,
+        ``max_ground_speed_mps``] (m/s); InfeasibleTrack when none is within the limit."""
+        lo, hi = MIN_GROUND_SPEED_MPS, max(max_ground_speed_mps, MIN_GROUND_SPEED_MPS)
+        if not np.any(self.within(np.linspace(lo, hi, 601))):
+            c = self.conditions
+            raise InfeasibleTrack(
+                f"a {c.wind_speed_mps:g} m/s wind from {c.wind_from_deg:g}° allows no ground "
+                f"speed along {self.track_deg:.0f}° within {self.max_airspeed_mps:g} m/s airspeed"
+            )
+        return argmin_on_grid(self.cost, lo, hi)
