@@ -36,7 +36,6 @@ from estimator.file_checks import regular_file
 from estimator.logs.coverage import Coverage
 from estimator.logs.sanity import SanityRecorder
 from estimator.physics.effects import wind_from_deg
-from estimator.telemetry.decode import SKIP_COUNTERS
 from estimator.telemetry.plausibility import InputLimits, SampleGuard
 from estimator.telemetry.samples import (
     ArmedSample,
@@ -47,6 +46,7 @@ from estimator.telemetry.samples import (
     VelocitySample,
     WindSample,
 )
+from estimator.telemetry.skip_counters import SKIP_COUNTERS
 
 FloatArray = NDArray[np.float64]
 
