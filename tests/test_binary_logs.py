@@ -16,7 +16,7 @@ from pymavlink.DFReader import DFReader_binary
 from pyulog import ULog
 
 from estimator.errors import UserError
-from estimator.logs import SampleStream, detect_format, iter_samples
+from estimator.logs import SampleStream, detect_format, iter_samples, ulog
 from estimator.telemetry.samples import ArmedSample, BatterySample, Sample, VelocitySample
 
 
@@ -255,6 +255,50 @@ def test_ulog_truncated_file_reads_up_to_the_damage(tmp_path: Path, truth: Truth
     samples, stream = _read(cut)
     assert stream.truncated
     assert 300 < len(samples) < 700 and _in_time_order(samples)
+
+
+def _long_ulog() -> bytes:
+    """A ULog of 4000 local positions and batteries (about 250 kB: longer than the tail
+    whose reads are watched), its last record a battery reading."""
+    log = ULogWriter(start_timestamp_us=1000)
+    for topic in ("vehicle_local_position", "battery_status"):
+        log.add_format(topic)
+        log.subscribe(topic)
+    for k in range(4000):
+        t = 1_000_000 + 100_000 * k
+        log.write("vehicle_local_position", timestamp=t, vx=1.0, v_xy_valid=True, v_z_valid=True)
+        log.write("battery_status", timestamp=t, voltage_v=16.0, current_a=10.0, connected=True)
+    return log.raw()
+
+
+#: Bytes cut off the end of :func:`_long_ulog` (its messages: 40 bytes a battery reading, 49 a
+#: position): inside the last one's body, its header left whole, 1 or 2 bytes of its header
+#: left, at its start, inside the one before, at that one's start, far before; or a message
+#: appended that declares the largest body (65535 bytes), cut by 1 byte and whole.
+_ULOG_ENDS = [1, 7, 37, 38, 39, 40, 41, 89, 1000]
+_HUGE_MESSAGE = b"\xff\xffD" + bytes(0xFFFF)
+
+
+@pytest.mark.parametrize("end", [*_ULOG_ENDS, "huge-1", "huge"])
+def test_ulog_truncation_is_told_as_when_every_read_is_watched(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch, end: int | str
+) -> None:
+    data = _long_ulog()
+    if isinstance(end, int):
+        data = data[:-end]
+    else:
+        data += _HUGE_MESSAGE[: len(_HUGE_MESSAGE) - (end == "huge-1")]
+    path = tmp_path / "end.ulg"
+    path.write_bytes(data)
+    tail_only = iter_samples(path)
+    monkeypatch.setattr(ulog, "MAX_READ_BYTES", len(data) + 1)  # the whole file is the tail
+    every_read = iter_samples(path)
+    assert tail_only.truncated == every_read.truncated
+    assert (list(tail_only), tail_only.bad_frames) == (list(every_read), every_read.bad_frames)
+    if end in (40, 89, "huge"):
+        assert not every_read.truncated  # a message boundary
+    elif end in (1, 7, 38, 39, 41, "huge-1"):
+        assert every_read.truncated
 
 
 def test_ulog_with_a_bad_header_is_a_user_error(tmp_path: Path) -> None:

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import math
 import random
+from dataclasses import astuple
 from pathlib import Path
 
 import pytest
@@ -11,6 +12,7 @@ from fixtures.flight import make_truth, write_bin, write_ulg
 
 from estimator.logs import dataflash, ulog
 from estimator.telemetry.plausibility import InputLimits, SampleGuard
+from estimator.telemetry.sample_columns import SampleColumns
 from estimator.telemetry.samples import (
     ArmedSample,
     BatterySample,
@@ -20,6 +22,7 @@ from estimator.telemetry.samples import (
     Sample,
     VelocitySample,
     WindSample,
+    of_columns,
 )
 
 LIMITS = [
@@ -35,10 +38,16 @@ def _one_by_one(samples: list[Sample], limits: InputLimits) -> tuple[list[str], 
 
 
 def _batched(
-    samples: list[Sample], limits: InputLimits, size: int
+    samples: list[Sample], limits: InputLimits, size: int, columns: SampleColumns | None = None
 ) -> tuple[list[str], dict[str, int]]:
     guard = SampleGuard(limits)
-    out = [s for i in range(0, len(samples), size) for s in guard.check_many(samples[i : i + size])]
+    out = [
+        s
+        for i in range(0, len(samples), size)
+        for s in guard.check_many(
+            samples[i : i + size], None if columns is None else columns.rows(slice(i, i + size))
+        )
+    ]
     return [repr(s) for s in out + guard.flush()], dict(guard.counts)
 
 
@@ -86,12 +95,45 @@ def test_check_many_equals_check_on_random_streams(seed: int) -> None:
     expected = _one_by_one(samples, limits)
     for size in (512, 7):
         assert _batched(samples, limits, size) == expected, size
+    assert _batched(samples, limits, 512, SampleColumns.of_samples(samples)) == expected
 
 
 @pytest.mark.parametrize("writer", [write_bin, write_ulg], ids=["dataflash", "ulog"])
 def test_check_many_equals_check_on_reader_streams(tmp_path: Path, writer: object) -> None:
     path = writer(tmp_path / "flight", make_truth())  # type: ignore[operator]
     reader = dataflash if path.read_bytes().startswith(b"\xa3\x95") else ulog
-    samples = list(reader.iter_samples(path)._it)
+    stream = reader.iter_samples(path)
+    samples = list(stream._it)
     for limits in LIMITS:
-        assert _batched(samples, limits, 512) == _one_by_one(samples, limits)
+        expected = _one_by_one(samples, limits)
+        assert _batched(samples, limits, 512) == expected
+        if stream.columns is not None:  # the ULog reader's own columns
+            assert _batched(samples, limits, len(samples), stream.columns) == expected
+
+
+def test_a_readers_columns_are_its_samples_columns(tmp_path: Path) -> None:
+    stream = ulog.iter_samples(write_ulg(tmp_path / "flight.ulg", make_truth()))
+    assert stream.columns is not None
+    samples = list(stream._it)
+    read = SampleColumns.of_samples(samples)
+    mine = stream.columns
+    assert (mine.kinds == read.kinds).all() and (mine.time_s == read.time_s).all()
+    assert mine.values.keys() == read.values.keys() and mine.known.keys() == read.known.keys()
+    for name, column in read.values.items():
+        assert (mine.values[name] == column).all(), name
+    for name, flags in read.known.items():
+        assert (mine.known[name] == flags).all(), name
+
+
+@pytest.mark.parametrize("seed", range(5))
+def test_samples_built_column_wise_equal_the_constructors(seed: int) -> None:
+    rng = random.Random(seed)
+    samples = _stream(rng)
+    for sample_type in {type(s) for s in samples}:
+        same = [s for s in samples if type(s) is sample_type]
+        columns = [list(column) for column in zip(*(astuple(s) for s in same), strict=True)]
+        built = of_columns(sample_type, *columns)
+        assert [repr(s) for s in built] == [repr(s) for s in same]
+        assert built == same
+    with pytest.raises(ValueError):
+        of_columns(VelocitySample, [1.0], [2.0])

@@ -37,10 +37,11 @@ from estimator.estimation.pipeline import Pipeline
 from estimator.logs.tlog import STAMP_BYTES, frame_length
 from estimator.mavlink.publish import json_line
 from estimator.physics.vehicle import BatterySpec, Vehicle, default_vehicle
-from estimator.telemetry.decode import SKIP_COUNTERS, TelemetryDecoder
+from estimator.telemetry.decode import TelemetryDecoder
 from estimator.telemetry.frames import FrameParser
 from estimator.telemetry.plausibility import InputLimits
 from estimator.telemetry.samples import BatterySample, Sample, VelocitySample
+from estimator.telemetry.skip_counters import SKIP_COUNTERS
 
 FLIGHT_TLOG = Path(__file__).parent / "data" / "arducopter_guided.tlog"
 EXE = Path(sys.executable).with_name("uav-energy")

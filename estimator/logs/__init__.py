@@ -36,8 +36,8 @@ from estimator.file_checks import regular_file
 from estimator.logs.coverage import Coverage
 from estimator.logs.sanity import SanityRecorder
 from estimator.physics.effects import wind_from_deg
-from estimator.telemetry.decode import SKIP_COUNTERS
 from estimator.telemetry.plausibility import InputLimits, SampleGuard
+from estimator.telemetry.sample_columns import SampleColumns
 from estimator.telemetry.samples import (
     ArmedSample,
     BatterySample,
@@ -47,6 +47,7 @@ from estimator.telemetry.samples import (
     VelocitySample,
     WindSample,
 )
+from estimator.telemetry.skip_counters import SKIP_COUNTERS
 
 FloatArray = NDArray[np.float64]
 
@@ -128,6 +129,9 @@ class SampleStream(Iterator[Sample]):
     :meth:`~estimator.logs.coverage.Coverage.gap` over the reader's ``message_types``,
     ``battery_types`` and ``velocity_types``, unless the reader said more); None otherwise.
     ``firmware``: the autopilot's name and version as the log states it, else None.
+    ``columns``: the reader's samples column-wise, when it decodes the whole log at once
+    (ULog): :func:`iter_samples` then checks them at once and hands the stream the checked
+    list (:meth:`take`).
     Where the log has them (tlogs): ``start_unix_s``, the first record's receive time (s since
     the Unix epoch, UTC); ``autopilot``, the (system id, component id) decoded; ``pack_id``, the
     pack's serial number (else its device name) from SMART_BATTERY_INFO. None otherwise.
@@ -151,23 +155,37 @@ class SampleStream(Iterator[Sample]):
         self.velocity_types: tuple[str, ...] = ()
         self.sanity = SanityRecorder()
         self.coverage = Coverage()
+        self.columns: SampleColumns | None = None
         self._it = iter(samples)
+        self._observed = False  # every sample observed already (take)
 
-    def __iter__(self) -> SampleStream:
-        return self
+    def __iter__(self) -> Iterator[Sample]:
+        return self._it if self._observed else self
 
     def __next__(self) -> Sample:
         try:
             sample = next(self._it)
         except StopIteration:
-            if self.missing is None and self.battery_types:
-                self.missing = self.coverage.gap(
-                    self.message_types, self.battery_types, self.velocity_types
-                )
+            self._ended()
             raise
-        self.sanity.observe(sample)
-        self.coverage.observe(sample)
+        if not self._observed:
+            self.sanity.observe(sample)
+            self.coverage.observe(sample)
         return sample
+
+    def take(self, samples: list[Sample]) -> None:
+        """All the stream's samples at once (a reader that decoded the whole log): observed
+        now, column-wise, then iterated as a list; the counters are final already."""
+        self.sanity.observe_many(samples)
+        self.coverage.observe_many(samples)
+        self._it, self._observed = iter(samples), True
+        self._ended()
+
+    def _ended(self) -> None:
+        if self.missing is None and self.battery_types:
+            self.missing = self.coverage.gap(
+                self.message_types, self.battery_types, self.velocity_types
+            )
 
     def warnings(self, cells: int | None = None) -> list[str]:
         """The sanity checks' warnings once iterated (pack voltage when ``cells`` is given)."""
@@ -217,10 +235,14 @@ def iter_samples(
     path = Path(path)
     fmt = _resolve(path, fmt)
     if fmt == "tlog":
-        stream: SampleStream = _module(fmt).iter_samples(path, limits)
+        return _module(fmt).iter_samples(path, limits)
+    stream: SampleStream = _module(fmt).iter_samples(path)
+    guard = SampleGuard(limits)
+    if stream.columns is None:
+        stream._it = _guarded(stream._it, stream, guard)
     else:
-        stream = _module(fmt).iter_samples(path)
-        stream._it = _guarded(stream._it, stream, SampleGuard(limits))
+        stream.take([*guard.check_many(list(stream._it), stream.columns), *guard.flush()])
+        stream.count_checks(guard.counts)
     return stream
 
 

@@ -11,8 +11,12 @@ from __future__ import annotations
 
 from collections.abc import Iterable, Sequence
 from dataclasses import dataclass
+from itertools import compress, repeat
+from operator import attrgetter, is_
 
 from estimator.telemetry.samples import BatterySample, Sample, VelocitySample
+
+_CURRENT = attrgetter("current_a")
 
 
 @dataclass
@@ -32,6 +36,16 @@ class Coverage:
                 self.currents_nonzero += sample.current_a != 0.0
         elif isinstance(sample, VelocitySample):
             self.velocities += 1
+
+    def observe_many(self, samples: list[Sample]) -> None:
+        """:meth:`observe` each of ``samples``, in C loops over its fields."""
+        types = list(map(type, samples))
+        batteries = compress(samples, map(is_, types, repeat(BatterySample)))
+        currents = list(map(_CURRENT, batteries))
+        self.batteries += len(currents)
+        self.currents_known += len(currents) - currents.count(None)
+        self.currents_nonzero += len(list(filter(None, currents)))  # not None, not 0 A
+        self.velocities += types.count(VelocitySample)
 
     def gap(
         self,

@@ -21,6 +21,8 @@ from __future__ import annotations
 
 from collections import Counter
 from collections.abc import Sequence
+from itertools import compress, repeat
+from operator import attrgetter, is_
 from typing import TYPE_CHECKING
 
 import numpy as np
@@ -42,6 +44,8 @@ MIN_PAIRS = 5
 MAX_DISAGREEMENT = 0.5
 #: Percentile of the pack voltage compared with the cell count (the pack near rest).
 VOLTAGE_PERCENTILE = 95.0
+_VELOCITY_FIELDS = attrgetter("time_s", "vd_mps", "alt_m")
+_VOLTAGE = attrgetter("voltage_v")
 #: The causes a warning is about (what :class:`RunWarnings` counts).
 VERTICAL_VELOCITY, PACK_VOLTAGE = "vertical velocity", "pack voltage"
 
@@ -152,7 +156,7 @@ class SanityRecorder:
     """Collects velocity and voltage from samples as they stream past (per autopilot boot)."""
 
     def __init__(self) -> None:
-        self._velocity: list[list[tuple[float, float, float]]] = [[]]
+        self._velocity: list[list[tuple[float, float, float | None]]] = [[]]
         self._voltage_v: list[float] = []
 
     def observe(self, sample: Sample) -> None:
@@ -164,10 +168,28 @@ class SanityRecorder:
         elif isinstance(sample, RebootSample):
             self._velocity.append([])
 
+    def observe_many(self, samples: list[Sample]) -> None:
+        """:meth:`observe` each of ``samples`` in turn, in C loops over its fields."""
+        types = list(map(type, samples))
+        reboots = compress(range(len(samples)), map(is_, types, repeat(RebootSample)))
+        start = 0
+        for end in [*reboots, len(samples)]:
+            boot = compress(samples[start:end], map(is_, types[start:end], repeat(VelocitySample)))
+            self._velocity[-1].extend(map(_VELOCITY_FIELDS, boot))  # alt None: NaN when judged
+            if end < len(samples):
+                self._velocity.append([])
+            start = end + 1
+        batteries = compress(samples, map(is_, types, repeat(BatterySample)))
+        self._voltage_v.extend(map(_VOLTAGE, batteries))
+
     def judged_pairs(self) -> tuple[np.ndarray, np.ndarray] | None:
         """(height rate, logged climb rate) in m/s of the velocity sample pairs the vertical
         check judges (no pair spans a reboot); None before two samples of one boot."""
-        pairs = [_judged_pairs(*np.array(boot).T) for boot in self._velocity if len(boot) > 1]
+        pairs = [
+            _judged_pairs(*np.array(boot, dtype=float).T)
+            for boot in self._velocity
+            if len(boot) > 1
+        ]
         if not pairs:
             return None
         rate, climb = (np.concatenate(column) for column in zip(*pairs, strict=True))

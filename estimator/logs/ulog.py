@@ -30,9 +30,10 @@ from __future__ import annotations
 
 import contextlib
 import io
-import math
-from collections.abc import Iterator
-from operator import attrgetter
+import os
+from collections.abc import Callable
+from dataclasses import dataclass
+from itertools import chain
 from pathlib import Path
 from typing import Any
 
@@ -41,12 +42,14 @@ from pyulog import ULog
 
 from estimator.errors import UserError
 from estimator.logs import SampleStream
+from estimator.telemetry.sample_columns import CHECKED_FIELDS, SampleColumns
 from estimator.telemetry.samples import (
     ArmedSample,
     BatterySample,
     LandedSample,
     Sample,
     VelocitySample,
+    of_columns,
 )
 
 #: The GPS topics, most preferred first (velocity when the local position has none).
@@ -58,6 +61,8 @@ TOPICS = (
     "vehicle_land_detected",
     *GPS_TOPICS,
 )
+#: The topics whose samples are velocities.
+_VELOCITY_TOPICS = frozenset({"vehicle_local_position", *GPS_TOPICS})
 #: A GPS ``fix_type`` at least this is a 3-D fix.
 GPS_FIX_3D = 3
 #: ``vehicle_status.arming_state`` value of an armed vehicle (PX4 ≥ 1.8).
@@ -66,24 +71,70 @@ ARMING_STATE_ARMED = 2
 _RELEASE_TYPE = 0xFF
 
 
+#: pyulog reads at most this many bytes at once (a message's uint16 size, or a sync search
+#: within one): a read that starts further than this from the end of the file cannot be short.
+MAX_READ_BYTES = 0xFFFF
+
 _buffered_read = io.BufferedReader.read
 
 
-class _ReadProbe(io.BufferedReader):
-    """A file whose last read tells whether pyulog stopped inside a message."""
+class _ReadProbe:
+    """The file pyulog reads, telling whether its last read came back short: the file ended
+    inside a message. Only the reads of the file's last :data:`MAX_READ_BYTES` are watched
+    (:class:`_WatchedFile` says when they begin); the others go to the buffered reader's C
+    method untouched (a watched read costs a Python call: the whole file watched added a
+    third to pyulog's own time)."""
 
-    last_read_short = False
+    def __init__(self, path: Path) -> None:
+        self.last_read_short = False
+        raw = _WatchedFile(path, os.path.getsize(path) - MAX_READ_BYTES, self._watch)
+        self.file = io.BufferedReader(raw)
+        raw.reached(0)  # a file no longer than the tail is watched from its start
 
-    def read(self, size: int | None = -1) -> bytes:
-        # the unbound C method, not super(): pyulog reads each message header and body
-        # separately, and super()'s lookup doubled the cost of a read
-        data = _buffered_read(self, size)
+    def _watch(self) -> None:
+        # an instance attribute hides the class's C method from pyulog's `file.read(n)`
+        self.file.read = self._read  # type: ignore[method-assign]
+
+    def _read(self, size: int | None = -1) -> bytes:
+        data = _buffered_read(self.file, size)
         self.last_read_short = size is not None and 0 < len(data) < size
         return data
 
 
+class _WatchedFile(io.FileIO):
+    """A file that calls ``on_tail`` once its position first reaches ``tail_start`` (bytes):
+    then every read of its buffered reader that may come back short is yet to come (the
+    buffered reader's position never passes the raw file's)."""
+
+    def __init__(self, path: Path, tail_start: int, on_tail: Callable[[], None]) -> None:
+        super().__init__(path, "rb")
+        self._tail_start = tail_start
+        self._on_tail: Callable[[], None] | None = on_tail
+
+    def readinto(self, buffer: Any) -> int | None:
+        count = super().readinto(buffer)
+        if self._on_tail is not None:
+            self.reached(self.tell())
+        return count
+
+    def seek(self, offset: int, whence: int = os.SEEK_SET) -> int:
+        position = super().seek(offset, whence)
+        self.reached(position)
+        return position
+
+    def reached(self, position: int) -> None:
+        if self._on_tail is not None and position >= self._tail_start:
+            self._on_tail()
+            self._on_tail = None
+
+    def close(self) -> None:
+        self._on_tail = None  # the probe and this file refer to each other until now
+        super().close()
+
+
 def iter_samples(path: str | Path) -> SampleStream:
-    """Samples of a ULog in time order (see :class:`estimator.logs.SampleStream`)."""
+    """Samples of a ULog in time order (see :class:`estimator.logs.SampleStream`), decoded
+    at once: the stream's ``columns`` hold them column-wise, for the value and time checks."""
     path = Path(path)
     ulog, truncated = _load(path)
     stream = SampleStream(path, "ulog", ())
@@ -93,7 +144,8 @@ def iter_samples(path: str | Path) -> SampleStream:
     stream.message_types = {d.name for d in ulog.data_list}
     stream.battery_types = ("battery_status",)
     stream.velocity_types = ("vehicle_local_position",)
-    stream._it = _samples(ulog, stream)
+    samples, stream.columns = _samples(ulog, stream)
+    stream._it = iter(samples)
     return stream
 
 
@@ -115,7 +167,7 @@ def _load(path: Path) -> tuple[ULog, bool]:
     if path.is_dir():
         raise UserError(f"{path} is a directory, not a log file")
     try:
-        probe = _ReadProbe(io.FileIO(path, "rb"))
+        probe = _ReadProbe(path)
     except FileNotFoundError:
         raise UserError(f"{path} does not exist") from None
     except OSError as exc:
@@ -123,11 +175,11 @@ def _load(path: Path) -> tuple[ULog, bool]:
     try:
         # pyulog reports corruption with print(); our counters report it instead
         with contextlib.redirect_stdout(io.StringIO()):
-            ulog = ULog(probe, message_name_filter_list=list(TOPICS))
+            ulog = ULog(probe.file, message_name_filter_list=list(TOPICS))
     except Exception as exc:  # pyulog on a damaged file: ULogException, struct/index errors
         raise UserError(f"{path} is not a readable PX4 ULog: {exc}") from None
     finally:
-        probe.close()
+        probe.file.close()
     return ulog, probe.last_read_short
 
 
@@ -157,7 +209,40 @@ def _flag(data: dict[str, Any], name: str, n: int) -> np.ndarray:
     return np.asarray(data[name], dtype=bool) if name in data else np.ones(n, dtype=bool)
 
 
-def _local_velocities(data: dict[str, Any], stream: SampleStream) -> list[Sample]:
+@dataclass(frozen=True)
+class _Decoded:
+    """Samples of one topic: the objects and their columns (same rows, same order)."""
+
+    samples: list[Sample]
+    columns: SampleColumns
+
+
+def _decoded(
+    sample_type: type,
+    time_s: np.ndarray,
+    fields: dict[str, np.ndarray],
+    known: dict[str, np.ndarray] | None = None,
+) -> _Decoded:
+    """Samples of ``sample_type`` stamped ``time_s`` (s), with ``fields`` (its other fields
+    by name, in its order), each None where ``known`` (by optional field) is False."""
+    known = known or {}
+    objects: list[list[Any]] = [time_s.tolist()]
+    for name, column in fields.items():
+        flags = known.get(name)
+        if flags is not None and not flags.all():
+            column = column.astype(object)
+            column[~flags] = None
+        objects.append(column.tolist())
+    checked = {
+        name: np.where(known[name], fields[name], 0.0) if name in known else fields[name]
+        for name in CHECKED_FIELDS.get(sample_type, ())
+    }
+    checked_known = {name: flags for name, flags in known.items() if name in checked}
+    columns = SampleColumns.of_type(sample_type, time_s, checked, checked_known)
+    return _Decoded(of_columns(sample_type, *objects), columns)
+
+
+def _local_velocities(data: dict[str, Any], stream: SampleStream) -> _Decoded:
     t = data["timestamp"] / 1e6
     v = np.column_stack([data["vx"], data["vy"], data["vz"]]).astype(float)
     alt = -np.asarray(data["z"], dtype=float)
@@ -165,7 +250,7 @@ def _local_velocities(data: dict[str, Any], stream: SampleStream) -> list[Sample
     return _velocities(t, v, alt, ok, stream, "vehicle_local_position.vz")
 
 
-def _gps_velocities(data: dict[str, Any], topic: str, stream: SampleStream) -> list[Sample]:
+def _gps_velocities(data: dict[str, Any], topic: str, stream: SampleStream) -> _Decoded:
     t = data["timestamp"] / 1e6
     v = np.column_stack([data["vel_n_m_s"], data["vel_e_m_s"], data["vel_d_m_s"]]).astype(float)
     if "altitude_msl_m" in data:
@@ -185,19 +270,21 @@ def _velocities(
     ok: np.ndarray,
     stream: SampleStream,
     source: str,
-) -> list[Sample]:
-    """Velocity samples (NED m/s, height m) of the rows ``ok`` with a finite velocity; the
-    others are counted as skipped. Built column-wise: each column is taken out of numpy once."""
+) -> _Decoded:
+    """Velocity samples (NED m/s, height m or None where not finite) of the rows ``ok`` with
+    a finite velocity; the others are counted as skipped."""
     ok = ok & np.isfinite(v).all(axis=1)
     stream.skipped += int(np.count_nonzero(~ok))
     if ok.any():
         stream.velocity_source = source
     rows = np.flatnonzero(ok)
-    alts = [a if math.isfinite(a) else None for a in alt[rows].tolist()]
-    return list(map(VelocitySample, t[rows].tolist(), *v[rows].T.tolist(), alts))
+    vn, ve, vd = v[rows].T
+    alt = alt[rows]
+    fields = {"vn_mps": vn, "ve_mps": ve, "vd_mps": vd, "alt_m": alt}
+    return _decoded(VelocitySample, t[rows], fields, {"alt_m": np.isfinite(alt)})
 
 
-def _batteries(data: dict[str, Any], stream: SampleStream) -> list[Sample]:
+def _batteries(data: dict[str, Any], stream: SampleStream) -> _Decoded:
     t = data["timestamp"] / 1e6
     volt = np.asarray(data["voltage_v"], dtype=float)
     n = len(t)
@@ -208,31 +295,31 @@ def _batteries(data: dict[str, Any], stream: SampleStream) -> list[Sample]:
     ok = _flag(data, "connected", n) & np.isfinite(volt) & (volt > 0.0)
     stream.skipped += int(np.count_nonzero(~ok))
     rows = np.flatnonzero(ok)
-    percent = [None if not r >= 0.0 else r * 100.0 for r in remaining[rows].tolist()]
-    return list(
-        map(
-            BatterySample,
-            t[rows].tolist(),
-            volt[rows].tolist(),
-            _known(current[rows]),
-            _known(consumed[rows]),
-            percent,
-        )
-    )
+    current, consumed, remaining = current[rows], consumed[rows], remaining[rows]
+    fields = {
+        "voltage_v": volt[rows],
+        "current_a": current,
+        "consumed_mah": consumed,
+        "remaining_pct": remaining * 100.0,
+    }
+    known = {
+        "current_a": _known(current),
+        "consumed_mah": _known(consumed),
+        "remaining_pct": remaining >= 0.0,
+    }
+    return _decoded(BatterySample, t[rows], fields, known)
 
 
-def _arming(data: dict[str, Any]) -> list[Sample]:
+def _arming(data: dict[str, Any]) -> _Decoded:
     armed = np.asarray(data["arming_state"]) == ARMING_STATE_ARMED
-    t = data["timestamp"] / 1e6
     rows = _changes(armed)
-    return list(map(ArmedSample, t[rows].tolist(), armed[rows].tolist()))
+    return _decoded(ArmedSample, data["timestamp"][rows] / 1e6, {"armed": armed[rows]})
 
 
-def _landing(data: dict[str, Any]) -> list[Sample]:
+def _landing(data: dict[str, Any]) -> _Decoded:
     landed = np.asarray(data["landed"], dtype=bool)
-    t = data["timestamp"] / 1e6
     rows = _changes(landed)
-    return list(map(LandedSample, t[rows].tolist(), landed[rows].tolist()))
+    return _decoded(LandedSample, data["timestamp"][rows] / 1e6, {"on_ground": landed[rows]})
 
 
 def _changes(flags: np.ndarray) -> np.ndarray:
@@ -240,9 +327,9 @@ def _changes(flags: np.ndarray) -> np.ndarray:
     return np.flatnonzero(np.concatenate([[True], flags[1:] != flags[:-1]]))
 
 
-def _known(values: np.ndarray) -> list[float | None]:
-    """Each finite non-negative value, else None (PX4 logs −1 or NaN for unknown)."""
-    return [x if x >= 0.0 and math.isfinite(x) else None for x in values.tolist()]
+def _known(values: np.ndarray) -> np.ndarray:
+    """Which values are known: finite and non-negative (PX4 logs −1 or NaN for unknown)."""
+    return np.isfinite(values) & (values >= 0.0)
 
 
 #: Fields each topic needs; a topic whose (damaged) format lacks them is not used.
@@ -255,10 +342,11 @@ _NEEDED = {
 }
 
 
-def _samples(ulog: ULog, stream: SampleStream) -> Iterator[Sample]:
-    readers = (
-        ("vehicle_status", lambda d: _arming(d)),
-        ("vehicle_land_detected", lambda d: _landing(d)),
+def _samples(ulog: ULog, stream: SampleStream) -> tuple[list[Sample], SampleColumns]:
+    """The samples of every topic used, in time order, and their columns."""
+    readers: tuple[tuple[str, Callable[[dict[str, Any]], _Decoded]], ...] = (
+        ("vehicle_status", _arming),
+        ("vehicle_land_detected", _landing),
         ("vehicle_local_position", lambda d: _local_velocities(d, stream)),
         *(
             (topic, lambda d, topic=topic: _gps_velocities(d, topic, stream))
@@ -266,7 +354,7 @@ def _samples(ulog: ULog, stream: SampleStream) -> Iterator[Sample]:
         ),
         ("battery_status", lambda d: _batteries(d, stream)),
     )
-    merged: list[Sample] = []
+    parts: list[_Decoded] = []
     velocity = False  # a velocity sample given: the GPS topics are not read
     # values of a damaged file may not convert cleanly: they are dropped as non-finite
     with np.errstate(all="ignore"):
@@ -277,16 +365,20 @@ def _samples(ulog: ULog, stream: SampleStream) -> Iterator[Sample]:
             if not all(name in data for name in _NEEDED[topic]):
                 stream.bad_frames += 1
                 continue
-            samples = read(data)
-            velocity = velocity or any(isinstance(s, VelocitySample) for s in samples)
-            merged.extend(samples)
+            part = read(data)
+            velocity = velocity or (bool(part.samples) and topic in _VELOCITY_TOPICS)
+            parts.append(part)
     if {"vehicle_local_position", "battery_status"} <= stream.message_types and not velocity:
         stream.missing = (
             "vehicle_local_position present but its velocity is never valid (v_xy_valid, "
             "v_z_valid), nor a GPS velocity with a 3-D fix; it has "
             f"{', '.join(sorted(stream.message_types))}"
         )
-    # stable sort: at equal times the arming and landed states come first, then velocity,
-    # then battery
-    merged.sort(key=attrgetter("time_s"))
-    yield from merged
+    samples = list(chain.from_iterable(part.samples for part in parts))
+    if not parts:
+        return samples, SampleColumns.of_samples(samples)
+    columns = SampleColumns.joined([part.columns for part in parts])
+    # stable: at equal times the arming and landed states come first, then velocity, then
+    # battery
+    order = np.argsort(columns.time_s, kind="stable")
+    return list(map(samples.__getitem__, order.tolist())), columns.rows(order)

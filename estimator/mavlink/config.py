@@ -14,7 +14,7 @@ from typing import TYPE_CHECKING, Any
 
 from estimator.errors import UserError
 from estimator.file_checks import number_in_range
-from estimator.mavlink.link import parse_url
+from estimator.mavlink.link_address import parse_url
 from estimator.physics.route_energy import DEFAULT_MAX_GROUND_SPEED_MPS, DEFAULT_RTL_ALT_M
 from estimator.toml_files import read_toml
 

@@ -10,7 +10,8 @@ from collections.abc import Mapping
 
 from estimator.mavlink.autopilot_lock import AutopilotLock
 from estimator.mavlink.link import MavlinkLink
-from estimator.telemetry.decode import SKIP_COUNTERS, TelemetryDecoder
+from estimator.telemetry.decode import TelemetryDecoder
+from estimator.telemetry.skip_counters import SKIP_COUNTERS
 
 
 class ThrottledLog:

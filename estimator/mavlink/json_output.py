@@ -10,7 +10,7 @@ import sys
 
 from estimator.estimation.estimate import Estimate
 from estimator.mavlink import publish
-from estimator.mavlink.link import parse_url
+from estimator.mavlink.link_address import parse_url
 
 #: JSON lines waiting for a slow stdout reader beyond this are dropped (counted).
 JSON_BUFFER_LIMIT_BYTES = 1 << 20

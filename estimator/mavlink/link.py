@@ -1,7 +1,8 @@
 """asyncio MAVLink transport: UDP, TCP and serial links with pymavlink's generated codec.
 
 No ``mavutil`` (it changes process-wide state), no threads, no blocking calls on the loop.
-Connection strings follow ArduPilot/mavutil usage:
+Connection strings follow ArduPilot/mavutil usage
+(:func:`~estimator.mavlink.link_address.parse_url`):
 
 - ``udpin:HOST:PORT``  bind and listen; replies go to every peer heard from (up to 16), or,
   after :meth:`MavlinkLink.answer_only`, only to one address (or to none);
@@ -41,13 +42,13 @@ import os
 import socket
 from collections import Counter, deque
 from collections.abc import Callable
-from dataclasses import dataclass
 from typing import Any, Protocol
 
 from pymavlink.dialects.v20 import common as mavlink
 
 from estimator.errors import Unavailable, UserError
-from estimator.mavlink.serial_device import BAUD_RATES, REOPEN_S, SerialTransport
+from estimator.mavlink.link_address import LinkAddress, parse_url
+from estimator.mavlink.serial_device import REOPEN_S, SerialTransport
 from estimator.mavlink.signing import LinkSigning, SigningCodec
 from estimator.telemetry.frames import FrameParser
 
@@ -70,52 +71,6 @@ _DEVICE_MAY_COME_BACK = frozenset(
 #: Datagrams read at one wake-up of the loop at most, and the largest one read whole.
 UDP_DATAGRAMS_PER_WAKE = 64
 UDP_DATAGRAM_MAX_BYTES = 65_535
-DEFAULT_BAUD = 115200
-
-
-@dataclass(frozen=True, slots=True)
-class LinkAddress:
-    """A parsed connection string. ``kind`` is udpin, udpout, tcp, tcpin or serial."""
-
-    kind: str
-    host: str = ""
-    port: int = 0
-    device: str = ""
-    baud: int = DEFAULT_BAUD
-
-    def __str__(self) -> str:
-        if self.kind == "serial":
-            return f"{self.device}:{self.baud}"
-        return f"{self.kind}:{self.host}:{self.port}"
-
-
-def parse_url(url: str, listen: bool = True) -> LinkAddress:
-    """Parse a connection string; a malformed one is a UserError naming the accepted forms.
-    ``listen``: ``udp:`` binds (``udpin``) when true, sends (``udpout``) when false, as
-    pymavlink's ``mavlink_connection(..., input=listen)``."""
-    forms = (
-        "udpin:HOST:PORT, udpout:HOST:PORT, udp:HOST:PORT, tcp:HOST:PORT, tcpin:HOST:PORT, "
-        "DEV[:BAUD] or DEV,BAUD"
-    )
-    text = url.strip()
-    kind, _, rest = text.partition(":")
-    if kind == "udp":
-        kind = "udpin" if listen else "udpout"
-    if kind in ("udpin", "udpout", "tcp", "tcpin"):
-        host, sep, port_text = rest.rpartition(":")
-        if not sep or not host or not port_text.isdigit() or not 0 <= int(port_text) < 65536:
-            raise UserError(f"connection string {url!r} is not valid: use {forms}")
-        return LinkAddress(kind, host=host, port=int(port_text))
-    if kind == "serial":
-        text = rest
-    device, sep, baud_text = text.rpartition("," if "," in text else ":")
-    if not sep:
-        device, baud_text = text, str(DEFAULT_BAUD)
-    if not device.startswith("/") or not baud_text.isdigit():
-        raise UserError(f"connection string {url!r} is not valid: use {forms}")
-    if int(baud_text) not in BAUD_RATES:
-        raise UserError(f"serial baud rate {baud_text} in {url!r} is not a standard rate")
-    return LinkAddress("serial", device=device, baud=int(baud_text))
 
 
 class MavlinkLink:

@@ -12,6 +12,8 @@ import termios
 import tty
 from typing import TYPE_CHECKING, Any
 
+from estimator.mavlink.link_address import BAUD_RATES
+
 if TYPE_CHECKING:
     from estimator.mavlink.link import MavlinkLink
 
@@ -19,12 +21,6 @@ log = logging.getLogger(__name__)
 
 #: Seconds between attempts to reopen a device that failed.
 REOPEN_S = 1.0
-#: Standard baud rates and their termios constants.
-BAUD_RATES = {
-    int(name[1:]): getattr(termios, name)
-    for name in dir(termios)
-    if name.startswith("B") and name[1:].isdigit()
-}
 
 
 def open_tty(device: str, baud: int) -> int:

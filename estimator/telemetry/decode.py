@@ -39,7 +39,8 @@ Messages (parsed from bytes by :mod:`estimator.telemetry.frames`) become
 - only the selected autopilot is decoded (default: the first autopilot HEARTBEAT);
   our own component's messages and everyone else's are counted and skipped.
 
-Every skip is counted in :attr:`TelemetryDecoder.counts` (see :data:`SKIP_COUNTERS`).
+Every skip is counted in :attr:`TelemetryDecoder.counts` (see
+:data:`~estimator.telemetry.skip_counters.SKIP_COUNTERS`).
 """
 
 from __future__ import annotations
@@ -85,20 +86,6 @@ CURRENT_UNKNOWN_CA = frozenset({-1, -100})
 BATTERY_STATUS_CONFIRM = 3
 #: Seconds of autopilot clock without BATTERY_STATUS after which SYS_STATUS is used again.
 BATTERY_STATUS_TIMEOUT_S = 3.0
-#: Counters of input skipped because it was not believed (values, time), for the daemon's log.
-SKIP_COUNTERS = (
-    "velocity_not_finite",
-    "velocity_beyond_limits",
-    "velocity_jump",
-    "altitude_implausible",
-    "voltage_implausible",
-    "current_implausible",
-    "consumed_implausible",
-    "wind_implausible",
-    "position_implausible",
-    "home_implausible",
-    "time_jump",
-)
 #: A position stamp this close (s) to the believed clock is taken when the velocity comes from
 #: another message (LOCAL_POSITION_NED), so GLOBAL_POSITION_INT's stamp is not judged itself.
 POSITION_STAMP_TOLERANCE_S = 1.0

@@ -17,14 +17,12 @@ ends the run and is left to the scalar check.
 from __future__ import annotations
 
 from dataclasses import dataclass
-from itertools import repeat
-from operator import attrgetter, is_not
 from typing import TYPE_CHECKING
 
 import numpy as np
 
-from estimator.telemetry import samples as sample_types
-from estimator.telemetry.samples import BatterySample, Sample, VelocitySample, WindSample
+from estimator.telemetry.sample_columns import KINDS, OTHER, SampleColumns
+from estimator.telemetry.samples import BatterySample, VelocitySample, WindSample
 
 if TYPE_CHECKING:
     from estimator.telemetry.plausibility import ClockSettings, InputLimits
@@ -32,28 +30,7 @@ if TYPE_CHECKING:
 #: Relative margin by which a numpy norm must be within its limit to be decided here.
 NORM_MARGIN = 1e-9
 
-_ALT = attrgetter("alt_m")
-_CURRENT = attrgetter("current_a")
-_CONSUMED = attrgetter("consumed_mah")
-#: Sample types a run may hold, by code: those with value checks, and those without
-#: (any other type, a RebootSample among them, ends a run).
-_OTHER = -1
-_KINDS = {
-    VelocitySample: 1,
-    BatterySample: 2,
-    WindSample: 3,
-    **dict.fromkeys(
-        (
-            sample_types.ArmedSample,
-            sample_types.LandedSample,
-            sample_types.GripperSample,
-            sample_types.PositionSample,
-            sample_types.HomeSample,
-            sample_types.MissionCurrentSample,
-        ),
-        0,
-    ),
-}
+_VELOCITY = KINDS[VelocitySample]
 
 
 @dataclass(frozen=True, slots=True)
@@ -103,40 +80,39 @@ class RunSearch:
 
 
 def clean_run(
-    samples: list[Sample],
+    columns: SampleColumns,
     clock_s: float,
     believed: VelocitySample | None,
     limits: GuardLimits,
 ) -> int:
-    """The number of leading ``samples`` each of which passes the value checks, is stamped
-    within the clock's window (the clock at ``clock_s`` s, moving forward with each stamp)
-    and, if a velocity, is reachable from the velocity before it (``believed`` for the
-    first; None: any). A sample of another type than those of :data:`_KINDS` ends the run."""
-    n = len(samples)
-    kinds = np.fromiter(map(_KINDS.get, map(type, samples), repeat(_OTHER)), np.int8, n)
-    ok = (kinds != _OTHER) & _stamps_in_window(_column(samples, "time_s"), clock_s, limits.clock)
+    """The number of leading samples (``columns``, one row each) each of which passes the
+    value checks, is stamped within the clock's window (the clock at ``clock_s`` s, moving
+    forward with each stamp) and, if a velocity, is reachable from the velocity before it
+    (``believed`` for the first; None: any). A sample of another type than those of
+    :data:`~estimator.telemetry.sample_columns.KINDS` ends the run."""
+    kinds = columns.kinds
+    ok = (kinds != OTHER) & _stamps_in_window(columns.time_s, clock_s, limits.clock)
     for kind, check in _VALUE_CHECKS.items():
         rows = np.flatnonzero(kinds == kind)
         if len(rows):
-            ok[rows] &= check([samples[i] for i in rows], limits)
-    rows = np.flatnonzero(kinds == _KINDS[VelocitySample])
+            ok[rows] &= check(columns, rows, limits)
+    rows = np.flatnonzero(kinds == _VELOCITY)
     if len(rows):
-        chain = [samples[i] for i in rows]
+        vn, ve, vd = (columns.values[name][rows] for name in ("vn_mps", "ve_mps", "vd_mps"))
+        time_s = columns.time_s[rows]
         if believed is not None:
-            chain.insert(0, believed)
-        reachable = _reachable(chain, limits)
+            vn, ve, vd, time_s = (
+                np.concatenate(([first], column))
+                for first, column in zip(
+                    (believed.vn_mps, believed.ve_mps, believed.vd_mps, believed.time_s),
+                    (vn, ve, vd, time_s),
+                    strict=True,
+                )
+            )
+        reachable = _reachable(vn, ve, vd, time_s, limits)
         ok[rows[len(rows) - len(reachable) :]] &= reachable
     bad = np.flatnonzero(~ok)
-    return int(bad[0]) if len(bad) else n
-
-
-def _column(samples: list[Sample], name: str) -> np.ndarray:
-    """The float field ``name`` of each sample."""
-    return np.fromiter(map(attrgetter(name), samples), dtype=np.float64, count=len(samples))
-
-
-def _velocity(samples: list[Sample]) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    return _column(samples, "vn_mps"), _column(samples, "ve_mps"), _column(samples, "vd_mps")
+    return int(bad[0]) if len(bad) else len(kinds)
 
 
 def _stamps_in_window(time_s: np.ndarray, clock_s: float, clock: ClockSettings) -> np.ndarray:
@@ -145,9 +121,13 @@ def _stamps_in_window(time_s: np.ndarray, clock_s: float, clock: ClockSettings) 
     return (before - clock.backstep_s <= time_s) & (time_s <= before + clock.max_step_s)
 
 
-def _velocities_plausible(samples: list[Sample], limits: GuardLimits) -> np.ndarray:
-    vn, ve, vd = _velocity(samples)
-    has_alt, alt_m = _optional(list(map(_ALT, samples)))
+def _velocities_plausible(
+    columns: SampleColumns, rows: np.ndarray, limits: GuardLimits
+) -> np.ndarray:
+    vn, ve, vd, alt_m = (
+        columns.values[name][rows] for name in ("vn_mps", "ve_mps", "vd_mps", "alt_m")
+    )
+    has_alt = columns.known["alt_m"][rows]
     lim = limits.values
     with np.errstate(all="ignore"):
         return (
@@ -160,11 +140,14 @@ def _velocities_plausible(samples: list[Sample], limits: GuardLimits) -> np.ndar
         )
 
 
-def _batteries_plausible(samples: list[Sample], limits: GuardLimits) -> np.ndarray:
+def _batteries_plausible(
+    columns: SampleColumns, rows: np.ndarray, limits: GuardLimits
+) -> np.ndarray:
     lim = limits.values
-    volt = _column(samples, "voltage_v")
-    has_i, amp = _optional(list(map(_CURRENT, samples)))
-    has_q, mah = _optional(list(map(_CONSUMED, samples)))
+    volt, amp, mah = (
+        columns.values[name][rows] for name in ("voltage_v", "current_a", "consumed_mah")
+    )
+    has_i, has_q = (columns.known[name][rows] for name in ("current_a", "consumed_mah"))
     with np.errstate(all="ignore"):
         current_ok = (
             np.isfinite(amp)
@@ -181,16 +164,8 @@ def _batteries_plausible(samples: list[Sample], limits: GuardLimits) -> np.ndarr
         )
 
 
-def _optional(values: list[float | None]) -> tuple[np.ndarray, np.ndarray]:
-    """(known, value): which of ``values`` are not None, and the values (0 where None)."""
-    known = np.fromiter(map(is_not, values, repeat(None)), dtype=bool, count=len(values))
-    if known.all():
-        return known, np.array(values, dtype=np.float64)
-    return known, np.array([0.0 if x is None else x for x in values], dtype=np.float64)
-
-
-def _winds_plausible(samples: list[Sample], limits: GuardLimits) -> np.ndarray:
-    n, e = _column(samples, "wind_n_mps"), _column(samples, "wind_e_mps")
+def _winds_plausible(columns: SampleColumns, rows: np.ndarray, limits: GuardLimits) -> np.ndarray:
+    n, e = (columns.values[name][rows] for name in ("wind_n_mps", "wind_e_mps"))
     with np.errstate(all="ignore"):
         return (
             np.isfinite(n)
@@ -199,22 +174,22 @@ def _winds_plausible(samples: list[Sample], limits: GuardLimits) -> np.ndarray:
         )
 
 
-def _reachable(chain: list[Sample], limits: GuardLimits) -> np.ndarray:
-    """For each velocity of ``chain`` after the first, whether it is reachable from the one
-    before it: a step no larger than the floor plus the acceleration limit over the time
-    between them."""
-    vn, ve, vd = _velocity(chain)
-    t = _column(chain, "time_s")
+def _reachable(
+    vn: np.ndarray, ve: np.ndarray, vd: np.ndarray, time_s: np.ndarray, limits: GuardLimits
+) -> np.ndarray:
+    """For each velocity (NED m/s, stamped ``time_s`` s) after the first, whether it is
+    reachable from the one before it: a step no larger than the floor plus the acceleration
+    limit over the time between them."""
     with np.errstate(all="ignore"):
         step_mps = np.sqrt(np.diff(vn) ** 2 + np.diff(ve) ** 2 + np.diff(vd) ** 2)
         reach_mps = limits.step_floor_mps + limits.max_acceleration_mps2 * np.maximum(
-            t[1:] - t[:-1], 0.0
+            time_s[1:] - time_s[:-1], 0.0
         )
         return np.asarray(step_mps * (1 + NORM_MARGIN) <= reach_mps)
 
 
 _VALUE_CHECKS = {
-    _KINDS[VelocitySample]: _velocities_plausible,
-    _KINDS[BatterySample]: _batteries_plausible,
-    _KINDS[WindSample]: _winds_plausible,
+    KINDS[VelocitySample]: _velocities_plausible,
+    KINDS[BatterySample]: _batteries_plausible,
+    KINDS[WindSample]: _winds_plausible,
 }

@@ -32,9 +32,11 @@ import enum
 import math
 from collections import Counter
 from dataclasses import dataclass, replace
-from operator import attrgetter
+
+import numpy as np
 
 from estimator.telemetry.guard_runs import GuardLimits, RunSearch, clean_run
+from estimator.telemetry.sample_columns import KINDS, SampleColumns
 from estimator.telemetry.samples import (
     BatterySample,
     RebootSample,
@@ -544,12 +546,16 @@ class SampleGuard:
         out = self._time.stamped(sample.time_s, sample)
         return [] if out is None else self._jumps.filter([*out, sample])
 
-    def check_many(self, samples: list[Sample]) -> list[Sample]:
+    def check_many(
+        self, samples: list[Sample], columns: SampleColumns | None = None
+    ) -> list[Sample]:
         """The samples to deliver for ``samples`` in turn, as :meth:`check` one by one would
         give them. Runs of samples that change nothing but the clock and the believed
-        velocity are found column-wise (:func:`~estimator.telemetry.guard_runs.clean_run`),
-        the other samples checked one by one; :class:`~estimator.telemetry.guard_runs.
-        RunSearch` says where to look for a run and how many samples to check one by one."""
+        velocity are found column-wise (:func:`~estimator.telemetry.guard_runs.clean_run`,
+        on ``columns`` when the reader gives the samples' columns, else on columns read from
+        the samples), the other samples checked one by one;
+        :class:`~estimator.telemetry.guard_runs.RunSearch` says where to look for a run and
+        how many samples to check one by one."""
         out: list[Sample] = []
         start, search = 0, self._search
         while start < len(samples):
@@ -560,33 +566,38 @@ class SampleGuard:
                 start, search.one_by_one = start + len(part), search.one_by_one - len(part)
                 continue
             window = samples[start : start + search.window]
-            run = self._clean_run(window)
+            rows = None if columns is None else columns.rows(slice(start, start + len(window)))
+            run = self._clean_run(window, rows)
             out += window[:run]
-            self._passed(window[:run])
             start += run
             search.stopped(run, len(window))
         return out
 
-    def _clean_run(self, samples: list[Sample]) -> int:
+    def _clean_run(self, samples: list[Sample], columns: SampleColumns | None) -> int:
+        """How many leading ``samples`` are a clean run (moving the clock and velocity on)."""
         time, clock = self._time, self._time.clock
         if clock.time_s is None or clock.candidates or time._held or time._pending_out:
             return 0
-        return clean_run(samples, clock.time_s, self._jumps._believed, self._run_limits)
+        columns = SampleColumns.of_samples(samples) if columns is None else columns
+        run = clean_run(columns, clock.time_s, self._jumps._believed, self._run_limits)
+        if run:
+            self._passed(samples, columns.rows(slice(0, run)))
+        return run
 
-    def _passed(self, samples: list[Sample]) -> None:
-        """Move the clock and the believed velocity past ``samples``, a clean run."""
-        if not samples:
-            return
+    def _passed(self, samples: list[Sample], columns: SampleColumns) -> None:
+        """Move the clock and the believed velocity past the clean run ``columns``."""
         clock = self._time.clock
-        newest_s = max(map(attrgetter("time_s"), samples))
+        newest_s = float(columns.time_s.max())
         if clock.time_s is not None and newest_s > clock.time_s:
             clock.time_s = newest_s
             if clock._before_reboot_s is not None and newest_s > clock._before_reboot_s:
                 clock._before_reboot_s = None
         clock.joined = None
         self._time.verdict = ClockVerdict.ACCEPT
-        last = next((s for s in reversed(samples) if isinstance(s, VelocitySample)), None)
-        if last is not None:
+        velocities = np.flatnonzero(columns.kinds == KINDS[VelocitySample])
+        if len(velocities):
+            last = samples[int(velocities[-1])]
+            assert isinstance(last, VelocitySample)
             self._jumps._believed, self._jumps._outliers = last, []
 
     def flush(self) -> list[Sample]:
