@@ -40,6 +40,8 @@ Each ``<!-- figures:NAME -->`` … ``<!-- /figures:NAME -->`` block of those doc
 - ``residuals-sitl-*``: SITL's vertical effects fitted on ``replay/sitl_axial`` as the SITL
   vehicle file's header gives the command, and the heave gain on the clean held-out flights
   with vertical legs (``scripts/vertical_figures.py``).
+- ``online-sim-*``: the online tracker on two of ``tests/test_online_effects.py``'s simulated
+  flights (``scripts/online_figures.py``).
 - ``state-restart-table``: ``python -m bench.trust``'s restart mid-flight (docs/daemon.md).
 - ``tracker-cmu``: ``python scripts/tracker_cmu.py`` (the online tracker on the CMU M100
   flights against their payload and anemometer).
@@ -990,6 +992,8 @@ generator("residuals-sim-changing", checked_by="tests/test_residual_figures.py")
     lambda: residual_figures.changing_table(changing_residuals())
 )
 for _name, _print in vertical_figures.generators(_cli, vertical_fit).items():
+    generator(_name)(_print)
+for _name, _print in script_module("online_figures").generators().items():
     generator(_name)(_print)
 generator("residuals-sim-table")(lambda: residual_figures.hidden_table(simulated_residuals()[0]))
 generator("residuals-sim-step")(
