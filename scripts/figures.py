@@ -34,9 +34,14 @@ Each ``<!-- figures:NAME -->`` … ``<!-- /figures:NAME -->`` block of those doc
   ``tests/test_figures.py``).
 - ``sitl-payload-hover-current``, ``sitl-hover-power-*``: the hover current and power of
   the payload and heavier-airframe recordings of ``replay/sitl`` (``scripts/sitl_figures.py``).
-- ``sitl-held-*``, ``tracker-sitl-held``: the same analysis (and its misses' candidates), and
-  the online tracker, on the held-out flights of ``replay/sitl_held`` (checked by
-  ``tests/test_sitl_held_out.py``).
+- ``sitl-held-*``, ``tracker-sitl-held*``: the same analysis (and its misses' candidates), and
+  the online tracker (with a flight's worst mass step and the unloaded flights' mass), on the
+  held-out flights of ``replay/sitl_held`` (checked by ``tests/test_sitl_held_out.py``).
+- ``residuals-sitl-*``: SITL's vertical effects fitted on ``replay/sitl_axial`` as the SITL
+  vehicle file's header gives the command, and the heave gain on the clean held-out flights
+  with vertical legs (``scripts/vertical_figures.py``).
+- ``online-sim-*``: the online tracker on two of ``tests/test_online_effects.py``'s simulated
+  flights (``scripts/online_figures.py``).
 - ``state-restart-table``: ``python -m bench.trust``'s restart mid-flight (docs/daemon.md).
 - ``tracker-cmu``: ``python scripts/tracker_cmu.py`` (the online tracker on the CMU M100
   flights against their payload and anemometer).
@@ -47,7 +52,11 @@ Each ``<!-- figures:NAME -->`` … ``<!-- /figures:NAME -->`` block of those doc
   scripts/pack_state_sitl.py`` prints and their summary (``scripts/pack_figures.py``; the
   README's sentence too);
   ``pack-ensemble-*``: the simulator's ensemble of drawn packs; ``hover-cruise-*``: the
-  hover→cruise acceptance flights (``python tests/test_endurance_acceptance.py``).
+  hover→cruise acceptance flights (``python tests/test_endurance_acceptance.py``);
+  ``pack-sitl-curve*``, ``pack-sitl-unscored``, ``pack-sitl-sigma-left``,
+  ``pack-sitl-restarts-tuning``, ``hover-cruise-px4-*``, ``period-end-apart``: the prose
+  figures around them, the SITL file's resting curve against SITL's table, and a reading at
+  each period's end on two transports (``scripts/endurance_figures.py``).
 - ``fleet-iris-*``: ``uav-energy fleet fit`` of the IRIS+ logs, ``fleet trends`` of its
   rows (docs/fleet.md; ``scripts/fleet_figures.py``) and the two periods' vehicle-file masses.
 - ``tracker-sitl``: ``python scripts/tracker_sitl.py`` (the online tracker on the
@@ -142,6 +151,7 @@ tracker_sitl = script_module("tracker_sitl")
 pack_table = script_module("pack_state_sitl")
 pack_fit_table = script_module("pack_fit_sitl")
 vertical_fit = script_module("vertical_fit", REPO / "tests")
+vertical_figures = script_module("vertical_figures")
 MISSIONS = sitl.SITL_RECORDINGS / "missions"
 #: The missions the planner's flight settings were read off (docs/plan.md, "Calibration").
 CALIBRATION = ("climbs_wind6", "outback_wind8", "square_wind5")
@@ -981,6 +991,10 @@ for _name, _print in _real_blocks.items():
 generator("residuals-sim-changing", checked_by="tests/test_residual_figures.py")(
     lambda: residual_figures.changing_table(changing_residuals())
 )
+for _name, _print in vertical_figures.generators(_cli, vertical_fit).items():
+    generator(_name)(_print)
+for _name, _print in script_module("online_figures").generators().items():
+    generator(_name)(_print)
 generator("residuals-sim-table")(lambda: residual_figures.hidden_table(simulated_residuals()[0]))
 generator("residuals-sim-step")(
     lambda: residual_figures.step_footnote(simulated_residuals()[0][residual_figures.STEP_ROW])
@@ -1055,6 +1069,7 @@ for _name, _summary in (
     ("sitl-effects-payload", sitl.effects_payload),
     ("sitl-effects-turn", sitl.effects_turn),
     ("sitl-effects-heavy", sitl.effects_heavy),
+    ("sitl-effects-onset-circles", sitl.effects_onset_circles),
 ):
     generator(_name, checked_by=_SITL_EFFECTS_TEST)(lambda f=_summary: f(sitl.effect_checks()))
 
@@ -1134,6 +1149,17 @@ generator("tracker-sitl-held", checked_by=_SITL_HELD_TEST)(
 generator("tracker-sitl-held-wind-worst", checked_by=_SITL_HELD_TEST)(
     lambda: str(tracker_sitl.worst_wind(sitl_tracker_runs(sitl.HELD_RECORDINGS)))
 )
+#: The held-out flight docs/residuals.md quotes a mass step of, and the set whose unloaded
+#: flights it gives the mass of.
+TRACKER_MASS_STEP, TRACKER_UNLOADED_SET = "held4_release_wind_legs", "held4_"
+generator("tracker-sitl-held-mass-step", checked_by=_SITL_HELD_TEST)(
+    lambda: str(tracker_sitl.mass_step(sitl_tracker_runs(sitl.HELD_RECORDINGS), TRACKER_MASS_STEP))
+)
+generator("tracker-sitl-held-unloaded", checked_by=_SITL_HELD_TEST)(
+    lambda: str(
+        tracker_sitl.unloaded_mass(sitl_tracker_runs(sitl.HELD_RECORDINGS), TRACKER_UNLOADED_SET)
+    )
+)
 
 
 @generator("sitl-slow-error")
@@ -1143,7 +1169,13 @@ def sitl_slow_error() -> str:
     return f"{100 * load_vehicle(sitl.SITL_VEHICLE).slow_error_fraction:.1f} %"
 
 
-for _name, _print in script_module("pack_figures").generators(pack_table).items():
+pack_figures = script_module("pack_figures")
+for _name, _print in pack_figures.generators(pack_table).items():
+    generator(_name)(_print)
+_period_ends = script_module("period_ends", REPO / "tests")
+for _name, _print in (
+    script_module("endurance_figures").generators(pack_figures, _period_ends).items()
+):
     generator(_name)(_print)
 
 

@@ -288,6 +288,15 @@ def effects_payload(checks: Mapping[str, RecordingCheck]) -> str:
     return f"{min(masses):+.2f}–{max(masses):.2f} kg for {truth:g} kg"
 
 
+#: The recording whose held-out RMSE after docs/residuals.md quotes (the window end earned).
+ONSET_ON_CIRCLES = "wind_onset_circles"
+
+
+def effects_onset_circles(checks: Mapping[str, RecordingCheck]) -> str:
+    """docs/residuals.md: :data:`ONSET_ON_CIRCLES`'s held-out RMSE after (W)."""
+    return f"{checks[ONSET_ON_CIRCLES].score.rmse_after_w:.1f} W"
+
+
 def effects_turn(checks: Mapping[str, RecordingCheck]) -> str:
     """README.md: the turning wind named through the autopilot's estimate, against the truth
     (its speed and the time it turns)."""

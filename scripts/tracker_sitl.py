@@ -198,6 +198,25 @@ def worst_wind(flights: list[tuple[RecordingTruth, TrackerRun]]) -> str:
     return f"up to {worst[0]:.1f}σ, on {worst[1]}"
 
 
+def mass_step(flights: list[tuple[RecordingTruth, TrackerRun]], name: str) -> str:
+    """The flight ``name``'s worst step of the mass: its error (kg) and |error|/σ."""
+    [run] = [r for _, r in flights if r.name == name]
+    z = run.z()[:, 2]
+    worst = int(np.argmax(z))
+    error_kg = float(run.estimate[worst, 2] - run.truth[worst, 2])
+    return f"{error_kg:+.2f} kg, {z[worst]:.1f}σ".replace("-", "−")
+
+
+def unloaded_mass(flights: list[tuple[RecordingTruth, TrackerRun]], prefix: str) -> str:
+    """Over the steps of the flights named ``prefix``… that carry no payload: the median
+    error of the mass (kg, light or heavy) and its median 1σ."""
+    runs_ = [r for t, r in flights if r.name.startswith(prefix) and not t.payloads]
+    error_kg = float(np.median(np.concatenate([r.estimate[:, 2] - r.truth[:, 2] for r in runs_])))
+    sigma_kg = float(np.median(np.concatenate([r.sigma[:, 2] for r in runs_])))
+    side = "light" if error_kg < 0 else "heavy"
+    return f"{abs(error_kg):.2f} kg {side} at a 1σ of {sigma_kg:.2f} kg"
+
+
 def slow_error_share(flights: list[tuple[RecordingTruth, TrackerRun]]) -> str:
     """The mass's and the wind's share of the steps within 2σ pooled over ``flights`` (run with
     another slow model error: ``--slow-error-fraction``)."""

@@ -119,6 +119,7 @@ def test_the_docs_give_the_results_as_measured() -> None:
         "sitl-effects-payload": figures.sitl.effects_payload(checks),
         "sitl-effects-turn": figures.sitl.effects_turn(checks),
         "sitl-effects-heavy": figures.sitl.effects_heavy(checks),
+        "sitl-effects-onset-circles": figures.sitl.effects_onset_circles(checks),
     }
     assert set(now) == {n for n, test in figures.CHECKED_BY.items() if test == THIS_FILE}
     blocks = [b for b in figures.all_blocks() if b.name in now]

@@ -202,6 +202,12 @@ def test_the_docs_give_the_results_as_measured(
         "sitl-held-floors": SITL.effects_floors(checks),
         "tracker-sitl-held": TRACKER.report(list(tracked.values())),
         "tracker-sitl-held-wind-worst": TRACKER.worst_wind(list(tracked.values())),
+        "tracker-sitl-held-mass-step": TRACKER.mass_step(
+            list(tracked.values()), FIGURES.TRACKER_MASS_STEP
+        ),
+        "tracker-sitl-held-unloaded": TRACKER.unloaded_mass(
+            list(tracked.values()), FIGURES.TRACKER_UNLOADED_SET
+        ),
     }
     # the misses' candidates: their generators read the same checks (SITL.held_checks)
     misses = (
@@ -221,12 +227,9 @@ def test_the_docs_give_the_results_as_measured(
 
 
 #: The clean held-out flights with vertical legs, and the SITL vehicle file's heave gain
-#: against each one's own least-squares fit (with its own climb efficiency).
-CLEAN_VERTICAL = (
-    "held_clean_climbing_legs", "held_clean_vertical", "held2_clean_fast_vertical",
-    "held2_clean_slow_climbs", "held3_clean_mixed_vertical", "held3_clean_tall_slow",
-    "held4_clean_circles_vertical", "held5_clean_legs_climbs",
-)  # fmt: skip
+#: against each one's own least-squares fit (with its own climb efficiency; docs/residuals.md
+#: gives their range, ``residuals-sitl-held-heave``).
+CLEAN_VERTICAL = FIGURES.vertical_figures.CLEAN_VERTICAL
 #: Why the file's gain (1.295, fitted on the in-place climbs of replay/sitl_axial) misses a
 #: flight's: the axial flights accelerate vertically at 1 m/s² at most (AUTO's WPNAV_ACCEL_Z
 #: default), these GUIDED flights at up to 5 m/s² (WPNAV_ACCEL_Z 500), and the sharper the
