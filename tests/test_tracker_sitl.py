@@ -48,27 +48,26 @@ FITTED_ON = SCRIPT.FITTED_ON
 #: it moves, its lag and its gap from the estimate widen the reported 1σ:
 #: ``AutopilotWind.lag_ne_mps``, ``gap_ne_mps``).
 SHORT = {
+    "payload_wind": "wind 90 % within 2σ, 2.2σ (1.6 m/s off) at 227 s",
     "wind_onset": "wind 4.1σ (5.4 m/s off) at 120 s; mass 88 % within 2σ (median -0.012 kg at 1σ "
     "0.024 kg), 2.8σ (+0.07 kg) at 174 s",
     "wind_onset_circles": "wind 83 % within 2σ, 2.8σ (2.0 m/s off) at 92 s",
     "wind_stop": "wind 7.4σ (6.7 m/s off) at 120 s",
     "wind_turn": "wind 6.5σ (8.0 m/s off) at 100 s",
-    "climbs_wind6": "mass 80 % within 2σ (median -0.045 kg at 1σ 0.030 kg), 2.5σ (-0.05 kg) at "
+    "climbs_wind6": "mass 80 % within 2σ (median -0.044 kg at 1σ 0.030 kg), 2.5σ (-0.05 kg) at "
     "226 s",
-    "lean2_clean_diag7": "mass 79 % within 2σ (median -0.040 kg at 1σ 0.026 kg), 3.3σ (-0.07 kg) "
+    "lean2_clean_diag7": "mass 81 % within 2σ (median -0.040 kg at 1σ 0.026 kg), 3.2σ (-0.07 kg) "
     "at 136 s",
     "outback_wind8": "mass 5.2σ (+0.22 kg) at 18 s",
     "release_wind2": "mass 15.3σ (+1.06 kg) at 49 s",
     "rtl_climb_wind2": "mass 88 % within 2σ (median -0.056 kg at 1σ 0.032 kg), 2.2σ (-0.13 kg) at "
     "50 s",
-    "rtl_cross_wind7": "mass 52 % within 2σ (median -0.062 kg at 1σ 0.029 kg), 4.0σ (-0.09 kg) at "
+    "rtl_cross_wind7": "mass 65 % within 2σ (median -0.056 kg at 1σ 0.031 kg), 3.8σ (-0.08 kg) at "
     "150 s",
-    "rtl_diag_wind6": "mass 85 % within 2σ (median -0.020 kg at 1σ 0.055 kg), 2.6σ (-0.06 kg) at "
+    "rtl_diag_wind6": "mass 89 % within 2σ (median -0.019 kg at 1σ 0.068 kg), 2.6σ (-0.05 kg) at "
     "152 s",
-    "rtl_side_wind5": "mass 85 % within 2σ (median -0.039 kg at 1σ 0.025 kg), 2.5σ (-0.05 kg) at "
+    "rtl_side_wind5": "mass 86 % within 2σ (median -0.039 kg at 1σ 0.025 kg), 2.4σ (-0.05 kg) at "
     "156 s",
-    "square_wind5": "mass 84 % within 2σ (median -0.036 kg at 1σ 0.024 kg), 2.3σ (-0.05 kg) at "
-    "136 s",
 }
 SCENARIOS = [
     "clean_circles", "clean_legs", "clean_mission", "payload_release", "payload_takeoff",

@@ -40,8 +40,9 @@ nor are samples in fast vertical motion (|v_z| > ``max_vertical_speed_mps``: tak
 landing, where the climb term is the least certain part of the model) or in a vertical
 acceleration beyond ``max_vertical_accel_mps2`` where the model has the ``heave`` term (a
 climb that starts or stops: the power leads the filtered state, so the term is late),
-counted in ``vertical``, and readings below ``min_power_fraction_of_hover`` of the model's
-hover power (idle motors, ``idle``).
+counted in ``vertical`` (with the rest of a step whose readings they mostly left out: a
+transition, :mod:`~estimator.estimation.tracker_readings`), and readings below
+``min_power_fraction_of_hover`` of the model's hover power (idle motors, ``idle``).
 Readings from the ground and the take-off transient never reach the filter: its callers gate
 them (:class:`~estimator.estimation.airborne.AirborneGate`).
 
@@ -107,6 +108,7 @@ import numpy as np
 from estimator.estimation.autopilot_wind import AutopilotWind, mahalanobis2
 from estimator.estimation.kalman import MerweSigmaPoints
 from estimator.estimation.online_settings import OnlineSettings
+from estimator.estimation.tracker_readings import TrackerReading, select_readings
 from estimator.physics.effect_tables import effects_from_tables
 from estimator.physics.effects import (
     Effect,
@@ -151,15 +153,6 @@ class _Hypothesis(NamedTuple):
     nu: float | None = None
     y2: float = 0.0
     s_var: float = 1.0
-
-
-class TrackerReading(NamedTuple):
-    """One measured power (W) with the filtered flight state then and the battery voltage
-    (V, NaN unknown)."""
-
-    state: KinematicState
-    measured_power_w: float
-    voltage_v: float = math.nan
 
 
 class OnlineEffects:
@@ -403,30 +396,20 @@ class OnlineEffects:
         mean measured power against the mean of the powers predicted at each reading's own
         flight state, with the noise of a mean. While the estimate moves little between
         the readings this carries what they would carry one by one, at the cost of one step.
-        Readings that are not finite or go back in time (``rejected``), in fast vertical
-        motion or vertical acceleration (``vertical``) or below the idle power (``idle``) are
-        left out.
+        The readings it takes are those
+        :func:`~estimator.estimation.tracker_readings.select_readings` keeps (the others
+        counted in ``rejected``, ``vertical``, ``idle``).
 
         Returns :attr:`effects` after the update.
         """
         s = self.settings
-        kept = []
-        for r in readings:
-            st = r.state
-            motion = (st.time_s, st.vn_mps, st.ve_mps, st.vd_mps, st.an_mps2, st.ae_mps2)
-            if not all(math.isfinite(v) for v in (*motion, r.measured_power_w)) or (
-                self._time_s is not None and st.time_s < self._time_s
-            ):
-                self.rejected += 1
-            elif (
-                abs(st.vd_mps) > s.max_vertical_speed_mps
-                or abs(st.ad_mps2) > self._max_vertical_accel_mps2
-            ):
-                self.vertical += 1
-            elif r.measured_power_w < s.min_power_fraction_of_hover * self._hover_w:
-                self.idle += 1
-            else:
-                kept.append((r, motion))
+        selection = select_readings(
+            readings, s, self._time_s, self._max_vertical_accel_mps2, self._hover_w
+        )
+        self.rejected += selection.rejected
+        self.vertical += selection.vertical
+        self.idle += selection.idle
+        kept = selection.kept
         if not kept:
             return self.effects
         self.steps += 1

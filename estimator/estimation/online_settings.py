@@ -32,6 +32,12 @@ class OnlineSettings:
     #: half a second (the thrust changes first, the velocity after), so the term is late.
     max_vertical_speed_mps: float = 1.0
     max_vertical_accel_mps2: float = 0.7
+    #: A step whose readings these gates leave out more than this share of is a transition (a
+    #: climb or descent starting or ending, the landing's descent): the power leads the
+    #: filtered state by about half a second, so the readings kept are the transition's and
+    #: read as a mass step (ArduCopter SITL: 0.5-1 kg at 7-8σ as a landing descent starts).
+    #: The whole step is left out.
+    max_vertical_share: float = 0.5
     #: Power below this fraction of the model's hover power is not flight (idle motors).
     min_power_fraction_of_hover: float = IDLE_FRACTION_OF_HOVER
     #: Gain of the adaptive measurement-noise estimate (per power sample).

@@ -49,7 +49,7 @@ from estimator.estimation.airborne import AirborneGate, Phase
 from estimator.estimation.estimate import Estimate, PowerReading
 from estimator.estimation.flight_power import FlightPower, PowerEvent
 from estimator.estimation.fusion import EnergyEstimate, EnergyFilter
-from estimator.estimation.online_effects import OnlineEffects, TrackerReading
+from estimator.estimation.online_effects import OnlineEffects
 from estimator.estimation.pack_bank import PackBank
 from estimator.estimation.pack_learning import PackLearning
 from estimator.estimation.pack_state import PackPrior
@@ -63,6 +63,7 @@ from estimator.estimation.return_home import (
     ReturnHome,
     ReturnInputs,
 )
+from estimator.estimation.tracker_readings import TrackerReading
 from estimator.estimation.tracker_steps import TrackerSteps
 from estimator.physics.battery import PackModel
 from estimator.physics.effect_tables import effects_from_tables

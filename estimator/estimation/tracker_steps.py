@@ -13,7 +13,8 @@ import math
 from collections.abc import Iterable
 
 from estimator.estimation.flight_power import FlightPower
-from estimator.estimation.online_effects import OnlineEffects, TrackerReading
+from estimator.estimation.online_effects import OnlineEffects
+from estimator.estimation.tracker_readings import TrackerReading
 from estimator.physics.effects import Effect
 from estimator.physics.vehicle import Vehicle
 
