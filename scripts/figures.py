@@ -16,7 +16,8 @@ Each ``<!-- figures:NAME -->`` … ``<!-- /figures:NAME -->`` block of those doc
   and the vertical-velocity check on the IRIS+ logs and on ArduCopter SITL's tlog.
 - ``sim-mixed-*``: ``uav-energy sim --plan mixed [--wind 6@135] --tlog F`` and ``uav-energy
   replay F --json`` (the built-in vehicle); ``sitl-run1-builtin``: ``../shared``'s recorded
-  ArduCopter SITL flight replayed with the built-in vehicle on SITL's pack.
+  ArduCopter SITL flight replayed with the built-in vehicle on SITL's pack
+  (``sitl-run1-estimates``: how many estimates that replay gives).
 - ``experiments-*``: ``uav-energy experiments`` (generated flights, seed 0).
 - ``fit-*``: ``uav-energy fit`` of the real logs as ``make fit-real`` runs it, and variants
   (``--degree 6``, ``--no-priors``; ``scripts/fit_figures.py``); ``pack-fit-sitl-*``:
@@ -715,6 +716,14 @@ def sitl_run1_builtin() -> str:
         f"(MAPE {result['power_mape_pct']:.1f} %), {result['energy_measured_wh']:.1f} Wh "
         f"measured vs {result['energy_predicted_wh']:.1f} Wh predicted"
     )
+
+
+@generator("sitl-run1-estimates", reads=SITL_RUN1.parent)
+def sitl_run1_estimates() -> str:
+    """How many estimates the replay of ``../shared``'s recorded SITL flight gives with
+    :func:`builtin_on_sitl_pack` (``tests/test_ardupilot_sitl.py`` plays it live into the
+    daemon and checks the daemon gives exactly these)."""
+    return f"{len(replay_log(SITL_RUN1, builtin_on_sitl_pack()).estimates)}"
 
 
 #: The SITL AUTO mission docs/replay.md replays with its mission file (``--mission``).
