@@ -26,7 +26,8 @@ Each ``<!-- figures:NAME -->`` … ``<!-- /figures:NAME -->`` block of those doc
   hidden from the built-in vehicle (``scripts/residual_figures.py``; ``residuals-iris-*``:
   the IRIS+ logs against the March vehicle file, and with ``residuals-cmu-*`` the real-log
   figures beyond its table, ``scripts/real_residual_figures.py``); the slower
-  ``residuals-sim-changing`` (effects that change in flight) is checked by
+  ``residuals-sim-changing`` (effects that change in flight; ``residuals-sim-changing-floors``:
+  the largest held-out RMSE after, in noise floors) is checked by
   ``tests/test_residual_figures.py``.
 - ``sitl-recordings-table``, ``sitl-effects-*``: the recordings of ``replay/sitl`` replayed,
   and the effects ``uav-energy residuals`` names on them scored against their truth
@@ -999,6 +1000,9 @@ for _name, _print in _real_blocks.items():
     generator(_name, reads=SHARED_DATA)(_print)
 generator("residuals-sim-changing", checked_by="tests/test_residual_figures.py")(
     lambda: residual_figures.changing_table(changing_residuals())
+)
+generator("residuals-sim-changing-floors", checked_by="tests/test_residual_figures.py")(
+    lambda: residual_figures.changing_floors(changing_residuals())
 )
 for _name, _print in vertical_figures.generators(_cli, vertical_fit).items():
     generator(_name)(_print)
