@@ -16,7 +16,8 @@ Each ``<!-- figures:NAME -->`` … ``<!-- /figures:NAME -->`` block of those doc
   and the vertical-velocity check on the IRIS+ logs and on ArduCopter SITL's tlog.
 - ``sim-mixed-*``: ``uav-energy sim --plan mixed [--wind 6@135] --tlog F`` and ``uav-energy
   replay F --json`` (the built-in vehicle); ``sitl-run1-builtin``: ``../shared``'s recorded
-  ArduCopter SITL flight replayed with the built-in vehicle on SITL's pack.
+  ArduCopter SITL flight replayed with the built-in vehicle on SITL's pack
+  (``sitl-run1-estimates``: how many estimates that replay gives).
 - ``experiments-*``: ``uav-energy experiments`` (generated flights, seed 0).
 - ``fit-*``: ``uav-energy fit`` of the real logs as ``make fit-real`` runs it, and variants
   (``--degree 6``, ``--no-priors``; ``scripts/fit_figures.py``); ``pack-fit-sitl-*``:
@@ -25,7 +26,8 @@ Each ``<!-- figures:NAME -->`` … ``<!-- /figures:NAME -->`` block of those doc
   hidden from the built-in vehicle (``scripts/residual_figures.py``; ``residuals-iris-*``:
   the IRIS+ logs against the March vehicle file, and with ``residuals-cmu-*`` the real-log
   figures beyond its table, ``scripts/real_residual_figures.py``); the slower
-  ``residuals-sim-changing`` (effects that change in flight) is checked by
+  ``residuals-sim-changing`` (effects that change in flight; ``residuals-sim-changing-floors``:
+  the largest held-out RMSE after, in noise floors) is checked by
   ``tests/test_residual_figures.py``.
 - ``sitl-recordings-table``, ``sitl-effects-*``: the recordings of ``replay/sitl`` replayed,
   and the effects ``uav-energy residuals`` names on them scored against their truth
@@ -717,6 +719,14 @@ def sitl_run1_builtin() -> str:
     )
 
 
+@generator("sitl-run1-estimates", reads=SITL_RUN1.parent)
+def sitl_run1_estimates() -> str:
+    """How many estimates the replay of ``../shared``'s recorded SITL flight gives with
+    :func:`builtin_on_sitl_pack` (``tests/test_ardupilot_sitl.py`` plays it live into the
+    daemon and checks the daemon gives exactly these)."""
+    return f"{len(replay_log(SITL_RUN1, builtin_on_sitl_pack()).estimates)}"
+
+
 #: The SITL AUTO mission docs/replay.md replays with its mission file (``--mission``).
 MISSION_REPLAYED = MISSIONS / "square_wind5"
 #: How long after take-off (s) that mission's figure is read.
@@ -990,6 +1000,9 @@ for _name, _print in _real_blocks.items():
     generator(_name, reads=SHARED_DATA)(_print)
 generator("residuals-sim-changing", checked_by="tests/test_residual_figures.py")(
     lambda: residual_figures.changing_table(changing_residuals())
+)
+generator("residuals-sim-changing-floors", checked_by="tests/test_residual_figures.py")(
+    lambda: residual_figures.changing_floors(changing_residuals())
 )
 for _name, _print in vertical_figures.generators(_cli, vertical_fit).items():
     generator(_name)(_print)

@@ -242,6 +242,12 @@ def changing_table(results: Mapping[str, Residuals]) -> str:
     return "\n".join(lines)
 
 
+def changing_floors(results: Mapping[str, Residuals]) -> str:
+    """The largest held-out RMSE after, in noise floors, over the flights whose effect
+    changes."""
+    return f"{max(r['rmse_to_floor'] for r in results.values()):.1f}"
+
+
 def replay_table(replays: Mapping[str, Mapping[str, Residuals]]) -> str:
     """Replay power RMSE (W), MAPE (%) and energy (Wh) with the built-in vehicle → with the
     written file, wind and mass held at the files' values."""
