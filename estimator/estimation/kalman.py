@@ -64,12 +64,14 @@ class LinearKalman:
 
 class UnscentedUpdate(NamedTuple):
     """An unscented update's posterior state and covariance, its innovation y (measurement
-    minus predicted mean) and the innovation variance S."""
+    minus predicted mean), the innovation variance S and the gain K (per unit of the
+    measurement)."""
 
     x: np.ndarray
     p: np.ndarray
     y: float
     s_var: float
+    gain: np.ndarray
 
 
 class MerweSigmaPoints:
@@ -112,7 +114,7 @@ class MerweSigmaPoints:
             raise np.linalg.LinAlgError("innovation variance is not positive")
         gain = ((sigmas - x).T @ (self.wc * dz)) / s_var
         y = z - z_mean
-        return UnscentedUpdate(x + gain * y, p - s_var * np.outer(gain, gain), y, s_var)
+        return UnscentedUpdate(x + gain * y, p - s_var * np.outer(gain, gain), y, s_var, gain)
 
 
 def state_from_json(x_doc: Any, p_doc: Any, n: int, what: str) -> tuple[np.ndarray, np.ndarray]:

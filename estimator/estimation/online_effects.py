@@ -46,23 +46,20 @@ transition, :mod:`~estimator.estimation.tracker_readings`), and readings below
 Readings from the ground and the take-off transient never reach the filter: its callers gate
 them (:class:`~estimator.estimation.airborne.AirborneGate`).
 
-Steps (payload picked up or released, wind setting in): a random walk slow enough to keep
-the estimate quiet follows a step only at its own pace (a 1 kg release took about a minute).
-Each step's normalised innovation ν = y/√S (unit variance while the filter is right) feeds a
-two-sided CUSUM, g⁺ ← max(0, g⁺ + ν − k), g⁻ ← max(0, g⁻ − ν − k), with drift
-``cusum_drift_sigma`` (k) and threshold ``cusum_threshold_sigma`` (h): the sequential test
-for a shift of the innovations' mean (Page's CUSUM; with k = 0.5, h = 7 a filter that is
-right raises a false alarm about once in 3 500 steps, two hours of the pipeline's 2 s steps;
-a shift of 3σ is caught in about three steps, one of 7.5σ, like a 1 kg release, in one). On
-an alarm the step is undone and redone from the prior with the uncertainty of a changed state
-back at its initial value (its cross-covariances cleared). In hover that state is the mass (a
-wind shows in hover only through translational lift, weakly, and is held there, below). In
-forward flight a payload step and a wind change both move the power, so both hypotheses run
-side by side, each its own filter from the same prior (one with the mass widened, one with
-the wind): the likelier one by the summed innovation log-likelihood −½(ν² + ln S) is the
-estimate, and the other is dropped once the ratio passes ``hypothesis_nats`` (100:1) or
-after ``hypothesis_max_steps`` steps, a multiple-model test that the next change of speed or
-heading, where a wind and a mass differ, settles. ``changes`` counts the alarms.
+Steps (payload picked up or released, wind setting in): a random walk slow enough to keep the
+estimate quiet follows a step only at its own pace (a 1 kg release took about a minute). Each
+step's normalised innovation feeds a two-sided CUSUM
+(:mod:`~estimator.estimation.change_detector`, drift ``cusum_drift_sigma``, threshold
+``cusum_threshold_sigma``). On an alarm the step is undone and redone from the prior with the
+uncertainty of a changed state back at its initial value (its cross-covariances cleared). In
+hover that state is the mass (a wind shows in hover only through translational lift, weakly,
+and is held there, below). In forward flight a payload step and a wind change both move the
+power, so both hypotheses run side by side, each its own filter from the same prior (one with
+the mass widened, one with the wind): the likelier one by the summed innovation log-likelihood
+−½(ν² + ln S) is the estimate, and the other is dropped once the ratio passes
+``hypothesis_nats`` (100:1) or after ``hypothesis_max_steps`` steps, a multiple-model test that
+the next change of speed or heading, where a wind and a mass differ, settles. ``changes``
+counts the alarms.
 A step takes one reading or several taken close together (:meth:`~OnlineEffects.update_readings`;
 the pipeline gives it the readings of each ``track_period_s``): their mean measured power
 against the mean of the predictions at each reading's own flight state, with the noise of a mean
@@ -87,10 +84,13 @@ The covariance says how far the readings have pinned the state *within the model
 tracker reports (``sigma``: the daemon's return figures, the scoring against a truth) adds what
 the model's form leaves unknown however long it runs: its mass law reads a payload a few
 percent off, its P(V) shape reads as a wind of half a metre per second (``OnlineSettings``
-``mass_form_sigma_fraction``, ``wind_form_sigma_mps``). On ArduCopter SITL's stock quad,
-without them, a 1 kg payload was read 0.03–0.05 kg heavy at σ 0.02 and a still-air flight
-found 0.8–1.0 m/s of wind at σ 0.4. Which parts are identified, and applied, still follows the
-covariance alone.
+``mass_form_sigma_fraction``, ``wind_form_sigma_mps``), and its P(V) shape's error, which
+grows with the airspeed, is shared by the readings and so read as a wind and a mass the
+readings pin ever tighter (a consider term, :mod:`~estimator.estimation.form_error`). On
+ArduCopter SITL's stock quad, without them, a 1 kg payload was read 0.03–0.05 kg heavy at
+σ 0.02, a still-air flight found 0.8–1.0 m/s of wind at σ 0.4, and flights without a payload
+flown fast in wind were read 0.02–0.06 kg light at σ 0.01. Which parts are identified, and
+applied, still follows the covariance alone.
 
 The autopilot's own wind estimate is a second channel
 (:mod:`estimator.estimation.autopilot_wind`); without its reports the tracker is the
@@ -106,6 +106,8 @@ from typing import NamedTuple
 import numpy as np
 
 from estimator.estimation.autopilot_wind import AutopilotWind, mahalanobis2
+from estimator.estimation.change_detector import ChangeDetector
+from estimator.estimation.form_error import carried, form_power_w
 from estimator.estimation.kalman import MerweSigmaPoints
 from estimator.estimation.online_settings import OnlineSettings
 from estimator.estimation.tracker_readings import TrackerReading, select_readings
@@ -133,22 +135,26 @@ _HELD_VARIANCE = 1e-9
 
 class _Step(NamedTuple):
     """One filter step's data: readings' flight-state rows (k × 9, the FlightState fields),
-    their mean measured power (W) and its noise variance (W²), and whether the vehicle moves
-    (else hovers)."""
+    their mean measured power (W) and its noise variance (W²), whether the vehicle moves
+    (else hovers), and the model form's power error h there (W, 1σ:
+    :mod:`~estimator.estimation.form_error`)."""
 
     rows: np.ndarray
     measured_w: float
     noise_var_w2: float
     moving: bool
+    form_w: float
 
 
 class _Hypothesis(NamedTuple):
-    """A filter state [w_n, w_e, δm, b] with covariance, its summed innovation log-likelihood,
-    and its last step's normalised innovation (None: no update), squared innovation (W²)
-    and innovation variance (W²)."""
+    """A filter state [w_n, w_e, δm, b] with covariance and its sensitivity to the model
+    form's error (:mod:`~estimator.estimation.form_error`), its summed innovation
+    log-likelihood, and its last step's normalised innovation (None: no update), squared
+    innovation (W²) and innovation variance (W²)."""
 
     x: np.ndarray
     p: np.ndarray
+    form: np.ndarray
     loglik: float = 0.0
     nu: float | None = None
     y2: float = 0.0
@@ -205,8 +211,9 @@ class OnlineEffects:
             ][:n]
         )
         self._p = np.diag(self._initial_var)
+        self._form = np.zeros(n)  # the estimate's sensitivity to the model form's error
         self._time_s: float | None = None
-        self._cusum = [0.0, 0.0]  # g⁺, g⁻ of the normalised innovations
+        self._detector = ChangeDetector(s.cusum_drift_sigma, s.cusum_threshold_sigma)
         self._hovering = False  # the last step was in hover (wind held)
         self._loglik = 0.0  # the estimate's summed innovation log-likelihood (while in a duel)
         self._rival: _Hypothesis | None = None  # the other hypothesis after a change
@@ -264,14 +271,17 @@ class OnlineEffects:
         autopilot's report says is on its way (its lag, and its gap from the estimate:
         :meth:`AutopilotWind.lag_ne_mps`, :meth:`AutopilotWind.gap_ne_mps`)."""
         p, s = self._p, self.settings
+        c_n, c_e, c_m = (float(v) for v in self._form[:3])
         wind_form_var = s.wind_form_sigma_mps**2
-        mass_form_var = (s.mass_form_sigma_fraction * float(self._x[2])) ** 2
+        mass_form_var = (s.mass_form_sigma_fraction * float(self._x[2])) ** 2 + c_m**2
         time_s = self._time_s or 0.0
         lag_n, lag_e = self.autopilot.lag_ne_mps(time_s)
         gap_n, gap_e = self.autopilot.gap_ne_mps(self._x, p, time_s)
+        wind_n_var = wind_form_var + c_n**2 + lag_n**2 + gap_n**2
+        wind_e_var = wind_form_var + c_e**2 + lag_e**2 + gap_e**2
         return {
-            "wind_n_mps": math.sqrt(max(float(p[0, 0]), 0.0) + wind_form_var + lag_n**2 + gap_n**2),
-            "wind_e_mps": math.sqrt(max(float(p[1, 1]), 0.0) + wind_form_var + lag_e**2 + gap_e**2),
+            "wind_n_mps": math.sqrt(max(float(p[0, 0]), 0.0) + wind_n_var),
+            "wind_e_mps": math.sqrt(max(float(p[1, 1]), 0.0) + wind_e_var),
             "mass_kg": math.sqrt(max(float(p[2, 2]), 0.0) + mass_form_var),
         }
 
@@ -361,7 +371,9 @@ class OnlineEffects:
         """``h`` after the autopilot's report of variance ``var`` (m²/s², per component);
         None when it is beyond ``gate_sigma`` of the estimate."""
         taken = self.autopilot.update(h.x, h.p, var)
-        return None if taken is None else h._replace(x=taken[0], p=taken[1])
+        if taken is None:
+            return None
+        return h._replace(x=taken[0], p=taken[1], form=carried(h.form, h.p, taken[1]))
 
     def update(
         self,
@@ -441,10 +453,19 @@ class OnlineEffects:
             float(measured.mean()),
             float(r_each.sum()) / len(kept) ** 2 + self.extra_noise_var_w2,
             float(np.mean([r.state.speed_mps for r, _ in kept])) > s.moving_speed_mps,
+            form_power_w(
+                rows,
+                self._x[:2],
+                self._hover_w,
+                s.speed_form_sigma_fraction,
+                s.speed_form_reference_mps,
+            ),
         )
         reopen = step.moving and self._hovering
         self._hovering = not step.moving
-        main = self._prior(_Hypothesis(self._x, self._p, self._loglik), decay, q, reopen)
+        main = self._prior(
+            _Hypothesis(self._x, self._p, self._form, self._loglik), decay, q, reopen
+        )
         wind_var = self.autopilot.variance(time_s, dt)
         if wind_var is not None:
             if self.autopilot.saw_a_change(main.x, main.p):
@@ -464,12 +485,13 @@ class OnlineEffects:
                 rival = self._with_autopilot_wind(rival, wind_var) or rival
             rival, _ = self._step(rival, step)
             main, self._rival = self._duel(done, rival)
-        elif done.nu is not None and self._change_detected(done.nu):
+        elif done.nu is not None and self._detector.alarm(done.nu):
+            self.changes += 1
             # redo the step from the prior with the changed state's uncertainty restored; in
             # forward flight two hypotheses (a mass step, a wind change) run side by side
-            mass_step, _ = self._step(_Hypothesis(main.x, self._widened(main.p, False)), step)
+            mass_step, _ = self._step(main._replace(p=self._widened(main.p, False)), step)
             if step.moving:
-                wind_step, _ = self._step(_Hypothesis(main.x, self._widened(main.p, True)), step)
+                wind_step, _ = self._step(main._replace(p=self._widened(main.p, True)), step)
                 self._duel_steps = 0
                 main, self._rival = self._duel(mass_step, wind_step)
             else:
@@ -485,7 +507,7 @@ class OnlineEffects:
             self.rejected += 1
         elif main.nu is not None:
             self.updates += 1
-        self._x, self._p, self._loglik = main.x, main.p, main.loglik
+        self._x, self._p, self._form, self._loglik = main.x, main.p, main.form, main.loglik
         return self.effects
 
     def _prior(self, h: _Hypothesis, decay: np.ndarray, q: np.ndarray, reopen: bool) -> _Hypothesis:
@@ -496,7 +518,8 @@ class OnlineEffects:
         wind_known = max(p[0, 0], p[1, 1]) <= self.settings.wind_known_sigma_mps**2
         if reopen and not wind_known:
             p = self._widened(p, wind=False)
-        return _Hypothesis(np.array(h.x, dtype=float) * decay, 0.5 * (p + p.T), h.loglik)
+        x = np.array(h.x, dtype=float) * decay
+        return _Hypothesis(x, 0.5 * (p + p.T), h.form * decay, h.loglik)
 
     def _step(
         self, prior: _Hypothesis, step: _Step, extra: np.ndarray | None = None
@@ -510,25 +533,28 @@ class OnlineEffects:
             drawn_p, sigmas = self._draw(prior.x, prior.p, step.moving)
         except np.linalg.LinAlgError:  # covariance lost positive definiteness: start it over
             self.resets += 1
-            prior = _Hypothesis(prior.x, np.diag(self._initial_var), prior.loglik)
+            prior = _Hypothesis(prior.x, np.diag(self._initial_var), prior.form, prior.loglik)
             drawn_p, sigmas = self._draw(prior.x, prior.p, step.moving)
         points = sigmas if extra is None else np.vstack([sigmas, extra])
         powers_w = self._powers_w(points, step.rows).mean(axis=1)
         n = len(sigmas)
+        extra_w = powers_w[n:].tolist()
         try:
             post = self._points.update(
                 prior.x, drawn_p, sigmas, powers_w[:n], step.measured_w, step.noise_var_w2
             )
         except np.linalg.LinAlgError:  # covariance lost positive definiteness: start it over
             self.resets += 1
-            restart = _Hypothesis(prior.x, np.diag(self._initial_var), prior.loglik)
-            return restart, powers_w[n:].tolist()
+            restart = _Hypothesis(prior.x, np.diag(self._initial_var), prior.form, prior.loglik)
+            return restart, extra_w
         y2, s_var = post.y**2, post.s_var
         nu = post.y / math.sqrt(s_var)
         loglik = prior.loglik - 0.5 * (y2 / s_var + math.log(s_var))
         if abs(nu) > s.gate_sigma:
-            return _Hypothesis(prior.x, prior.p, loglik, nu, y2, s_var), powers_w[n:].tolist()
+            gated = _Hypothesis(prior.x, prior.p, prior.form, loglik, nu, y2, s_var)
+            return gated, extra_w
         x, p = post.x, 0.5 * (post.p + post.p.T)
+        form = carried(prior.form, drawn_p, p) + post.gain * step.form_w
         if not step.moving:  # the wind was held: its uncertainty is what it was
             p[:2, :] = p[:, :2] = 0.0
             p[:2, :2] = prior.p[:2, :2]
@@ -536,7 +562,7 @@ class OnlineEffects:
         wind_mps = math.hypot(x[0], x[1])
         if wind_mps > s.max_wind_mps:
             x[:2] *= s.max_wind_mps / wind_mps
-        return _Hypothesis(x, p, loglik, nu, y2, s_var), powers_w[n:].tolist()
+        return _Hypothesis(x, p, form, loglik, nu, y2, s_var), extra_w
 
     def _duel(
         self, first: _Hypothesis, second: _Hypothesis
@@ -551,19 +577,6 @@ class OnlineEffects:
         if decided or self._duel_steps >= s.hypothesis_max_steps:
             return lead, None
         return lead, trail
-
-    def _change_detected(self, nu: float) -> bool:
-        """Two-sided CUSUM of the normalised innovations (module docstring); an alarm clears
-        it and counts in ``changes``."""
-        s = self.settings
-        k, h = s.cusum_drift_sigma, s.cusum_threshold_sigma
-        up, down = self._cusum
-        self._cusum = [max(0.0, up + nu - k), max(0.0, down - nu - k)]
-        if max(self._cusum) <= h:
-            return False
-        self._cusum = [0.0, 0.0]
-        self.changes += 1
-        return True
 
     def _draw(self, x: np.ndarray, p: np.ndarray, moving: bool) -> tuple[np.ndarray, np.ndarray]:
         """The covariance the update uses and the sigma points drawn from it around the
