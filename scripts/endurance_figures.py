@@ -1,5 +1,5 @@
-"""Figures of docs/pack.md's and docs/daemon.md's prose beyond the tables of
-``scripts/pack_figures.py`` (which computes the results these read):
+"""Figures of docs/pack.md and docs/daemon.md beyond the tables of ``scripts/pack_figures.py``
+(which computes the results most of these read):
 
 - the SITL vehicle file's resting curve against SITL's own table (as
   ``tests/test_battery.py`` checks it against the file's σ);
@@ -8,7 +8,9 @@
 - the hover→cruise acceptance flights' PX4-style figure just after the change and in
   mid-flight (``python tests/test_endurance_acceptance.py``);
 - how far apart two transports' energies end when a reading sits at each period's end
-  (``tests/period_ends.py``, the stream of ``tests/test_pipeline.py``).
+  (``tests/period_ends.py``, the stream of ``tests/test_pipeline.py``);
+- docs/daemon.md's table of a restart mid-flight (``state-restart-table``), as ``python -m
+  bench.trust`` prints it (in process; < 1 s of CPU).
 
 ``scripts/figures.py`` registers the blocks (:func:`generators`); ``tests/test_figures.py``
 checks them.
@@ -140,10 +142,12 @@ def px4_mid_flight(packs: ModuleType) -> str:
     return f"{min(errors):.1f}–{max(errors):.1f} %"
 
 
-def generators(packs: ModuleType, period_ends: ModuleType) -> dict[str, Callable[[], str]]:
+def generators(
+    packs: ModuleType, period_ends: ModuleType, trust: ModuleType
+) -> dict[str, Callable[[], str]]:
     """Block name → the function that prints it; ``packs``: ``scripts/pack_figures.py`` as
     ``scripts/figures.py`` loaded it (its replays are cached there); ``period_ends``:
-    ``tests/period_ends.py``."""
+    ``tests/period_ends.py``; ``trust``: ``bench/trust.py``."""
     return {
         "pack-sitl-curve": curve,
         "pack-sitl-curve-worst": curve_worst,
@@ -153,4 +157,5 @@ def generators(packs: ModuleType, period_ends: ModuleType) -> dict[str, Callable
         "hover-cruise-px4-lag": lambda: px4_lag(packs),
         "hover-cruise-px4-mid": lambda: px4_mid_flight(packs),
         "period-end-apart": lambda: f"{period_ends.apart_pct():.2f} %",
+        "state-restart-table": lambda: str(trust.restart_table(trust.flight())),
     }

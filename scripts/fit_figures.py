@@ -1,12 +1,28 @@
 """The fit figures of README.md, docs/fit.md and docs/sitl.md, as text, from the ``--json``
-objects of ``uav-energy fit`` (``scripts/figures.py`` runs the fits and registers the blocks).
+objects of ``uav-energy fit``, and the fits they read:
+
+- ``fit-*``: ``uav-energy fit`` of the real logs as ``make fit-real`` runs it
+  (:data:`REAL_FITS`), and variants (``--degree 6``, ``--no-priors``); ``fit-sitl-run1``: the
+  fit of ``../shared``'s recorded ArduCopter SITL flight;
+- ``sitl-quad-fit*``: the fit of SITL's clean recordings the SITL vehicle file comes from;
+- ``pack-fit-sitl-*``: ``python scripts/pack_fit_sitl.py`` (the pack fitted on SITL's pack
+  flights).
+
+``scripts/figures.py`` runs ``uav-energy`` in process and registers the blocks
+(:func:`real_generators` and :func:`run1_generators`, which read ``../shared``, and
+:func:`sitl_generators`); ``tests/test_figures.py`` checks them. :func:`number` and
+:func:`span` are the documents' number formats, which the other ``*_figures.py`` use too.
 
 Powers in W, speeds in m/s; ± is 1σ (for the per-fold differences: the mean's standard error).
 """
 
 from __future__ import annotations
 
+import json
 from collections.abc import Callable, Iterable, Mapping, Sequence
+from functools import cache, partial
+from pathlib import Path
+from types import ModuleType
 from typing import Any
 
 import numpy as np
@@ -14,6 +30,8 @@ import numpy as np
 from estimator.physics.model import COEFFICIENT_NAMES, PowerModel
 
 Fit = Mapping[str, Any]
+#: What ``uav-energy ARGV…`` prints on stdout (``scripts/figures.py`` runs it in process).
+Cli = Callable[..., str]
 
 #: ``scripts/fit_real.sh``'s fits: column title, logs (under ../shared/data), mass (kg),
 #: capacity (Ah) and cells.
@@ -228,3 +246,126 @@ def speeds(fits: Sequence[Fit]) -> str:
     low = min(f["speed_range_mps"][0] for f in fits)
     high = max(f["speed_range_mps"][1] for f in fits)
     return f"{low:.0f}–{high:.0f} m/s"
+
+
+# --- the fits -------------------------------------------------------------------------------------
+
+#: The title of the CMU M100 fit in :data:`REAL_FITS`.
+CMU = "CMU DJI M100"
+
+
+def run_fit(cli: Cli, data: Path, title: str, *extra: str) -> dict[str, Any]:
+    """``uav-energy fit`` of one dataset of :data:`REAL_FITS` (under ``data``, ../shared/data),
+    with ``extra`` options."""
+    pattern, mass_kg, capacity_ah, cells = REAL_FITS[title]
+    logs = [str(p) for p in sorted(data.glob(pattern))]
+    options = ("--mass-kg", f"{mass_kg}", "--capacity-ah", f"{capacity_ah}", "--cells", f"{cells}")
+    return dict(json.loads(cli("fit", *logs, *options, *extra, "--json")))
+
+
+@cache
+def real_fits(cli: Cli, data: Path) -> dict[str, dict[str, Any]]:
+    """``uav-energy fit LOG… --mass-kg M --capacity-ah C --cells N --json`` of each dataset as
+    ``make fit-real`` runs it (without writing the vehicle files)."""
+    return {title: run_fit(cli, data, title) for title in REAL_FITS}
+
+
+def iris_fits(cli: Cli, data: Path) -> list[dict[str, Any]]:
+    """The two IRIS+ periods' fits of :func:`real_fits`."""
+    return [fit for title, fit in real_fits(cli, data).items() if "IRIS+" in title]
+
+
+def iris_pooled_hover_w(cli: Cli, data: Path) -> list[float]:
+    """The hover power (W) of each IRIS+ period's pooled fit."""
+    return [fit["hover_power_w"] for fit in iris_fits(cli, data)]
+
+
+@cache
+def no_priors_fit(cli: Cli, data: Path) -> dict[str, Any]:
+    """``uav-energy fit`` of the IRIS+ March flights with ``--no-priors`` (the data alone)."""
+    return run_fit(cli, data, "IRIS+ March 2016", "--no-priors")
+
+
+def degree_6(cli: Cli, data: Path) -> str:
+    """``uav-energy fit … --degree 6``'s held-out polynomial RMSE on IRIS+ March and CMU."""
+    rmse = [
+        run_fit(cli, data, title, "--degree", "6")["models"]["polynomial"]["rmse_w"]
+        for title in ("IRIS+ March 2016", CMU)
+    ]
+    return f"{rmse[0]:.2f} W on IRIS+ March and {rmse[1]:.2f} W on CMU"
+
+
+def no_priors_cmu(cli: Cli, data: Path) -> str:
+    """The theory's held-out RMSE of ``uav-energy fit`` of the CMU flights with
+    ``--no-priors``."""
+    fit = run_fit(cli, data, CMU, "--no-priors")
+    return f"{fit['models']['theory']['rmse_w']:.1f} W"
+
+
+@cache
+def sitl_quad_fit(cli: Cli, sitl: ModuleType) -> dict[str, Any]:
+    """``uav-energy fit`` of the clean SITL recordings, as docs/sitl.md gives the command (the
+    SITL vehicle file is this fit plus the acceleration effect found later); ``sitl``:
+    ``scripts/sitl_figures.py``."""
+    logs = [str(sitl.SITL_RECORDINGS / s / "flight.tlog") for s in sitl.CLEAN_RECORDINGS]
+    options = ("--mass-kg", "3.0", "--capacity-ah", "2.2", "--cells", "3")
+    return dict(json.loads(cli("fit", *logs, *options, "--json")))
+
+
+#: The speed (m/s) docs/fit.md compares the IRIS+ curves' power at with hover.
+IRIS_LEG_SPEED_MPS = 5.0
+
+
+def real_generators(cli: Cli, data: Path) -> dict[str, Callable[[], str]]:
+    """Block name → the function that prints it, of the blocks that read the real logs under
+    ``data`` (../shared/data)."""
+    real = partial(real_fits, cli, data)
+    iris = partial(iris_fits, cli, data)
+    no_priors_run = partial(no_priors_fit, cli, data)
+    return {
+        "fit-real-table": lambda: summary_table(real()),
+        "fit-real-details": lambda: details_table(real()),
+        "fit-real-folds": lambda: ", ".join(
+            fold_difference(f, "polynomial") for f in real().values()
+        ),
+        "fit-real-inflation": lambda: inflation(real().values()),
+        "fit-iris-speeds": lambda: speeds(iris()),
+        "fit-iris-flat": lambda: flat(iris(), IRIS_LEG_SPEED_MPS),
+        "fit-iris-determined": lambda: determined(iris()),
+        "fit-iris-c1-c3": lambda: profile_and_induced(iris()),
+        "fit-iris-noise": lambda: noise(iris()),
+        "fit-cmu-dip": lambda: dip(real()[CMU]),
+        "fit-cmu-vme": lambda: v_me(real()[CMU]),
+        "fit-cmu-residual": lambda: residual_noise(real()[CMU]),
+        "fit-degree-6": partial(degree_6, cli, data),
+        "fit-no-priors-cmu": partial(no_priors_cmu, cli, data),
+        "fit-no-priors": lambda: no_priors(no_priors_run()),
+        "fit-no-priors-values": lambda: no_priors_values(no_priors_run()),
+    }
+
+
+def run1_generators(cli: Cli, run1: Path) -> dict[str, Callable[[], str]]:
+    """The block that reads ``../shared``'s recorded SITL flight (``run1``): ``uav-energy fit
+    RUN1 --json``'s theory against its polynomial."""
+    return {
+        "fit-sitl-run1": lambda: theory_against_polynomial(
+            json.loads(cli("fit", str(run1), "--json"))
+        )
+    }
+
+
+def sitl_generators(
+    cli: Cli, sitl: ModuleType, pack_fit: ModuleType
+) -> dict[str, Callable[[], str]]:
+    """The blocks of SITL's recordings in the repository; ``sitl``:
+    ``scripts/sitl_figures.py``; ``pack_fit``: ``scripts/pack_fit_sitl.py``, whose fits (3 s
+    of CPU) its table and pooled line print."""
+    quad = partial(sitl_quad_fit, cli, sitl)
+    packs = cache(lambda: dict(pack_fit.halves()))
+    return {
+        "sitl-quad-fit": lambda: sitl_quad_summary(quad()),
+        "sitl-quad-fit-data": lambda: sitl_quad_data(quad()),
+        "sitl-quad-fit-errors": lambda: sitl_quad_errors(quad()),
+        "pack-fit-sitl-table": lambda: pack_fit.table(packs()),
+        "pack-fit-sitl-pooled": lambda: pack_fit.pooled(packs()),
+    }

@@ -394,7 +394,7 @@ def generators(
 ) -> dict[str, Callable[[], str]]:
     """Block name → the function that prints it; ``iris``, ``cmu_data``: the logs' folders;
     ``summer``: the IRIS+ June–August ``residuals --json`` against the March file
-    (``scripts/figures.py`` computes it for its table)."""
+    (``scripts/residual_figures.py`` computes it for its table)."""
     masses = cache(lambda: settled_masses_kg(iris))
     june = cache(
         lambda: written_replay(cli, MARCH_VEHICLE, _iris_logs(iris, JUNE), _iris_logs(iris, LATER))

@@ -1,6 +1,11 @@
 """The figures of docs/residuals.md's simulated flights, as text, from the ``--json`` objects of
-``uav-energy residuals`` (``scripts/figures.py`` simulates the flights, runs the analysis and
-registers the blocks).
+``uav-energy residuals`` (``residuals-sim-*``), and those of its IRIS+ table
+(``residuals-iris-table``, ``residuals-iris-summer``: the IRIS+ logs against the March vehicle
+file; ``scripts/real_residual_figures.py`` has the real-log figures beyond the table). The
+flights are simulated and analysed here, once each (cached); ``scripts/figures.py`` runs
+``uav-energy`` in process and registers the blocks (:func:`generators`,
+:func:`changing_generators`: the slower flights whose effect changes, which
+``tests/test_residual_figures.py`` checks, and :func:`iris_generators`, which read the logs).
 
 Each flight: ``uav-energy sim --plan mixed --duration 600 --seed 4 FLAGS --tlog F`` with one
 effect hidden, then ``uav-energy residuals F --vehicle estimator/data/default_vehicle.toml
@@ -13,6 +18,7 @@ from __future__ import annotations
 import json
 import tempfile
 from collections.abc import Callable, Mapping
+from functools import cache
 from pathlib import Path
 from typing import Any
 
@@ -88,6 +94,7 @@ def _replay(cli: Cli, tlog: Path, vehicle: str | Path, *config: str) -> dict[str
     return dict(json.loads(cli("replay", str(tlog), "--vehicle", str(vehicle), *config, "--json")))
 
 
+@cache
 def hidden_runs(cli: Cli) -> tuple[dict[str, Residuals], dict[str, dict[str, Residuals]]]:
     """Per row of :data:`HIDDEN`: the residuals of the flight ``uav-energy sim`` flew with the
     effect hidden (≈ 4 s of CPU a flight); per row of :data:`REPLAYED`: ``uav-energy replay
@@ -119,6 +126,7 @@ def changing_config(effects: tuple[Effect, ...]) -> SimConfig:
     return SimConfig(plan="mixed", duration_s=600.0, seed=4, effects=effects)
 
 
+@cache
 def changing_runs(cli: Cli) -> dict[str, Residuals]:
     """Per row of :data:`CHANGING`: the residuals of the simulated flight written as a tlog
     (≈ 7 s of CPU a flight: windows are tried on one flight)."""
@@ -139,6 +147,7 @@ IRIS_PERIODS = {
 IRIS_VEHICLE = Path(__file__).resolve().parent.parent / "config/vehicles/iris_plus_2016_03.toml"
 
 
+@cache
 def iris_runs(cli: Cli, logs_dir: Path) -> dict[str, Residuals]:
     """``uav-energy residuals LOG… --vehicle iris_plus_2016_03.toml --json`` per period (≈ 15 s
     of CPU in all)."""
@@ -295,3 +304,33 @@ def recovered(results: Mapping[str, Residuals]) -> str:
 def wind_rmse(results: Mapping[str, Residuals]) -> str:
     r = results[WIND_ROW]
     return f"wind {r['rmse_before_w']:.1f} → {r['rmse_after_w']:.1f} W"
+
+
+def generators(cli: Cli) -> dict[str, Callable[[], str]]:
+    """Block name → the function that prints it, of the flights with an effect hidden all
+    flight or stepping once (:func:`hidden_runs`)."""
+    return {
+        "residuals-sim-table": lambda: hidden_table(hidden_runs(cli)[0]),
+        "residuals-sim-step": lambda: step_footnote(hidden_runs(cli)[0][STEP_ROW]),
+        "residuals-sim-recovered": lambda: recovered(hidden_runs(cli)[0]),
+        "residuals-sim-wind": lambda: wind_rmse(hidden_runs(cli)[0]),
+        "residuals-sim-replay": lambda: replay_table(hidden_runs(cli)[1]),
+        "residuals-sim-tracked": lambda: tracked_replay(hidden_runs(cli)[1][WIND_ROW]),
+    }
+
+
+def changing_generators(cli: Cli) -> dict[str, Callable[[], str]]:
+    """The blocks of the flights whose effects change (:func:`changing_runs`, ≈ 50 s of
+    CPU)."""
+    return {
+        "residuals-sim-changing": lambda: changing_table(changing_runs(cli)),
+        "residuals-sim-changing-floors": lambda: changing_floors(changing_runs(cli)),
+    }
+
+
+def iris_generators(cli: Cli, logs_dir: Path) -> dict[str, Callable[[], str]]:
+    """The blocks of the IRIS+ logs under ``logs_dir`` (:func:`iris_runs`)."""
+    return {
+        "residuals-iris-table": lambda: iris_table(iris_runs(cli, logs_dir)),
+        "residuals-iris-summer": lambda: iris_summer(iris_runs(cli, logs_dir)),
+    }

@@ -5,21 +5,26 @@ held-out flights of ``replay/sitl_held``.
 
 The tables are functions of results the tests compute anyway (``tests/test_sitl_recordings.py``
 replays every recording, ``tests/test_sitl_effects.py`` analyses and scores every effect
-recording), so those tests check them; ``scripts/figures.py`` registers them as blocks.
+recording, ``tests/test_sitl_held_out.py`` the held-out ones), so those tests check them;
+``scripts/figures.py`` registers them as blocks (:func:`recordings_generators`,
+:func:`effects_generators`, :func:`held_generators`; and :func:`generators`, which
+``tests/test_figures.py`` checks: the hover current and power of the payload and
+heavier-airframe recordings, how many held-out flights there are, and the SITL vehicle file's
+slow model error).
 """
 
 from __future__ import annotations
 
 import json
-from collections.abc import Iterable, Mapping
+from collections.abc import Callable, Iterable, Mapping
 from fractions import Fraction
-from functools import cache
+from functools import cache, partial
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
-from estimator.analysis.replay import FlightReplay, summarize
+from estimator.analysis.replay import FlightReplay, replay_log, summarize
 from estimator.logs import FlightSeries, load_flights
 from estimator.physics.vehicle import load_vehicle
 from estimator.sitl.truth_check import Match, RecordingCheck, angle_deg, score_recording, span_s
@@ -403,3 +408,84 @@ def held_short_onset(checks: Mapping[str, RecordingCheck]) -> str:
     rows = [_candidate(checks[HELD_SHORT_ONSET], label) for label in ONSET_CANDIDATES]
     gains, zs = ([row[key] for row in rows] for key in ("gain_pct", "z"))
     return f"gains {_range(gains, '.0f')} %, at z {_range(zs, '.2f')}"
+
+
+# --- the blocks -----------------------------------------------------------------------------------
+
+
+@cache
+def replays() -> dict[str, FlightReplay]:
+    """Every recording of ``replay/sitl`` replayed with the SITL vehicle file."""
+    vehicle = load_vehicle(SITL_VEHICLE)
+    logs = {s: SITL_RECORDINGS / s / "flight.tlog" for s in recordings()}
+    return {s: replay_log(log, vehicle) for s, log in logs.items()}
+
+
+def slow_error() -> str:
+    """The SITL vehicle file's slow model error, % of its hover power (measured on its fit
+    flights; ``tests/test_sitl_effects.py`` checks it against them)."""
+    return f"{100 * load_vehicle(SITL_VEHICLE).slow_error_fraction:.1f} %"
+
+
+Checks = Mapping[str, RecordingCheck]
+
+
+def _on(checks: Callable[[], Checks], figure: Callable[[Checks], str]) -> Callable[[], str]:
+    """What ``figure`` prints of the checks ``checks`` gives."""
+    return lambda: figure(checks())
+
+
+def recordings_generators() -> dict[str, Callable[[], str]]:
+    """Block name → the function that prints it, of the recordings replayed
+    (:func:`replays`; ``tests/test_sitl_recordings.py`` checks them)."""
+    return {
+        "sitl-recordings-table": lambda: recordings_table(replays()),
+        "sitl-hexa-energy": lambda: hexa_energy(replays()),
+        "sitl-wind-cost": lambda: wind_cost(replays()),
+    }
+
+
+def effects_generators() -> dict[str, Callable[[], str]]:
+    """The blocks of the effects named on the recordings (:func:`effect_checks`;
+    ``tests/test_sitl_effects.py`` checks them)."""
+    figures: dict[str, Callable[[Checks], str]] = {
+        "sitl-effects-table": effects_table,
+        "sitl-effects-right": effects_right,
+        "sitl-effects-floors": effects_floors,
+        "sitl-effects-clean": effects_clean,
+        "sitl-effects-wind": effects_wind,
+        "sitl-effects-payload": effects_payload,
+        "sitl-effects-turn": effects_turn,
+        "sitl-effects-heavy": effects_heavy,
+        "sitl-effects-onset-circles": effects_onset_circles,
+    }
+    return {name: _on(effect_checks, figure) for name, figure in figures.items()}
+
+
+def held_generators() -> dict[str, Callable[[], str]]:
+    """The blocks of the effects named on the held-out flights (:func:`held_checks`;
+    ``tests/test_sitl_held_out.py`` checks them)."""
+    figures: dict[str, Callable[[Checks], str]] = {
+        "sitl-held-table": partial(effects_table, recordings=HELD_RECORDINGS),
+        "sitl-held-floors": effects_floors,
+        "sitl-held-summary": held_summary,
+        "sitl-held-windows": held_windows,
+        "sitl-held-autopilot-wind": held_autopilot_wind,
+        "sitl-held-short-onset": held_short_onset,
+    }
+    for flight in HELD_NO_GAIN:
+        figures[f"sitl-held-no-gain-{flight.replace('_', '-')}"] = partial(
+            held_no_gain, name=flight
+        )
+    return {name: _on(held_checks, figure) for name, figure in figures.items()}
+
+
+def generators() -> dict[str, Callable[[], str]]:
+    """The blocks ``tests/test_figures.py`` checks."""
+    out = {"sitl-payload-hover-current": payload_hover_current, "sitl-held-count": held_count}
+    for recording in (PAYLOADS[0], HEAVY_AIRFRAME):
+        out[f"sitl-hover-power-{recording.replace('_', '-')}"] = partial(
+            hover_power_rise, recording
+        )
+    out["sitl-slow-error"] = slow_error
+    return out

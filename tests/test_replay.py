@@ -43,7 +43,7 @@ CMU_CRUISE = REPO.parent / "shared/data/cmu_m100_subset/flights_validation_data_
 IRIS_LOG = REPO / "replay" / "iris" / "2016-08-03" / "002" / "002.log"
 IRIS_LOG_2 = REPO / "replay" / "iris" / "2016-03-21" / "010" / "010.log"
 SITL_VEHICLE = REPO / "config" / "vehicles" / "ardupilot_sitl_quad.toml"
-FIGURES = load_script("figures")
+PLANS = load_script("plan_figures")
 
 
 @pytest.fixture(scope="module")
@@ -456,8 +456,8 @@ def test_a_mission_given_to_the_replay_gives_the_daemons_mission_figures(
     is not in it), so without ``--mission`` there are no MIS_* figures; with the mission file
     the rest of the mission from 30 s after take-off is within 10 % of the energy the vehicle
     drew from there to the disarm (its own V·I; docs/replay.md gives the figures,
-    ``scripts/figures.py`` reads them the same way)."""
-    flight = FIGURES.MISSION_REPLAYED
+    ``scripts/plan_figures.py`` reads them the same way)."""
+    flight = PLANS.MISSION_REPLAYED
     common = [str(flight / "flight.tlog"), "--vehicle", str(SITL_VEHICLE)]
 
     def mission_column(*extra: str) -> list[dict[str, str]]:
@@ -469,7 +469,7 @@ def test_a_mission_given_to_the_replay_gives_the_daemons_mission_figures(
 
     assert all(r["mission_energy_wh"] == "nan" for r in mission_column())
     rows = mission_column("--mission", str(flight / "mission.waypoints"))
-    predicted_wh, sigma_wh, drawn_wh = FIGURES.mission_figure(flight, rows)
+    predicted_wh, sigma_wh, drawn_wh = PLANS.mission_figure(flight, rows)
     assert abs(predicted_wh / drawn_wh - 1.0) < 0.10, (predicted_wh, drawn_wh)
     assert sigma_wh > 0
 

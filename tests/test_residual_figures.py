@@ -18,7 +18,7 @@ CHANGING = figures.residual_figures.CHANGING
 def results() -> dict[str, dict[str, Any]]:
     """``uav-energy residuals --json`` of each flight (≈ 50 s of CPU, shared with the block's
     generator)."""
-    return dict(figures.changing_residuals())
+    return dict(figures.residual_figures.changing_runs(figures.run_cli))
 
 
 def test_the_docs_table_is_what_the_analysis_gives(results: dict[str, dict[str, Any]]) -> None:

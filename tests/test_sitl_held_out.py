@@ -217,10 +217,10 @@ def test_the_docs_give_the_results_as_measured(
         "tracker-sitl-held": TRACKER.report(list(tracked.values())),
         "tracker-sitl-held-wind-worst": TRACKER.worst_wind(list(tracked.values())),
         "tracker-sitl-held-mass-step": TRACKER.mass_step(
-            list(tracked.values()), FIGURES.TRACKER_MASS_STEP
+            list(tracked.values()), FIGURES.trackers.TRACKER_MASS_STEP
         ),
         "tracker-sitl-held-unloaded": TRACKER.unloaded_mass(
-            list(tracked.values()), FIGURES.TRACKER_UNLOADED_SET
+            list(tracked.values()), FIGURES.trackers.TRACKER_UNLOADED_SET
         ),
     }
     # the misses' candidates: their generators read the same checks (SITL.held_checks)

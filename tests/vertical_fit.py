@@ -2,7 +2,7 @@
 samples, against a vehicle file's level-flight model, and SITL's own vertical law on its climbs
 and descents in place (``replay/sitl_axial/``): shared by the SITL tests that check the file's
 vertical effects (``tests/test_sitl_axial.py``, ``tests/test_sitl_held_out.py``) and
-``scripts/figures.py`` (docs/plan.md's climb power)."""
+``scripts/plan_figures.py`` (docs/plan.md's climb power)."""
 
 from __future__ import annotations
 
