@@ -349,6 +349,25 @@ def test_a_moving_report_widens_the_wind_sigma_by_its_lag_and_a_held_one_by_its_
     assert reports.lag_ne_mps(6.0) == (0.0, 0.0)
 
 
+def test_a_report_that_stalls_while_it_follows_a_change_keeps_its_lag_decaying() -> None:
+    """The gap a first-order lag leaves closes as e^(−t/τ): a report that rises at 0.5 m/s²
+    and then holds still for 3 s (the EKF stalling as it follows a gust) keeps a lag term that
+    decays from τ × 0.5 m/s at that pace, not one that drops to zero with its rate."""
+    settings = OnlineSettings()
+    tau_s = settings.autopilot_wind_lag_s
+    reports = AutopilotWind(settings)
+    for k in range(5):
+        reports.take(WindSample(0.5 * k, 0.0, 0.0))
+    for k in range(1, 9):  # east rises at 0.5 m/s² until 6 s
+        reports.take(WindSample(2.0 + 0.5 * k, 0.0, 0.25 * k))
+    assert reports.lag_ne_mps(6.0)[1] == pytest.approx(tau_s * 0.5)
+    for k in range(1, 7):  # then still until 9 s: its rate over 2 s is zero from 8 s on
+        reports.take(WindSample(6.0 + 0.5 * k, 0.0, 2.0))
+    # decaying from 7.5 s, the last report the rate of 0.5 m/s² still stood at
+    assert reports.lag_ne_mps(9.0) == pytest.approx((0.0, tau_s * 0.5 * math.exp(-1.5 / tau_s)))
+    assert reports.lag_ne_mps(9.5)[1] == pytest.approx(tau_s * 0.5 * math.exp(-2.0 / tau_s))
+
+
 def test_the_trackers_reported_wind_sigma_takes_in_the_reports_lag(tmp_path: Path) -> None:
     """Through the tracker: the same flight with a report that is still and with one that moves
     at the end has the same estimate, and a wider wind 1σ with the moving one."""

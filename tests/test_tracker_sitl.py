@@ -50,9 +50,8 @@ FITTED_ON = SCRIPT.FITTED_ON
 #: it moves, its lag and its gap from the estimate widen the reported 1σ:
 #: ``AutopilotWind.lag_ne_mps``, ``gap_ne_mps``).
 SHORT = {
-    "payload_wind": "wind 90 % within 2σ, 2.1σ (1.6 m/s off) at 227 s",
     "wind_onset": "wind 4.0σ (5.4 m/s off) at 120 s",
-    "wind_onset_circles": "wind 84 % within 2σ, 2.8σ (2.0 m/s off) at 92 s",
+    "wind_onset_circles": "wind 89 % within 2σ, 2.3σ (1.6 m/s off) at 120 s",
     "wind_stop": "wind 6.7σ (6.7 m/s off) at 120 s",
     "wind_turn": "wind 6.4σ (8.0 m/s off) at 100 s",
     "lean2_clean_diag7": "mass 86 % within 2σ (median -0.040 kg at 1σ 0.035 kg), 2.5σ (-0.07 kg) "

@@ -17,7 +17,11 @@ steps in a row is a wind change the autopilot saw (:meth:`AutopilotWind.saw_a_ch
 The report lags the wind: the EKF follows a change with a time constant of ~10 s (ArduCopter
 SITL: 9 s after an onset, 15 s after a stop; docs/residuals.md). While it moves, the wind
 already differs from it by about the lag times its rate (a first-order lag r' = (w − r)/τ gives
-w − r = τ r'): :meth:`AutopilotWind.lag_ne_mps`. And it can stop: in hover ArduCopter's EKF
+w − r = τ r'): :meth:`AutopilotWind.lag_ne_mps`. That gap closes at the lag's own pace,
+e^(−t/τ), not faster: where the report stalls for a moment as it follows a change (ArduCopter
+SITL: 2 m/s into a 7 m/s gust, held still 3.5 s, then rising on), its rate over the last
+seconds falls to zero while the wind is still far, so the term is the larger of τ r' and
+its last value decayed by e^(−Δt/τ). And it can stop: in hover ArduCopter's EKF
 holds its wind (an onset or a stop arrives only once the vehicle moves). Where the report and
 the tracker's wind disagree beyond both their 1σ, one of them is wrong:
 :meth:`AutopilotWind.gap_ne_mps`. The tracker adds both to the 1σ it reports, not to its
@@ -55,6 +59,8 @@ class AutopilotWind:
         self._apart = 0  # steps in a row its report was far from the estimate
         self._anchor: WindSample | None = None  # the report the rate is measured from
         self._rate_ne_mps2 = (0.0, 0.0)
+        #: The lag term (m/s, magnitudes) at the last report, and that report's time (s).
+        self._lag_ne_mps, self._lag_time_s = (0.0, 0.0), 0.0
 
     def take(self, sample: WindSample) -> None:
         """Keep ``sample`` for the next steps (non-finite values are ignored)."""
@@ -73,21 +79,34 @@ class AutopilotWind:
                 (sample.wind_e_mps - anchor.wind_e_mps) / dt,
             )
             self._anchor = sample
+        self._lag_ne_mps = self._lag_at(sample.time_s)
+        self._lag_time_s = sample.time_s
 
     def lag_ne_mps(self, time_s: float) -> tuple[float, float]:
-        """How far the wind may already be from the latest report (m/s, north and east): the
-        report's rate over the last ``autopilot_wind_rate_span_s`` times the EKF's time
-        constant ``autopilot_wind_lag_s``; zero without a fresh report from an autopilot that
+        """How far the wind may already be from the latest report (m/s, magnitudes north and
+        east): the report's rate over the last ``autopilot_wind_rate_span_s`` times the EKF's
+        time constant ``autopilot_wind_lag_s``, or the last such term decayed at the lag's own
+        pace when that is larger; zero without a fresh report from an autopilot that
         estimates the wind."""
         if not self.fresh(time_s):
             return 0.0, 0.0
+        return self._lag_at(time_s)
+
+    def _lag_at(self, time_s: float) -> tuple[float, float]:
+        """The lag term at ``time_s`` (m/s, magnitudes): τ times the report's rate, or the last
+        term decayed at the lag's own pace, whichever is larger."""
         lag_s = self.settings.autopilot_wind_lag_s
-        return lag_s * self._rate_ne_mps2[0], lag_s * self._rate_ne_mps2[1]
+        held = math.exp(-max(time_s - self._lag_time_s, 0.0) / lag_s)
+        return (
+            max(abs(lag_s * self._rate_ne_mps2[0]), self._lag_ne_mps[0] * held),
+            max(abs(lag_s * self._rate_ne_mps2[1]), self._lag_ne_mps[1] * held),
+        )
 
     def restart(self) -> None:
         """The autopilot rebooted: its reports count again once they are not zero."""
         self.report, self._active = None, False
         self._anchor, self._rate_ne_mps2 = None, (0.0, 0.0)
+        self._lag_ne_mps, self._lag_time_s = (0.0, 0.0), 0.0
 
     def fresh(self, time_s: float) -> bool:
         """Whether there is a report at most ``autopilot_wind_max_age_s`` old at ``time_s`` from

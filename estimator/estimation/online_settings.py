@@ -98,7 +98,9 @@ class OnlineSettings:
     #: reports follow an onset with 9 s, a stop with 15 s) and the span (s) the report's rate
     #: is measured over; and its gap from the estimate when the two disagree beyond this
     #: squared Mahalanobis distance with both their variances (``AutopilotWind.gap_ne_mps``;
-    #: 5.99 = χ²₂ at 5 %). Set on the recordings of replay/sitl and replay/sitl_held.
+    #: 5.99 = χ²₂ at 5 %). Set on the recordings of replay/sitl and replay/sitl_held. When the
+    #: report stalls as it follows a change, the lag term decays at e^(−Δt/τ) rather than
+    #: drop with its rate (found on held7_gust_fast_legs, so development for that rule).
     autopilot_wind_lag_s: float = 10.0
     autopilot_wind_rate_span_s: float = 2.0
     autopilot_wind_gap_chi2: float = 5.99
