@@ -170,11 +170,7 @@ def _profile(
     v = cruise_mps
     t1, t3, d1, d3 = ramps(v)
     if d1 + d3 > distance_m:
-        lo, hi = 0.0, v
-        for _ in range(50):
-            mid = 0.5 * (lo + hi)
-            lo, hi = (mid, hi) if sum(ramps(mid)[2:]) <= distance_m else (lo, mid)
-        v = lo
+        v = _ramped_cruise_mps(distance_m, v, ends, kinematics)
         t1, t3, d1, d3 = ramps(v)
         scale = distance_m / (d1 + d3) if d1 + d3 > 0 else 0.0
         t1, t3, d1, d3 = t1 * scale, t3 * scale, d1 * scale, d3 * scale
@@ -186,6 +182,39 @@ def _profile(
     if t3 > 0:
         out.append((d3 / t3, (ends[1] - v) / t3, t3))
     return out
+
+
+def _ramped_cruise_mps(
+    distance_m: float, cruise_mps: float, ends: tuple[float, float], kin: Kinematics
+) -> float:
+    """The highest cruise speed (m/s) in (0, ``cruise_mps``] whose speed-up from ``ends[0]``
+    and slow-down to ``ends[1]`` (m/s) fit in ``distance_m`` (m over ground): 50 bisection
+    steps on [0, ``cruise_mps``], the lower end kept. The ramps' distances are those of
+    :meth:`Kinematics.ramp_s` written out with its constants taken once (the same float
+    operations in the same order, so the same speed to the bit: ``tests/test_route_ramps.py``
+    keeps it equal to the bisection over ``ramp_s``); a leg home near home bisects at every
+    estimate."""
+    start, end = ends
+    accel, given_jerk = kin.accel_mps2, kin.jerk_mps3
+    jerked = given_jerk is not None and given_jerk > 0
+    jerk = given_jerk if given_jerk is not None and jerked else 1.0  # m/s³ (unused unjerked)
+    knee_mps = accel**2 / jerk if jerked else math.inf  # ramp_s's Δv ≥ a²/j
+    extra_s = accel / jerk
+    sqrt = math.sqrt
+    lo, hi = 0.0, cruise_mps
+    for _ in range(50):
+        mid = 0.5 * (lo + hi)
+        dv1, dv3 = abs(mid - start), abs(mid - end)
+        if not jerked:
+            t1, t3 = dv1 / accel, dv3 / accel
+        else:
+            t1 = dv1 / accel + extra_s if dv1 >= knee_mps else 2.0 * sqrt(dv1 / jerk)
+            t3 = dv3 / accel + extra_s if dv3 >= knee_mps else 2.0 * sqrt(dv3 / jerk)
+        if 0.5 * (mid + start) * t1 + 0.5 * (mid + end) * t3 <= distance_m:
+            lo = mid
+        else:
+            hi = mid
+    return lo
 
 
 def _profile_s(
