@@ -51,6 +51,11 @@ def test_carried_is_i_minus_kh_of_a_linear_kalman_update() -> None:
         c = rng.normal(size=4)
         expected = (np.eye(4) - np.outer(gain, h)) @ c
         assert np.allclose(carried(c, p, p_after), expected, rtol=1e-9, atol=1e-12)
+    # damaged covariances leave the sensitivity as it was
+    c = np.array([0.1, -0.2, 0.03, 1.0])
+    singular = np.zeros((4, 4))
+    assert carried(c, singular, np.eye(4)) is c
+    assert carried(c, np.eye(4), np.full((4, 4), np.nan)) is c
 
 
 def fly_box(tracker: OnlineEffects, bias_w: float, fraction: float) -> None:

@@ -56,6 +56,10 @@ def form_power_w(
 
 def carried(c: np.ndarray, p_before: np.ndarray, p_after: np.ndarray) -> np.ndarray:
     """The sensitivity ``c`` through a Kalman update that took the covariance from
-    ``p_before`` to ``p_after``: (I − K H) c = P⁺ (P⁻)⁻¹ c. Raises ``np.linalg.LinAlgError``
-    when ``p_before`` is singular."""
-    return p_after @ np.linalg.solve(p_before, c)
+    ``p_before`` to ``p_after``: (I − K H) c = P⁺ (P⁻)⁻¹ c; ``c`` as it was when ``p_before``
+    is singular or either is not finite (damaged input never makes it NaN)."""
+    try:
+        moved = p_after @ np.linalg.solve(p_before, c)
+    except np.linalg.LinAlgError:
+        return c
+    return moved if np.isfinite(moved).all() else c
