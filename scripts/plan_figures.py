@@ -148,11 +148,14 @@ PLAN_EXAMPLE = (MISSIONS / "climbs_wind6" / "mission.plan", "6@135")
 
 
 def example(cli: Cli) -> str:
-    """``uav-energy plan MISSION --vehicle SITL --wind W``'s output as a code block, without
-    its title and the table's rules (their width follows the terminal)."""
+    """``uav-energy plan MISSION --vehicle SITL --wind W``'s output as a code block, from the
+    table on: without its title (it holds the mission's absolute path, so how it wraps follows
+    where the repository is checked out) and the table's rules (their width follows the
+    terminal)."""
     mission, wind = PLAN_EXAMPLE
-    out = cli("plan", str(mission), "--vehicle", str(SITL_VEHICLE), "--wind", wind)
-    lines = [line.rstrip() for line in out.splitlines()[1:] if line[:1] not in "┏┡├└"]
+    out = cli("plan", str(mission), "--vehicle", str(SITL_VEHICLE), "--wind", wind).splitlines()
+    table = next(i for i, line in enumerate(out) if line.startswith("┏"))
+    lines = [line.rstrip() for line in out[table:] if line[:1] not in "┏┡├└"]
     return "\n".join(["```", *lines, "```"])
 
 
