@@ -13,13 +13,11 @@ from __future__ import annotations
 
 
 class ChangeDetector:
-    """Two-sided CUSUM with drift ``drift_sigma`` (k) and threshold ``threshold_sigma`` (h);
-    ``alarms`` counts the alarms."""
+    """Two-sided CUSUM with drift ``drift_sigma`` (k) and threshold ``threshold_sigma`` (h)."""
 
     def __init__(self, drift_sigma: float, threshold_sigma: float) -> None:
         self.drift_sigma, self.threshold_sigma = drift_sigma, threshold_sigma
         self._up = self._down = 0.0
-        self.alarms = 0
 
     def alarm(self, nu: float) -> bool:
         """Fold in one normalised innovation; True on an alarm, which clears the sums."""
@@ -28,5 +26,4 @@ class ChangeDetector:
         if max(self._up, self._down) <= self.threshold_sigma:
             return False
         self._up = self._down = 0.0
-        self.alarms += 1
         return True
