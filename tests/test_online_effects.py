@@ -15,7 +15,7 @@ import pytest
 from estimator.errors import UserError
 from estimator.estimation.airborne import TAKEOFF_SETTLE_S
 from estimator.estimation.autopilot_wind import AutopilotWind
-from estimator.estimation.online_effects import OnlineEffects
+from estimator.estimation.online_effects import OnlineEffects, _Hypothesis
 from estimator.estimation.online_settings import OnlineSettings
 from estimator.estimation.track_runner import TrackPoint, track_samples
 from estimator.logs import iter_samples
@@ -412,3 +412,22 @@ def test_the_slow_model_error_keeps_a_biased_hover_from_pinning_the_mass() -> No
         ends[fraction] = abs(tracker.mass_delta_kg) / tracker.sigma["mass_kg"]
     assert ends[0.0] > 5.0
     assert ends[0.05] < 3.0
+
+
+def test_an_undecided_duel_is_reported_as_the_mixture_of_its_two_hypotheses() -> None:
+    """After a change in forward flight the mass-step and wind-change hypotheses run side by
+    side; until one is clearly likelier, what the tracker reports and applies spans both."""
+    tracker = OnlineEffects.from_vehicle(VEHICLE)
+    tracker.update(0.0, 5.0, 0.0, 0.0, 0.0, 0.0, 380.0)
+    own_x, own_p = tracker._x.copy(), tracker._p.copy()
+    alone = tracker.sigma["mass_kg"]
+    rival_x = own_x + np.array([2.0, 0.0, -0.4])
+    tracker._rival = _Hypothesis(rival_x, own_p, tracker._form, tracker._loglik)
+    assert tracker.mass_delta_kg == pytest.approx(own_x[2] - 0.2)
+    assert tracker.wind.vector_ne_mps()[0] == pytest.approx(own_x[0] + 1.0)
+    assert tracker.sigma["mass_kg"] == pytest.approx(math.hypot(alone, 0.2), rel=0.05)
+    undecided = tracker.identified_effects(0.0, 10.0, 0.1)
+    assert undecided is not None and undecided[1] == Mass(0.0)  # the file's mass stays
+    tracker._loglik += 20.0  # the estimate's hypothesis far likelier: it alone is reported
+    assert tracker.mass_delta_kg == pytest.approx(own_x[2])
+    assert tracker.sigma["mass_kg"] == pytest.approx(alone)
