@@ -32,16 +32,7 @@ from estimator.analysis.tracker_truth import TrackerRun
 from estimator.logs import load_flights
 from estimator.physics.effects import Climb, Heave
 from estimator.physics.vehicle import load_vehicle
-from estimator.sitl.held_scenarios import (
-    HELD_SCENARIOS,
-    HELD_SCENARIOS_2,
-    HELD_SCENARIOS_3,
-    HELD_SCENARIOS_4,
-    HELD_SCENARIOS_5,
-    HELD_SCENARIOS_6,
-    HELD_SCENARIOS_7,
-    HELD_SCENARIOS_8,
-)
+from estimator.sitl.fast_held_scenarios import HELD_SETS
 from estimator.sitl.truth_check import FlightScore
 
 REPO = Path(__file__).resolve().parent.parent
@@ -51,16 +42,7 @@ THIS_FILE = "tests/test_sitl_held_out.py"
 FIGURES = load_script("figures")
 SITL = FIGURES.sitl
 TRACKER = FIGURES.script_module("tracker_sitl")
-FLIGHTS = sorted(
-    HELD_SCENARIOS
-    | HELD_SCENARIOS_2
-    | HELD_SCENARIOS_3
-    | HELD_SCENARIOS_4
-    | HELD_SCENARIOS_5
-    | HELD_SCENARIOS_6
-    | HELD_SCENARIOS_7
-    | HELD_SCENARIOS_8
-)
+FLIGHTS = sorted(name for held in HELD_SETS.values() for name in held)
 #: The windowed rank test: n blocks of 5 s that all gain reach z = sqrt(3n(n+1)/(2(2n+1)))
 #: at most, below 3 for episodes under a minute (tests/test_residuals.py).
 SHORT_EPISODE = "an episode under a minute cannot reach z 3 in the windowed rank test"
@@ -190,17 +172,8 @@ def scored(flight: str) -> FlightScore:
 
 def test_every_held_out_flight_is_recorded_with_its_truth() -> None:
     assert SITL.recordings(SITL.HELD_RECORDINGS) == FLIGHTS
-    assert all(len(s) >= 12 for s in (HELD_SCENARIOS, HELD_SCENARIOS_2, HELD_SCENARIOS_3))
-    assert all(
-        len(s) >= 8
-        for s in (
-            HELD_SCENARIOS_4,
-            HELD_SCENARIOS_5,
-            HELD_SCENARIOS_6,
-            HELD_SCENARIOS_7,
-            HELD_SCENARIOS_8,
-        )
-    )
+    assert all(len(HELD_SETS[name]) >= 12 for name in ("held", "held2", "held3"))
+    assert all(len(held) >= 8 for held in HELD_SETS.values())
     kinds = [{e.kind for e in scored(f).truth.effects} for f in FLIGHTS]
     assert sum(not k for k in kinds) >= 4
     assert sum("wind" in k for k in kinds) >= 16

@@ -1,7 +1,7 @@
 """``uav-energy sitl-record SCENARIO… --out DIR``: fly scenarios in ArduCopter SITL, record them.
 
 Each scenario (estimator/sitl/scenarios.py; ``all`` for every one of ``replay/sitl``,
-``held``, ``held2`` … ``held8`` for the held-out flights of
+``held``, ``held2`` … ``held9`` for the held-out flights of
 ``replay/sitl_held``, ``episodes`` for those of ``replay/sitl_episodes``, ``packs`` for every
 ``pack_*`` flight of ``replay/sitl_packs``) is flown in a fresh SITL
 (scratch directory, free instance) and written to ``DIR/<scenario>/``: ``flight.tlog``,
@@ -33,7 +33,7 @@ def register(subparsers: argparse._SubParsersAction[argparse.ArgumentParser]) ->
         nargs="*",
         metavar="SCENARIO",
         help="scenario names (the effects of replay/sitl, pack_* packs of replay/sitl_packs), "
-        "or all (every effect scenario), held / held2 … held8 (the held-out effect "
+        "or all (every effect scenario), held / held2 … held9 (the held-out effect "
         "flights), "
         "episodes (wind episodes to tune on), or packs / "
         "packs2 / ... / packs7 (the first to seventh set of pack_* scenarios)",
@@ -53,16 +53,7 @@ def run(args: argparse.Namespace) -> int:
     from estimator.commands.sim import _pair
     from estimator.logs.mission_files import load_mission
     from estimator.sitl.episode_scenarios import EPISODE_SCENARIOS
-    from estimator.sitl.held_scenarios import (
-        HELD_SCENARIOS,
-        HELD_SCENARIOS_2,
-        HELD_SCENARIOS_3,
-        HELD_SCENARIOS_4,
-        HELD_SCENARIOS_5,
-        HELD_SCENARIOS_6,
-        HELD_SCENARIOS_7,
-        HELD_SCENARIOS_8,
-    )
+    from estimator.sitl.fast_held_scenarios import HELD_SETS
     from estimator.sitl.recorder import record
     from estimator.sitl.scenarios import (
         PACK_SETS,
@@ -87,21 +78,13 @@ def run(args: argparse.Namespace) -> int:
             raise UserError("name a scenario (or all), or give --mission FILE")
         groups = {
             "all": list(SCENARIOS),
-            "held": list(HELD_SCENARIOS),
-            "held2": list(HELD_SCENARIOS_2),
-            "held3": list(HELD_SCENARIOS_3),
-            "held4": list(HELD_SCENARIOS_4),
-            "held5": list(HELD_SCENARIOS_5),
-            "held6": list(HELD_SCENARIOS_6),
-            "held7": list(HELD_SCENARIOS_7),
-            "held8": list(HELD_SCENARIOS_8),
+            **{name: list(held) for name, held in HELD_SETS.items()},
             "episodes": list(EPISODE_SCENARIOS),
         }
         groups |= {g: list(s) for g, s in PACK_SETS.items()}
         known = dict(SCENARIOS)
         for named in (
-            HELD_SCENARIOS, HELD_SCENARIOS_2, HELD_SCENARIOS_3, HELD_SCENARIOS_4,
-            HELD_SCENARIOS_5, HELD_SCENARIOS_6, HELD_SCENARIOS_7, HELD_SCENARIOS_8,
+            *HELD_SETS.values(),
             EPISODE_SCENARIOS, *PACK_SETS.values(),
         ):  # fmt: skip
             known |= named

@@ -1,6 +1,7 @@
 """The held-out effect flights of ``replay/sitl_held`` (``uav-energy sitl-record held``,
-``held2`` … ``held8``; the development flights of wind episodes are
-:mod:`estimator.sitl.episode_scenarios`).
+``held2`` … ``held6``; ``held7`` … on fast legs and through wind changes are
+:mod:`estimator.sitl.fast_held_scenarios`, and every set by name :data:`HELD_SETS` there; the
+development flights of wind episodes are :mod:`estimator.sitl.episode_scenarios`).
 
 Each held-out set was recorded right after the commit that defined it froze the residual
 analysis, the online tracker, the SITL vehicle file and the scoring of
@@ -9,9 +10,7 @@ it was tuned on (docs/residuals.md, "Held-out SITL flights"); the third after th
 vertical effects were added to the SITL vehicle file; the fourth after the online tracker's
 1σ took in what the model's form leaves unknown; the fifth after its wind 1σ took in the
 autopilot's lag and gap; the sixth after its step left out whole where the vertical gates
-left out most of its readings; the seventh after its 1σ carried the model's P(V) shape as a
-consider term; the eighth after its lag term decayed at the autopilot's time constant where
-the report stalls. Vertical legs at 1-9 m/s over
+left out most of its readings. Vertical legs at 1-9 m/s over
 10-60 m of altitude, wind episodes of 30-90 s inside longer flights, and both with the
 gripper's payload. Every flight takes off to 20 m and stays between 10 and 65 m; steps as in
 :mod:`estimator.sitl.scenarios` (positions and velocities NED, m and m/s; durations s).
@@ -470,112 +469,4 @@ HELD_SCENARIOS_6: dict[str, Scenario] = by_name(
     ),
 )
 
-#: Long legs at 8-9 m/s over ground, each way, with hovers between (the model's P(V) shape
-#: error grows with the airspeed).
-FAST_LEGS = (
-    Hover(15), Leg(9, 0, 15), Hover(5), Leg(-9, 0, 15), Hover(5), Leg(0, 8, 15), Hover(5),
-    Leg(0, -8, 15), Hover(5), Leg(6, 6, 15), Leg(-6, -6, 15), Hover(10),
-)
-
-#: The seventh held-out set (recorded after the commit that added it froze the online
-#: tracker's consider term for the model's P(V) shape and its mass term of 3 %; none of it
-#: tuned on): long fast legs with and without a payload, in still air, a steady wind and a
-#: gust, a release before them, a climb among them.
-HELD_SCENARIOS_7: dict[str, Scenario] = by_name(
-    vertical_scenario(
-        "held7_clean_fast_legs",
-        "no effect; long legs at 8-9 m/s each way, twice",
-        Takeoff(), *FAST_LEGS, *FAST_LEGS[1:],
-    ),
-    vertical_scenario(
-        "held7_wind_fast_legs",
-        "wind 6 m/s from 030° throughout; long legs at 8-9 m/s each way, twice",
-        SetWind(6, 30), Takeoff(), *FAST_LEGS, *FAST_LEGS[1:],
-    ),
-    vertical_scenario(
-        "held7_wind_fast_circles",
-        "wind 5 m/s from 250° throughout; circles, then long legs at 8-9 m/s",
-        SetWind(5, 250), Takeoff(), *CIRCLES, *FAST_LEGS[1:],
-    ),
-    vertical_scenario(
-        "held7_payload_fast_legs",
-        "1 kg gripper payload from take-off; long legs at 8-9 m/s each way, twice",
-        Grip(True), Hover(3), Takeoff(), *FAST_LEGS, *FAST_LEGS[1:],
-    ),
-    vertical_scenario(
-        "held7_payload_wind_fast",
-        "1 kg gripper payload from take-off; wind 4 m/s from 120° throughout; long legs at "
-        "8-9 m/s, then legs",
-        SetWind(4, 120), Grip(True), Hover(3), Takeoff(), *FAST_LEGS, *LEGS[1:],
-    ),
-    vertical_scenario(
-        "held7_release_fast_legs",
-        "1 kg gripper payload released in a hover; wind 3 m/s from 300°; then long legs at "
-        "8-9 m/s",
-        SetWind(3, 300), Grip(True), Hover(3), Takeoff(), *LEGS[:4], Hover(10), Grip(False),
-        Hover(10), *FAST_LEGS[1:],
-    ),
-    vertical_scenario(
-        "held7_gust_fast_legs",
-        "wind 7 m/s from 180° for about 60 s of long legs at 8-9 m/s",
-        Takeoff(), *FAST_LEGS[:5], SetWind(7, 180), *FAST_LEGS[5:], SetWind(0), *FAST_LEGS[1:],
-    ),
-    vertical_scenario(
-        "held7_wind_climbs_fast",
-        "wind 5 m/s from 330° throughout; long legs at 8-9 m/s, a climb at 3 m/s and a descent "
-        "at 2 m/s over 20 m",
-        SetWind(5, 330), Takeoff(), *FAST_LEGS, *up_and_down(3, 2, 20), *FAST_LEGS[1:6],
-    ),
-)
-
-#: The eighth held-out set (recorded after the commit that added it froze the online
-#: tracker's lag term that decays at the autopilot's time constant when the report stalls;
-#: none of it tuned on): onsets, stops, turns and gusts of the wind on slow and fast legs and
-#: circles, one with the payload, and a still-air flight.
-HELD_SCENARIOS_8: dict[str, Scenario] = by_name(
-    vertical_scenario(
-        "held8_gust_legs",
-        "wind 6 m/s from 250° for about 70 s of legs",
-        Takeoff(), *LEGS[:4], SetWind(6, 250), *LEGS[4:8], SetWind(0), *LEGS[8:], *LEGS[1:5],
-    ),
-    vertical_scenario(
-        "held8_onset_fast_legs",
-        "wind 7 m/s from 045° switched on mid-flight; long legs at 8-9 m/s",
-        Takeoff(), *FAST_LEGS[:6], SetWind(7, 45), *FAST_LEGS[6:], *FAST_LEGS[1:],
-    ),
-    vertical_scenario(
-        "held8_stop_fast_legs",
-        "wind 6 m/s from 300° from take-off, stopped mid-flight; long legs at 8-9 m/s",
-        SetWind(6, 300), Takeoff(), *FAST_LEGS, SetWind(0), *FAST_LEGS[1:],
-    ),
-    vertical_scenario(
-        "held8_turn_legs",
-        "wind 6 m/s from 000° turning to 090° mid-flight; legs",
-        SetWind(6, 0), Takeoff(), *LEGS, SetWind(6, 90), *LEGS[1:],
-    ),
-    vertical_scenario(
-        "held8_gust_circles",
-        "wind 5 m/s from 150° for about 80 s of circles",
-        Takeoff(), *CIRCLES[:2], SetWind(5, 150), *CIRCLES[2:6], SetWind(0), *CIRCLES[6:],
-        *LEGS[1:5],
-    ),
-    vertical_scenario(
-        "held8_payload_gust_fast",
-        "1 kg gripper payload from take-off; wind 6 m/s from 200° for about 60 s of long legs "
-        "at 8-9 m/s",
-        Grip(True), Hover(3), Takeoff(), *FAST_LEGS[:5], SetWind(6, 200), *FAST_LEGS[5:9],
-        SetWind(0), *FAST_LEGS[9:], *LEGS[1:5],
-    ),
-    vertical_scenario(
-        "held8_two_gusts_legs",
-        "wind 5 m/s from 100° for about 50 s, then 6 m/s from 330° for about 60 s, of legs",
-        Takeoff(), *LEGS[:3], SetWind(5, 100), *LEGS[3:6], SetWind(0), *LEGS[6:8],
-        SetWind(6, 330), *LEGS[8:], SetWind(0), *LEGS[1:6],
-    ),
-    vertical_scenario(
-        "held8_clean_legs_circles",
-        "no effect; legs, then circles",
-        Takeoff(), *LEGS, *CIRCLES[1:],
-    ),
-)
 # fmt: on

@@ -1,0 +1,211 @@
+"""The held-out effect flights of ``replay/sitl_held`` flown on fast legs and through wind
+changes (``uav-energy sitl-record held7`` … ``held9``), and every held-out set by name
+(:data:`HELD_SETS`; the earlier ones are :mod:`estimator.sitl.held_scenarios`).
+
+Each set was recorded right after the commit that defined it froze the online tracker and the
+residual analysis; none of it was tuned on (docs/residuals.md, "Held-out SITL flights"): the
+seventh after the tracker's 1σ carried the model's P(V) shape as a consider term; the eighth
+after its lag term decayed at the autopilot's time constant where the report stalls; the
+ninth after an undecided duel between a mass step and a wind change was reported as the
+mixture of the two. Steps as in :mod:`estimator.sitl.scenarios` (positions and velocities
+NED, m and m/s; durations s).
+"""
+
+from __future__ import annotations
+
+from estimator.sitl.held_scenarios import (
+    HELD_SCENARIOS,
+    HELD_SCENARIOS_2,
+    HELD_SCENARIOS_3,
+    HELD_SCENARIOS_4,
+    HELD_SCENARIOS_5,
+    HELD_SCENARIOS_6,
+    up_and_down,
+    vertical_scenario,
+)
+from estimator.sitl.scenarios import (
+    CIRCLES,
+    LEGS,
+    Grip,
+    Hover,
+    Leg,
+    Scenario,
+    SetWind,
+    Takeoff,
+    by_name,
+)
+
+# fmt: off
+#: Long legs at 8-9 m/s over ground, each way, with hovers between (the model's P(V) shape
+#: error grows with the airspeed).
+FAST_LEGS = (
+    Hover(15), Leg(9, 0, 15), Hover(5), Leg(-9, 0, 15), Hover(5), Leg(0, 8, 15), Hover(5),
+    Leg(0, -8, 15), Hover(5), Leg(6, 6, 15), Leg(-6, -6, 15), Hover(10),
+)
+
+#: The seventh held-out set (recorded after the commit that added it froze the online
+#: tracker's consider term for the model's P(V) shape and its mass term of 3 %; none of it
+#: tuned on): long fast legs with and without a payload, in still air, a steady wind and a
+#: gust, a release before them, a climb among them.
+HELD_SCENARIOS_7: dict[str, Scenario] = by_name(
+    vertical_scenario(
+        "held7_clean_fast_legs",
+        "no effect; long legs at 8-9 m/s each way, twice",
+        Takeoff(), *FAST_LEGS, *FAST_LEGS[1:],
+    ),
+    vertical_scenario(
+        "held7_wind_fast_legs",
+        "wind 6 m/s from 030° throughout; long legs at 8-9 m/s each way, twice",
+        SetWind(6, 30), Takeoff(), *FAST_LEGS, *FAST_LEGS[1:],
+    ),
+    vertical_scenario(
+        "held7_wind_fast_circles",
+        "wind 5 m/s from 250° throughout; circles, then long legs at 8-9 m/s",
+        SetWind(5, 250), Takeoff(), *CIRCLES, *FAST_LEGS[1:],
+    ),
+    vertical_scenario(
+        "held7_payload_fast_legs",
+        "1 kg gripper payload from take-off; long legs at 8-9 m/s each way, twice",
+        Grip(True), Hover(3), Takeoff(), *FAST_LEGS, *FAST_LEGS[1:],
+    ),
+    vertical_scenario(
+        "held7_payload_wind_fast",
+        "1 kg gripper payload from take-off; wind 4 m/s from 120° throughout; long legs at "
+        "8-9 m/s, then legs",
+        SetWind(4, 120), Grip(True), Hover(3), Takeoff(), *FAST_LEGS, *LEGS[1:],
+    ),
+    vertical_scenario(
+        "held7_release_fast_legs",
+        "1 kg gripper payload released in a hover; wind 3 m/s from 300°; then long legs at "
+        "8-9 m/s",
+        SetWind(3, 300), Grip(True), Hover(3), Takeoff(), *LEGS[:4], Hover(10), Grip(False),
+        Hover(10), *FAST_LEGS[1:],
+    ),
+    vertical_scenario(
+        "held7_gust_fast_legs",
+        "wind 7 m/s from 180° for about 60 s of long legs at 8-9 m/s",
+        Takeoff(), *FAST_LEGS[:5], SetWind(7, 180), *FAST_LEGS[5:], SetWind(0), *FAST_LEGS[1:],
+    ),
+    vertical_scenario(
+        "held7_wind_climbs_fast",
+        "wind 5 m/s from 330° throughout; long legs at 8-9 m/s, a climb at 3 m/s and a descent "
+        "at 2 m/s over 20 m",
+        SetWind(5, 330), Takeoff(), *FAST_LEGS, *up_and_down(3, 2, 20), *FAST_LEGS[1:6],
+    ),
+)
+
+#: The eighth held-out set (recorded after the commit that added it froze the online
+#: tracker's lag term that decays at the autopilot's time constant when the report stalls;
+#: none of it tuned on): onsets, stops, turns and gusts of the wind on slow and fast legs and
+#: circles, one with the payload, and a still-air flight.
+HELD_SCENARIOS_8: dict[str, Scenario] = by_name(
+    vertical_scenario(
+        "held8_gust_legs",
+        "wind 6 m/s from 250° for about 70 s of legs",
+        Takeoff(), *LEGS[:4], SetWind(6, 250), *LEGS[4:8], SetWind(0), *LEGS[8:], *LEGS[1:5],
+    ),
+    vertical_scenario(
+        "held8_onset_fast_legs",
+        "wind 7 m/s from 045° switched on mid-flight; long legs at 8-9 m/s",
+        Takeoff(), *FAST_LEGS[:6], SetWind(7, 45), *FAST_LEGS[6:], *FAST_LEGS[1:],
+    ),
+    vertical_scenario(
+        "held8_stop_fast_legs",
+        "wind 6 m/s from 300° from take-off, stopped mid-flight; long legs at 8-9 m/s",
+        SetWind(6, 300), Takeoff(), *FAST_LEGS, SetWind(0), *FAST_LEGS[1:],
+    ),
+    vertical_scenario(
+        "held8_turn_legs",
+        "wind 6 m/s from 000° turning to 090° mid-flight; legs",
+        SetWind(6, 0), Takeoff(), *LEGS, SetWind(6, 90), *LEGS[1:],
+    ),
+    vertical_scenario(
+        "held8_gust_circles",
+        "wind 5 m/s from 150° for about 80 s of circles",
+        Takeoff(), *CIRCLES[:2], SetWind(5, 150), *CIRCLES[2:6], SetWind(0), *CIRCLES[6:],
+        *LEGS[1:5],
+    ),
+    vertical_scenario(
+        "held8_payload_gust_fast",
+        "1 kg gripper payload from take-off; wind 6 m/s from 200° for about 60 s of long legs "
+        "at 8-9 m/s",
+        Grip(True), Hover(3), Takeoff(), *FAST_LEGS[:5], SetWind(6, 200), *FAST_LEGS[5:9],
+        SetWind(0), *FAST_LEGS[9:], *LEGS[1:5],
+    ),
+    vertical_scenario(
+        "held8_two_gusts_legs",
+        "wind 5 m/s from 100° for about 50 s, then 6 m/s from 330° for about 60 s, of legs",
+        Takeoff(), *LEGS[:3], SetWind(5, 100), *LEGS[3:6], SetWind(0), *LEGS[6:8],
+        SetWind(6, 330), *LEGS[8:], SetWind(0), *LEGS[1:6],
+    ),
+    vertical_scenario(
+        "held8_clean_legs_circles",
+        "no effect; legs, then circles",
+        Takeoff(), *LEGS, *CIRCLES[1:],
+    ),
+)
+#: The ninth held-out set (recorded after the commit that added it reported an undecided
+#: duel between a mass step and a wind change as the mixture of the two; none of it tuned
+#: on): payload releases between legs in forward flight, wind stops, onsets and turns on slow
+#: and fast legs and circles, with and without the payload, and a still-air flight.
+HELD_SCENARIOS_9: dict[str, Scenario] = by_name(
+    vertical_scenario(
+        "held9_release_between_legs",
+        "1 kg gripper payload from take-off, released between two legs without a hover; legs",
+        Grip(True), Hover(3), Takeoff(), *LEGS[:6], Grip(False), *LEGS[6:], *LEGS[1:5],
+    ),
+    vertical_scenario(
+        "held9_release_wind_fast",
+        "1 kg gripper payload from take-off, released between two fast legs; wind 5 m/s from "
+        "060° throughout; long legs at 8-9 m/s",
+        SetWind(5, 60), Grip(True), Hover(3), Takeoff(), *FAST_LEGS[:6], Grip(False),
+        *FAST_LEGS[6:], *FAST_LEGS[1:6],
+    ),
+    vertical_scenario(
+        "held9_gust_then_release",
+        "1 kg gripper payload from take-off; wind 6 m/s from 140° for about 60 s of legs, then "
+        "the payload released between legs",
+        Grip(True), Hover(3), Takeoff(), *LEGS[:3], SetWind(6, 140), *LEGS[3:7], SetWind(0),
+        *LEGS[7:], *LEGS[1:3], Grip(False), *LEGS[3:6],
+    ),
+    vertical_scenario(
+        "held9_stop_slow_legs",
+        "wind 5 m/s from 200° from take-off, stopped mid-flight; legs",
+        SetWind(5, 200), Takeoff(), *LEGS, SetWind(0), *LEGS[1:],
+    ),
+    vertical_scenario(
+        "held9_onset_circles",
+        "wind 6 m/s from 320° switched on mid-flight; circles, then legs",
+        Takeoff(), *CIRCLES[:3], SetWind(6, 320), *CIRCLES[3:], *LEGS[1:6],
+    ),
+    vertical_scenario(
+        "held9_payload_stop_legs",
+        "1 kg gripper payload from take-off; wind 5 m/s from 010° from take-off, stopped "
+        "mid-flight; legs",
+        SetWind(5, 10), Grip(True), Hover(3), Takeoff(), *LEGS, SetWind(0), *LEGS[1:],
+    ),
+    vertical_scenario(
+        "held9_reversal_fast_legs",
+        "wind 5 m/s from 270° turning to 090° mid-flight; long legs at 8-9 m/s",
+        SetWind(5, 270), Takeoff(), *FAST_LEGS, SetWind(5, 90), *FAST_LEGS[1:],
+    ),
+    vertical_scenario(
+        "held9_clean_circles_fast",
+        "no effect; circles, then long legs at 8-9 m/s",
+        Takeoff(), *CIRCLES, *FAST_LEGS[1:],
+    ),
+)
+
+#: Every held-out set by the name ``uav-energy sitl-record`` records it under.
+HELD_SETS: dict[str, dict[str, Scenario]] = {
+    "held": HELD_SCENARIOS,
+    "held2": HELD_SCENARIOS_2,
+    "held3": HELD_SCENARIOS_3,
+    "held4": HELD_SCENARIOS_4,
+    "held5": HELD_SCENARIOS_5,
+    "held6": HELD_SCENARIOS_6,
+    "held7": HELD_SCENARIOS_7,
+    "held8": HELD_SCENARIOS_8,
+    "held9": HELD_SCENARIOS_9,
+}
+# fmt: on
