@@ -431,3 +431,17 @@ def test_an_undecided_duel_is_reported_as_the_mixture_of_its_two_hypotheses() ->
     tracker._loglik += 20.0  # the estimate's hypothesis far likelier: it alone is reported
     assert tracker.mass_delta_kg == pytest.approx(own_x[2])
     assert tracker.sigma["mass_kg"] == pytest.approx(alone)
+
+
+def test_a_report_that_stays_apart_at_chi2_1_percent_for_three_steps_is_a_change() -> None:
+    """A wind that stopped: the report at 0 for three steps, the estimate still at 3.5 m/s
+    with a 1σ of 0.5 m/s (squared distance 9.8 with the report's 1 m/s, between χ²₂ at 1 %
+    and at 0.1 %): the third step is a change the autopilot saw; a report 2 m/s apart is
+    not (3.2)."""
+    watcher = AutopilotWind(OnlineSettings())
+    watcher.take(WindSample(10.0, 0.0, 0.0))
+    p = np.diag([0.25, 0.25, 0.01])
+    near = np.array([0.0, 2.0, 0.0])
+    assert not any(watcher.saw_a_change(near, p) for _ in range(5))
+    stale = np.array([0.0, 3.5, 0.0])
+    assert [watcher.saw_a_change(stale, p) for _ in range(3)] == [False, False, True]

@@ -89,9 +89,12 @@ class OnlineSettings:
     autopilot_wind_max_age_s: float = 10.0
     autopilot_wind_active_mps: float = 0.1
     #: A wind change the autopilot saw: its report this far from the estimate (squared
-    #: Mahalanobis distance with the report's own 1σ; 13.8 = χ²₂ at 0.1 %) on this many steps
-    #: in a row reopens the wind's variance, as a change found in the power does.
-    autopilot_wind_change_chi2: float = 13.8
+    #: Mahalanobis distance with the report's own 1σ; 9.21 = χ²₂ at 1 %) on this many steps
+    #: in a row reopens the wind's variance, as a change found in the power does. At χ²₂ at
+    #: 0.1 % (13.8) a wind that stopped on slow legs was missed for minutes while the report
+    #: said so at 10–11 (ArduCopter SITL: held8_gust_legs, held9_payload_stop_legs), where the
+    #: power alone, its sign turning with each leg, never raised an alarm.
+    autopilot_wind_change_chi2: float = 9.21
     autopilot_wind_change_steps: int = 3
     #: Added to the reported wind 1σ, not to the covariance: the report's lag behind the wind
     #: (``AutopilotWind.lag_ne_mps``), the EKF's time constant (s; ArduCopter SITL's wind

@@ -1,5 +1,5 @@
 """The held-out effect flights of ``replay/sitl_held`` flown on fast legs and through wind
-changes (``uav-energy sitl-record held7`` … ``held9``), and every held-out set by name
+changes (``uav-energy sitl-record held7`` … ``held10``), and every held-out set by name
 (:data:`HELD_SETS`; the earlier ones are :mod:`estimator.sitl.held_scenarios`).
 
 Each set was recorded right after the commit that defined it froze the online tracker and the
@@ -7,7 +7,8 @@ residual analysis; none of it was tuned on (docs/residuals.md, "Held-out SITL fl
 seventh after the tracker's 1σ carried the model's P(V) shape as a consider term; the eighth
 after its lag term decayed at the autopilot's time constant where the report stalls; the
 ninth after an undecided duel between a mass step and a wind change was reported as the
-mixture of the two. Steps as in :mod:`estimator.sitl.scenarios` (positions and velocities
+mixture of the two; the tenth after the autopilot's report was taken as a wind change at
+χ²₂ at 1 %. Steps as in :mod:`estimator.sitl.scenarios` (positions and velocities
 NED, m and m/s; durations s).
 """
 
@@ -196,6 +197,56 @@ HELD_SCENARIOS_9: dict[str, Scenario] = by_name(
     ),
 )
 
+#: The tenth held-out set (recorded after the commit that added it took the autopilot's report
+#: as a wind change at χ²₂ at 1 % for three steps; none of it tuned on): wind stops,
+#: weakenings, onsets and turns on slow and fast legs and circles, with and without the
+#: payload, a release after a stop, and a still-air flight.
+HELD_SCENARIOS_10: dict[str, Scenario] = by_name(
+    vertical_scenario(
+        "held10_stop_cross_legs",
+        "wind 5 m/s from 090° from take-off, stopped mid-flight; legs",
+        SetWind(5, 90), Takeoff(), *LEGS, SetWind(0), *LEGS[1:],
+    ),
+    vertical_scenario(
+        "held10_payload_gust_legs",
+        "1 kg gripper payload from take-off; wind 5 m/s from 330° for about 70 s of legs",
+        Grip(True), Hover(3), Takeoff(), *LEGS[:4], SetWind(5, 330), *LEGS[4:8], SetWind(0),
+        *LEGS[8:], *LEGS[1:5],
+    ),
+    vertical_scenario(
+        "held10_weaken_legs",
+        "wind 7 m/s from 220° from take-off, weakening to 3 m/s mid-flight; legs",
+        SetWind(7, 220), Takeoff(), *LEGS, SetWind(3, 220), *LEGS[1:],
+    ),
+    vertical_scenario(
+        "held10_stop_circles",
+        "wind 5 m/s from 045° from take-off, stopped mid-flight; circles, then legs",
+        SetWind(5, 45), Takeoff(), *CIRCLES, SetWind(0), *CIRCLES[1:], *LEGS[1:5],
+    ),
+    vertical_scenario(
+        "held10_onset_slow_legs",
+        "wind 4 m/s from 160° switched on mid-flight; legs",
+        Takeoff(), *LEGS, SetWind(4, 160), *LEGS[1:],
+    ),
+    vertical_scenario(
+        "held10_release_after_stop",
+        "1 kg gripper payload from take-off; wind 5 m/s from 280° from take-off, stopped "
+        "mid-flight; then the payload released between legs",
+        SetWind(5, 280), Grip(True), Hover(3), Takeoff(), *LEGS, SetWind(0), *LEGS[1:6],
+        Grip(False), *LEGS[6:],
+    ),
+    vertical_scenario(
+        "held10_turn_fast_legs",
+        "wind 6 m/s from 120° turning to 210° mid-flight; long legs at 8-9 m/s",
+        SetWind(6, 120), Takeoff(), *FAST_LEGS, SetWind(6, 210), *FAST_LEGS[1:],
+    ),
+    vertical_scenario(
+        "held10_clean_legs_fast",
+        "no effect; legs, then long legs at 8-9 m/s",
+        Takeoff(), *LEGS, *FAST_LEGS[1:],
+    ),
+)
+
 #: Every held-out set by the name ``uav-energy sitl-record`` records it under.
 HELD_SETS: dict[str, dict[str, Scenario]] = {
     "held": HELD_SCENARIOS,
@@ -207,5 +258,6 @@ HELD_SETS: dict[str, dict[str, Scenario]] = {
     "held7": HELD_SCENARIOS_7,
     "held8": HELD_SCENARIOS_8,
     "held9": HELD_SCENARIOS_9,
+    "held10": HELD_SCENARIOS_10,
 }
 # fmt: on
