@@ -15,12 +15,22 @@ import pytest
 from estimator.errors import UserError
 from estimator.estimation.airborne import TAKEOFF_SETTLE_S
 from estimator.estimation.autopilot_wind import AutopilotWind
-from estimator.estimation.online_effects import OnlineEffects, _Hypothesis
+from estimator.estimation.hypotheses import Hypothesis
+from estimator.estimation.online_effects import OnlineEffects
 from estimator.estimation.online_settings import OnlineSettings
 from estimator.estimation.track_runner import TrackPoint, track_samples
 from estimator.logs import iter_samples
 from estimator.physics.effect_tables import effects_to_tables
-from estimator.physics.effects import Climb, Effect, Mass, PowerContext, Wind, wind_from_vector
+from estimator.physics.effects import (
+    Climb,
+    Effect,
+    FlightState,
+    Mass,
+    PowerContext,
+    Wind,
+    predict_power_w,
+    wind_from_vector,
+)
 from estimator.physics.vehicle import Vehicle, default_vehicle, load_vehicle
 from estimator.sim.files import write_tlog
 from estimator.sim.plans import Leg, Plan
@@ -422,7 +432,7 @@ def test_an_undecided_duel_is_reported_as_the_mixture_of_its_two_hypotheses() ->
     own_x, own_p = tracker._x.copy(), tracker._p.copy()
     alone = tracker.sigma["mass_kg"]
     rival_x = own_x + np.array([2.0, 0.0, -0.4])
-    tracker._rival = _Hypothesis(rival_x, own_p, tracker._form, tracker._loglik)
+    tracker._rival = Hypothesis(rival_x, own_p, tracker._form, tracker._loglik)
     assert tracker.mass_delta_kg == pytest.approx(own_x[2] - 0.2)
     assert tracker.wind.vector_ne_mps()[0] == pytest.approx(own_x[0] + 1.0)
     assert tracker.sigma["mass_kg"] == pytest.approx(math.hypot(alone, 0.2), rel=0.05)
@@ -445,3 +455,23 @@ def test_a_report_that_stays_apart_at_chi2_1_percent_for_three_steps_is_a_change
     assert not any(watcher.saw_a_change(near, p) for _ in range(5))
     stale = np.array([0.0, 3.5, 0.0])
     assert [watcher.saw_a_change(stale, p) for _ in range(3)] == [False, False, True]
+
+
+def test_the_step_after_an_alarm_whose_readings_straddled_the_change_completes_it() -> None:
+    """A 2 kg payload picked up in hover in the middle of a step: that step's power is half
+    way, the alarm's redo leaves the mass half way with the 1σ of a settled one, and the next
+    step, beyond the gate of that estimate, is the rest of the change, not an outlier."""
+    tracker = OnlineEffects.from_vehicle(VEHICLE)
+
+    def hover_w(mass_kg: float) -> float:
+        state = FlightState(*(np.zeros(1) for _ in range(7)), voltage_v=np.full(1, np.nan))
+        return float(predict_power_w(VEHICLE.model, VEHICLE.mass_kg, state, [Mass(mass_kg)])[0])
+
+    before_w, after_w = hover_w(0.0), hover_w(2.0)
+    for k in range(20):
+        tracker.update(2.0 * k, 0.0, 0.0, 0.0, 0.0, 0.0, before_w)
+    tracker.update(40.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.5 * (before_w + after_w))
+    assert tracker.changes == 1 and 0.5 < tracker.mass_delta_kg < 1.5
+    tracker.update(42.0, 0.0, 0.0, 0.0, 0.0, 0.0, after_w)
+    assert abs(tracker.mass_delta_kg - 2.0) < 0.15
+    assert tracker.changes == 1  # the same change

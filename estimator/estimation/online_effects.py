@@ -51,18 +51,18 @@ estimate quiet follows a step only at its own pace (a 1 kg release took about a 
 step's normalised innovation feeds a two-sided CUSUM
 (:mod:`~estimator.estimation.change_detector`, drift ``cusum_drift_sigma``, threshold
 ``cusum_threshold_sigma``). On an alarm the step is undone and redone from the prior with the
-uncertainty of a changed state back at its initial value (its cross-covariances cleared). In
-hover that state is the mass (a wind shows in hover only through translational lift, weakly,
+uncertainty of a changed state back at its initial value (its cross-covariances cleared), and
+(outside the duel below) so is the step after it when its innovation is beyond the gate: a
+change that came in the middle of the alarm's step left that step's readings straddling it
+and the estimate half way with the 1σ of a settled one, and the step after is then the rest
+of the change, not an outlier (ArduCopter SITL: a release in hover read 0.5 kg with a 1σ of
+0.07 kg for a step, 7.8–8.2σ).
+In hover that state is the mass (a wind shows in hover only through translational lift, weakly,
 and is held there, below). In forward flight a payload step and a wind change both move the
-power, so both hypotheses run side by side, each its own filter from the same prior (one with
-the mass widened, one with the wind): the likelier one by the summed innovation log-likelihood
-−½(ν² + ln S) is the estimate, and the other is dropped once the ratio passes
-``hypothesis_nats`` (100:1) or after ``hypothesis_max_steps`` steps, a multiple-model test that
-the next change of speed or heading, where a wind and a mass differ, settles. Until then the
-estimate reported and applied is the two hypotheses' mixture, each weighted by its likelihood:
-read as the leader alone, a duel led by a fraction of a nat had the tracker report a wind
-change as a 0.4 kg mass step at 3.6–5.1σ (ArduCopter SITL, four held8_* flights). ``changes``
-counts the alarms.
+power, so both hypotheses run side by side (one with the mass widened, one with the wind) until
+one is ``hypothesis_nats`` likelier or ``hypothesis_max_steps`` have passed, the estimate
+their mixture till then (:mod:`~estimator.estimation.hypotheses`). ``changes`` counts the
+alarms.
 A step takes one reading or several taken close together (:meth:`~OnlineEffects.update_readings`;
 the pipeline gives it the readings of each ``track_period_s``): their mean measured power
 against the mean of the predictions at each reading's own flight state, with the noise of a mean
@@ -111,6 +111,7 @@ import numpy as np
 from estimator.estimation.autopilot_wind import AutopilotWind, mahalanobis2
 from estimator.estimation.change_detector import ChangeDetector
 from estimator.estimation.form_error import carried, form_power_w
+from estimator.estimation.hypotheses import Hypothesis, duel, mixture
 from estimator.estimation.kalman import MerweSigmaPoints
 from estimator.estimation.online_settings import OnlineSettings
 from estimator.estimation.tracker_readings import TrackerReading, select_readings
@@ -147,21 +148,6 @@ class _Step(NamedTuple):
     noise_var_w2: float
     moving: bool
     form_w: float
-
-
-class _Hypothesis(NamedTuple):
-    """A filter state [w_n, w_e, δm, b] with covariance and its sensitivity to the model
-    form's error (:mod:`~estimator.estimation.form_error`), its summed innovation
-    log-likelihood, and its last step's normalised innovation (None: no update), squared
-    innovation (W²) and innovation variance (W²)."""
-
-    x: np.ndarray
-    p: np.ndarray
-    form: np.ndarray
-    loglik: float = 0.0
-    nu: float | None = None
-    y2: float = 0.0
-    s_var: float = 1.0
 
 
 class OnlineEffects:
@@ -219,8 +205,9 @@ class OnlineEffects:
         self._detector = ChangeDetector(s.cusum_drift_sigma, s.cusum_threshold_sigma)
         self._hovering = False  # the last step was in hover (wind held)
         self._loglik = 0.0  # the estimate's summed innovation log-likelihood (while in a duel)
-        self._rival: _Hypothesis | None = None  # the other hypothesis after a change
+        self._rival: Hypothesis | None = None  # the other hypothesis after a change
         self._duel_steps = 0
+        self._changing = False  # the last step raised a change alarm
         #: Measurement noise beyond the configured one, learnt from the innovations, W².
         self.extra_noise_var_w2 = 0.0
         self._hover_w = model.hover_power_w
@@ -255,22 +242,10 @@ class OnlineEffects:
 
     def _reported(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """The estimate it reports and applies: state, covariance and sensitivity to the
-        model form's error. Outside a duel, the filter's own. While two hypotheses run
-        after a change, their mixture, each weighted by its likelihood (the moments of a
-        Gaussian sum: Magill 1965; Bar-Shalom, Li & Kirubarajan 2001, §11.6): the mean
-        between them and a covariance that spans both, so an undecided duel is reported
-        as undecided and its state stays unidentified rather than confidently the leader's."""
-        rival = self._rival
-        if rival is None:
-            return self._x, self._p, self._form
-        w_rival = 1.0 / (1.0 + math.exp(min(self._loglik - rival.loglik, 700.0)))
-        w_main = 1.0 - w_rival
-        x = w_main * self._x + w_rival * rival.x
-        d_main, d_rival = self._x - x, rival.x - x
-        p = w_main * (self._p + np.outer(d_main, d_main)) + w_rival * (
-            rival.p + np.outer(d_rival, d_rival)
-        )
-        return x, p, w_main * self._form + w_rival * rival.form
+        model form's error; while two hypotheses run after a change, their mixture
+        (:func:`~estimator.estimation.hypotheses.mixture`)."""
+        own = Hypothesis(self._x, self._p, self._form, self._loglik)
+        return own[:3] if self._rival is None else mixture(own, self._rival)
 
     @property
     def wind(self) -> Wind:
@@ -391,7 +366,7 @@ class OnlineEffects:
         """Keep the autopilot's latest wind estimate for the next steps."""
         self.autopilot.take(sample)
 
-    def _with_autopilot_wind(self, h: _Hypothesis, var: float) -> _Hypothesis | None:
+    def _with_autopilot_wind(self, h: Hypothesis, var: float) -> Hypothesis | None:
         """``h`` after the autopilot's report of variance ``var`` (m²/s², per component);
         None when it is beyond ``gate_sigma`` of the estimate."""
         taken = self.autopilot.update(h.x, h.p, var)
@@ -487,9 +462,7 @@ class OnlineEffects:
         )
         reopen = step.moving and self._hovering
         self._hovering = not step.moving
-        main = self._prior(
-            _Hypothesis(self._x, self._p, self._form, self._loglik), decay, q, reopen
-        )
+        main = self._prior(Hypothesis(self._x, self._p, self._form, self._loglik), decay, q, reopen)
         wind_var = self.autopilot.variance(time_s, dt)
         if wind_var is not None:
             if self.autopilot.saw_a_change(main.x, main.p):
@@ -503,14 +476,14 @@ class OnlineEffects:
         file_x = np.array([*self._file_wind_ne_mps, self._file_mass_kg(), *main.x[3:]])
         done, (estimate_w, file_w) = self._step(main, step, np.vstack([main.x, file_x]))
         self.last_step_w = (step.measured_w, estimate_w, file_w)
+        changing, self._changing = self._changing, False
         if self._rival is not None:
             rival = self._prior(self._rival, decay, q, reopen)
             if wind_var is not None:
                 rival = self._with_autopilot_wind(rival, wind_var) or rival
             rival, _ = self._step(rival, step)
             main, self._rival = self._duel(done, rival)
-        elif done.nu is not None and self._detector.alarm(done.nu):
-            self.changes += 1
+        elif done.nu is not None and self._change_goes_on(done.nu, changing):
             # redo the step from the prior with the changed state's uncertainty restored; in
             # forward flight two hypotheses (a mass step, a wind change) run side by side
             mass_step, _ = self._step(main._replace(p=self._widened(main.p, False)), step)
@@ -534,7 +507,16 @@ class OnlineEffects:
         self._x, self._p, self._form, self._loglik = main.x, main.p, main.form, main.loglik
         return self.effects
 
-    def _prior(self, h: _Hypothesis, decay: np.ndarray, q: np.ndarray, reopen: bool) -> _Hypothesis:
+    def _change_goes_on(self, nu: float, changing: bool) -> bool:
+        """Whether the step of normalised innovation ``nu`` starts a change (an alarm of the
+        CUSUM, counted in ``changes``) or, ``changing`` (the step before started one), is the
+        rest of it: beyond the gate right after the alarm (see the module docstring)."""
+        started = self._detector.alarm(nu)
+        self.changes += started
+        self._changing = started
+        return started or (changing and abs(nu) > self.settings.gate_sigma)
+
+    def _prior(self, h: Hypothesis, decay: np.ndarray, q: np.ndarray, reopen: bool) -> Hypothesis:
         """A hypothesis' prior for a step: each state times its ``decay`` (1 for the random
         walks, the model error's memory for b) and the process noise ``q`` added;
         ``reopen``: the vehicle starts moving after a hover (see the module docstring)."""
@@ -543,11 +525,11 @@ class OnlineEffects:
         if reopen and not wind_known:
             p = self._widened(p, wind=False)
         x = np.array(h.x, dtype=float) * decay
-        return _Hypothesis(x, 0.5 * (p + p.T), h.form * decay, h.loglik)
+        return Hypothesis(x, 0.5 * (p + p.T), h.form * decay, h.loglik)
 
     def _step(
-        self, prior: _Hypothesis, step: _Step, extra: np.ndarray | None = None
-    ) -> tuple[_Hypothesis, list[float]]:
+        self, prior: Hypothesis, step: _Step, extra: np.ndarray | None = None
+    ) -> tuple[Hypothesis, list[float]]:
         """One filter step of a hypothesis: the updated one (the prior itself when the
         innovation is beyond the gate or the covariance broke), and the mean model powers (W)
         of the step's readings at the points ``extra`` (one state a row), from the same
@@ -557,7 +539,7 @@ class OnlineEffects:
             drawn_p, sigmas = self._draw(prior.x, prior.p, step.moving)
         except np.linalg.LinAlgError:  # covariance lost positive definiteness: start it over
             self.resets += 1
-            prior = _Hypothesis(prior.x, np.diag(self._initial_var), prior.form, prior.loglik)
+            prior = Hypothesis(prior.x, np.diag(self._initial_var), prior.form, prior.loglik)
             drawn_p, sigmas = self._draw(prior.x, prior.p, step.moving)
         points = sigmas if extra is None else np.vstack([sigmas, extra])
         powers_w = self._powers_w(points, step.rows).mean(axis=1)
@@ -569,13 +551,13 @@ class OnlineEffects:
             )
         except np.linalg.LinAlgError:  # covariance lost positive definiteness: start it over
             self.resets += 1
-            restart = _Hypothesis(prior.x, np.diag(self._initial_var), prior.form, prior.loglik)
+            restart = Hypothesis(prior.x, np.diag(self._initial_var), prior.form, prior.loglik)
             return restart, extra_w
         y2, s_var = post.y**2, post.s_var
         nu = post.y / math.sqrt(s_var)
         loglik = prior.loglik - 0.5 * (y2 / s_var + math.log(s_var))
         if abs(nu) > s.gate_sigma:
-            gated = _Hypothesis(prior.x, prior.p, prior.form, loglik, nu, y2, s_var)
+            gated = Hypothesis(prior.x, prior.p, prior.form, loglik, nu, y2, s_var)
             return gated, extra_w
         x, p = post.x, 0.5 * (post.p + post.p.T)
         form = carried(prior.form, drawn_p, p) + post.gain * step.form_w
@@ -586,21 +568,14 @@ class OnlineEffects:
         wind_mps = math.hypot(x[0], x[1])
         if wind_mps > s.max_wind_mps:
             x[:2] *= s.max_wind_mps / wind_mps
-        return _Hypothesis(x, p, form, loglik, nu, y2, s_var), extra_w
+        return Hypothesis(x, p, form, loglik, nu, y2, s_var), extra_w
 
-    def _duel(
-        self, first: _Hypothesis, second: _Hypothesis
-    ) -> tuple[_Hypothesis, _Hypothesis | None]:
+    def _duel(self, first: Hypothesis, second: Hypothesis) -> tuple[Hypothesis, Hypothesis | None]:
         """Two hypotheses after a change in forward flight: the likelier one is the estimate,
-        the other its rival until the log-likelihood ratio exceeds ``hypothesis_nats`` or
-        ``hypothesis_max_steps`` steps have passed (then it is dropped)."""
-        s = self.settings
+        the other its rival until :func:`~estimator.estimation.hypotheses.duel` decides."""
         self._duel_steps += 1
-        lead, trail = (first, second) if first.loglik >= second.loglik else (second, first)
-        decided = lead.loglik - trail.loglik > s.hypothesis_nats
-        if decided or self._duel_steps >= s.hypothesis_max_steps:
-            return lead, None
-        return lead, trail
+        s = self.settings
+        return duel(first, second, self._duel_steps, s.hypothesis_nats, s.hypothesis_max_steps)
 
     def _draw(self, x: np.ndarray, p: np.ndarray, moving: bool) -> tuple[np.ndarray, np.ndarray]:
         """The covariance the update uses and the sigma points drawn from it around the
