@@ -244,8 +244,9 @@ class OnlineEffects:
         """The estimate it reports and applies: state, covariance and sensitivity to the
         model form's error; while two hypotheses run after a change, their mixture
         (:func:`~estimator.estimation.hypotheses.mixture`)."""
-        own = Hypothesis(self._x, self._p, self._form, self._loglik)
-        return own[:3] if self._rival is None else mixture(own, self._rival)
+        if self._rival is None:
+            return self._x, self._p, self._form
+        return mixture(Hypothesis(self._x, self._p, self._form, self._loglik), self._rival)
 
     @property
     def wind(self) -> Wind:
