@@ -126,36 +126,37 @@ def restart_misses(packs: ModuleType, half: str = "tuning") -> str:
     return f"{' and '.join(parts)} {verb} {bound:.0f} % at 60 s, {where} {whose} σ"
 
 
-def _px4_pct(packs: ModuleType, speed_mps: float, after_s: float) -> float:
+def _px4_pct(ensemble: ModuleType, speed_mps: float, after_s: float) -> float:
     """The PX4-style figure's error (%) ``after_s`` after the change to ``speed_mps``."""
-    _, truth_s, px4_s = figures_after_change(packs._hover_cruise(speed_mps), after_s)
+    _, truth_s, px4_s = figures_after_change(ensemble._hover_cruise(speed_mps), after_s)
     return 100 * (px4_s / truth_s - 1)
 
 
-def px4_lag(packs: ModuleType) -> str:
+def px4_lag(ensemble: ModuleType) -> str:
     speed_mps, after_s = LAG_AT
-    return f"{_px4_pct(packs, speed_mps, after_s):+.0f} % at {speed_mps:.0f} m/s"
+    return f"{_px4_pct(ensemble, speed_mps, after_s):+.0f} % at {speed_mps:.0f} m/s"
 
 
-def px4_mid_flight(packs: ModuleType) -> str:
-    errors = [_px4_pct(packs, v, t) for v in (10.0, 14.0) for t in MID_FLIGHT_S]
+def px4_mid_flight(ensemble: ModuleType) -> str:
+    errors = [_px4_pct(ensemble, v, t) for v in (10.0, 14.0) for t in MID_FLIGHT_S]
     return f"{min(errors):.1f}–{max(errors):.1f} %"
 
 
 def generators(
-    packs: ModuleType, period_ends: ModuleType, trust: ModuleType
+    packs: ModuleType, ensemble: ModuleType, period_ends: ModuleType, trust: ModuleType
 ) -> dict[str, Callable[[], str]]:
-    """Block name → the function that prints it; ``packs``: ``scripts/pack_figures.py`` as
-    ``scripts/figures.py`` loaded it (its replays are cached there); ``period_ends``:
-    ``tests/period_ends.py``; ``trust``: ``bench/trust.py``."""
+    """Block name → the function that prints it; ``packs`` and ``ensemble``:
+    ``scripts/pack_figures.py`` and ``scripts/ensemble_figures.py`` as ``scripts/figures.py``
+    loaded them (their results are cached there); ``period_ends``: ``tests/period_ends.py``;
+    ``trust``: ``bench/trust.py``."""
     return {
         "pack-sitl-curve": curve,
         "pack-sitl-curve-worst": curve_worst,
         "pack-sitl-unscored": lambda: unscored(packs),
         "pack-sitl-sigma-left": lambda: sigma_left(packs),
         "pack-sitl-restarts-tuning": lambda: restart_misses(packs),
-        "hover-cruise-px4-lag": lambda: px4_lag(packs),
-        "hover-cruise-px4-mid": lambda: px4_mid_flight(packs),
+        "hover-cruise-px4-lag": lambda: px4_lag(ensemble),
+        "hover-cruise-px4-mid": lambda: px4_mid_flight(ensemble),
         "period-end-apart": lambda: f"{period_ends.apart_pct():.2f} %",
         "state-restart-table": lambda: str(trust.restart_table(trust.flight())),
     }

@@ -27,7 +27,8 @@ the test that checks a slow one) and rewrites or checks the documents:
   ``sitl-slow-error`` (the recordings of ``replay/sitl`` and ``replay/sitl_held``);
 - ``tracker_figures.py``: ``tracker-sitl*``, ``tracker-cmu*`` (the online tracker),
   ``tracked-wind-sitl``;
-- ``pack_figures.py``: ``pack-sitl-*``, ``pack-ensemble-*``, ``hover-cruise-*``;
+- ``pack_figures.py``: ``pack-sitl-*``; ``ensemble_figures.py``: ``pack-ensemble-*``,
+  ``hover-cruise-*``;
   ``endurance_figures.py``: the prose figures around them (``pack-sitl-curve*``,
   ``pack-sitl-unscored``, ``pack-sitl-sigma-left``, ``pack-sitl-restarts-tuning``,
   ``hover-cruise-px4-*``, ``period-end-apart``) and ``state-restart-table``;
@@ -128,6 +129,7 @@ trackers = script_module("tracker_figures")
 tracker_sitl = script_module("tracker_sitl")
 tracker_cmu = script_module("tracker_cmu")
 pack_figures = script_module("pack_figures")
+ensemble_figures = script_module("ensemble_figures")
 
 register(iris.iris_generators(IRIS, fits), reads=IRIS)
 register(iris.generators())
@@ -168,9 +170,11 @@ register(
 )
 
 register(pack_figures.generators(script_module("pack_state_sitl")))
+register(ensemble_figures.generators())
 register(
     script_module("endurance_figures").generators(
         pack_figures,
+        ensemble_figures,
         script_module("period_ends", REPO / "tests"),
         script_module("trust", REPO / "bench"),
     )
