@@ -510,13 +510,12 @@ class EnergyFilter:
         ``b`` times a model power, so T scales as 1/b). Non-positive power: infinite time.
         """
         est = est or self.estimate()
-        power_w = np.atleast_1d(np.asarray(terminal_power_w, dtype=float))
+        power_w = np.array(terminal_power_w, dtype=float, ndmin=1)
         if est.energy_wh <= 0:
             return np.zeros_like(power_w), np.zeros_like(power_w)
         assert self.voltage is not None
         e_grid = est.energy_wh * _UNIT_GRID
-        real = self.real_pack
-        ocv = real.ocv_v(real.soc_from_energy(self._reserve_wh + e_grid))
+        ocv = self.real_pack.ocv_from_energy_v(self._reserve_wh + e_grid)
         positive = np.maximum(power_w, 1e-9)[:, None]
         terminal_v = self.voltage.terminal_voltage_v(ocv[None, :], positive)
         inv_drain = np.maximum(terminal_v, 1e-3) / (positive * ocv[None, :])

@@ -151,6 +151,13 @@ class PackModel:
         per_ah = float(energy_wh) / (self.spec.cells * self.spec.capacity_ah)
         return interp_scalar(per_ah, self._cum_list, self._soc_list)
 
+    def ocv_from_energy_v(self, energy_wh: ArrayLike) -> NDArray[np.float64]:
+        """Pack open-circuit voltage (V) where the pack holds ``energy_wh`` (Wh above empty):
+        :meth:`ocv_v` of :meth:`soc_from_energy` in one interpolation (both are linear on the
+        same table segments, so their composition is the table of OCV against energy)."""
+        per_ah = np.asarray(energy_wh, dtype=float) / (self.spec.cells * self.spec.capacity_ah)
+        return np.asarray(self.spec.cells * np.interp(per_ah, self._cum_wh_per_ah, self.cell_ocv_v))
+
     def ocv_v(self, soc: ArrayLike) -> NDArray[np.float64]:
         """Pack open-circuit voltage (V) at state of charge ``soc`` (clipped to [0, 1])."""
         s = np.clip(np.asarray(soc, dtype=float), 0.0, 1.0)
