@@ -129,41 +129,38 @@ ABOVE_FLOOR = {
 #: as a consider term (``estimation/form_error.py``), do most flights without a payload read
 #: 0.03 kg light when flown fast (held4_wind_strong_legs: 87 % within 2σ).
 TRACKER_SHORT = {
-    "held10_payload_gust_legs": "wind 72 % within 2σ, 4.0σ (4.3 m/s off) at 86 s",
-    "held10_release_after_stop": "wind 4.0σ (2.9 m/s off) at 278 s; mass 9.2σ (+0.68 kg) at 298 s",
+    "held10_payload_gust_legs": "wind 4.0σ (4.3 m/s off) at 86 s",
+    "held10_release_after_stop": "mass 9.2σ (+0.68 kg) at 298 s",
     "held10_stop_circles": "wind 3.4σ (4.6 m/s off) at 198 s",
     "held10_turn_fast_legs": "wind 10.0σ (8.2 m/s off) at 160 s; mass 89 % within 2σ (median "
     "-0.040 kg at 1σ 0.029 kg)",
-    "held2_gust_70s_circles": "wind 3.3σ (4.3 m/s off) at 162 s",
+    "held2_gust_70s_circles": "wind 3.2σ (4.3 m/s off) at 162 s",
     "held2_gust_85s_legs": "wind 4.5σ (6.3 m/s off) at 84 s",
     "held2_gust_90s_hovers": "wind 8.7σ (8.4 m/s off) at 174 s",
-    "held2_gust_payload_circles": "wind 79 % within 2σ",
     "held2_release_low": "mass 6.4σ (+0.48 kg) at 129 s",
-    "held2_wind_stop_vertical": "wind 6.0σ (6.8 m/s off) at 114 s",
+    "held2_wind_stop_vertical": "wind 5.8σ (6.8 m/s off) at 114 s",
     "held3_gust_45s_legs": "wind 87 % within 2σ, 8.7σ (7.4 m/s off) at 190 s; mass 85 % within 2σ "
     "(median -0.010 kg at 1σ 0.036 kg), 4.5σ (+0.16 kg) at 138 s",
     "held3_gust_75s_vertical": "wind 4.0σ (7.0 m/s off) at 162 s",
-    "held3_gust_payload_vertical": "wind 3.1σ (3.6 m/s off) at 190 s",
     "held3_release_high": "mass 3.8σ (+0.29 kg) at 132 s",
     "held4_wind_strong_legs": "mass 87 % within 2σ (median -0.028 kg at 1σ 0.023 kg), 3.1σ (+0.10 "
     "kg) at 18 s",
-    "held5_payload_onset_legs": "wind 69 % within 2σ",
     "held5_turn_legs": "wind 89 % within 2σ, 10.7σ (7.5 m/s off) at 144 s",
-    "held6_gust_payload_climbs": "wind 75 % within 2σ, 5.6σ (5.5 m/s off) at 96 s",
-    "held7_gust_fast_legs": "wind 4.1σ (7.1 m/s off) at 62 s",
-    "held8_onset_fast_legs": "wind 7.5σ (7.4 m/s off) at 78 s",
+    "held6_gust_payload_climbs": "wind 5.6σ (5.5 m/s off) at 96 s",
+    "held7_gust_fast_legs": "wind 3.8σ (7.1 m/s off) at 62 s",
+    "held8_onset_fast_legs": "wind 7.4σ (7.4 m/s off) at 78 s",
     "held8_payload_gust_fast": "wind 3.8σ (6.1 m/s off) at 61 s",
-    "held8_turn_legs": "wind 7.8σ (7.4 m/s off) at 234 s",
-    "held8_two_gusts_legs": "wind 79 % within 2σ, 3.4σ (3.2 m/s off) at 234 s",
+    "held8_turn_legs": "wind 6.2σ (7.4 m/s off) at 234 s",
+    "held8_two_gusts_legs": "wind 3.2σ (5.0 m/s off) at 74 s",
     "held9_gust_then_release": "mass 4.2σ (+0.30 kg) at 248 s",
-    "held9_reversal_fast_legs": "wind 85 % within 2σ, 12.4σ (9.6 m/s off) at 160 s",
+    "held9_reversal_fast_legs": "wind 85 % within 2σ, 12.3σ (9.6 m/s off) at 160 s",
     "held_clean_vertical": "mass 3.7σ (+0.39 kg) at 93 s",
-    "held_gust_60s": "wind 83 % within 2σ, 11.2σ (8.5 m/s off) at 140 s; mass 4.2σ (+0.15 kg) at "
+    "held_gust_60s": "wind 83 % within 2σ, 7.1σ (8.7 m/s off) at 124 s; mass 4.2σ (+0.15 kg) at "
     "148 s",
     "held_gust_90s_circles": "wind 7.0σ (6.5 m/s off) at 58 s",
     "held_gust_vertical": "wind 5.1σ (6.3 m/s off) at 96 s",
     "held_onset_vertical": "wind 3.4σ (5.0 m/s off) at 114 s",
-    "held_two_gusts": "wind 3.9σ (6.1 m/s off) at 180 s",
+    "held_two_gusts": "wind 3.2σ (6.1 m/s off) at 180 s",
 }
 
 

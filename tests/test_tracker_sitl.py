@@ -50,16 +50,14 @@ FITTED_ON = SCRIPT.FITTED_ON
 #: it moves, its lag and its gap from the estimate widen the reported 1σ:
 #: ``AutopilotWind.lag_ne_mps``, ``gap_ne_mps``).
 SHORT = {
-    "wind_onset": "wind 4.0σ (5.4 m/s off) at 120 s",
-    "wind_onset_circles": "wind 89 % within 2σ, 2.3σ (1.6 m/s off) at 120 s",
-    "wind_stop": "wind 6.7σ (6.7 m/s off) at 120 s",
-    "wind_turn": "wind 6.4σ (8.0 m/s off) at 100 s",
-    "lean2_clean_diag7": "mass 86 % within 2σ (median -0.040 kg at 1σ 0.035 kg), 2.5σ (-0.07 kg) "
-    "at 136 s",
+    "lean2_clean_diag7": "mass 86 % within 2σ (median -0.040 kg at 1σ 0.035 kg)",
     "outback_wind8": "mass 5.3σ (+0.22 kg) at 18 s",
     "release_wind2": "mass 18.3σ (+1.06 kg) at 49 s",
     "rtl_cross_wind7": "mass 77 % within 2σ (median -0.056 kg at 1σ 0.038 kg), 3.0σ (-0.08 kg) at "
     "150 s",
+    "wind_onset": "wind 4.0σ (5.4 m/s off) at 120 s",
+    "wind_stop": "wind 6.6σ (6.7 m/s off) at 120 s",
+    "wind_turn": "wind 6.3σ (8.0 m/s off) at 100 s",
 }
 SCENARIOS = [
     "clean_circles", "clean_legs", "clean_mission", "payload_release", "payload_takeoff",

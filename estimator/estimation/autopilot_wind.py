@@ -23,9 +23,9 @@ SITL: 2 m/s into a 7 m/s gust, held still 3.5 s, then rising on), its rate over 
 seconds falls to zero while the wind is still far, so the term is the larger of τ r' and
 its last value decayed by e^(−Δt/τ). And it can stop: in hover ArduCopter's EKF
 holds its wind (an onset or a stop arrives only once the vehicle moves). Where the report and
-the tracker's wind disagree beyond both their 1σ, one of them is wrong:
-:meth:`AutopilotWind.gap_ne_mps`. The tracker adds both to the 1σ it reports, not to its
-covariance (its estimate is unchanged).
+the tracker's wind disagree beyond both their 1σ, one of them is likely wrong, the more so
+the further apart they are: :meth:`AutopilotWind.gap_ne_mps`. The tracker adds both to the
+1σ it reports, not to its covariance (its estimate is unchanged).
 
 States: the tracker's [w_n, w_e, …] (NED m/s first, then its other states); times in s of
 the autopilot's clock.
@@ -127,18 +127,22 @@ class AutopilotWind:
         return s.autopilot_wind_sigma_mps**2 * max(s.autopilot_wind_correlation_s / dt, 1.0)
 
     def gap_ne_mps(self, x: np.ndarray, p: np.ndarray, time_s: float) -> tuple[float, float]:
-        """How far the latest fresh report is from the wind of state ``x`` (covariance ``p``;
-        m/s, north and east) when the two disagree beyond both their 1σ (squared Mahalanobis
-        distance beyond ``autopilot_wind_gap_chi2``): one of them is wrong — a change the
-        tracker has not taken up, or a report the EKF holds after the wind changed — and
-        the tracker's reported 1σ covers the gap. Zero when they agree or without a fresh
-        report."""
+        """The share of the latest fresh report's distance from the wind of state ``x``
+        (covariance ``p``; m/s, north and east) the tracker's reported 1σ covers: the gap
+        times the square root of the probability that one of the two is wrong — a change
+        the tracker has not taken up, or a report the EKF holds after the wind changed —
+        given their squared Mahalanobis distance d² (with both their variances). Where they
+        agree, d² follows χ²₂ (density ∝ e^(−d²/2)); where one is wrong, it is spread over
+        a far wider range (a flat density): the probability is the logistic
+        1 / (1 + e^(−(d² − d₀²)/2)), even odds at d₀² = ``autopilot_wind_gap_chi2``. So the
+        1σ grows with the disagreement, not all at once at a threshold (a covariance a
+        little wider used to drop the whole gap). Zero without a fresh report."""
         if not self.fresh(time_s):
             return 0.0, 0.0
         gap, _, distance2 = self._innovation(x, p, self.settings.autopilot_wind_sigma_mps**2)
-        if distance2 <= self.settings.autopilot_wind_gap_chi2:
-            return 0.0, 0.0
-        return float(gap[0]), float(gap[1])
+        odds_exponent = -0.5 * (distance2 - self.settings.autopilot_wind_gap_chi2)
+        weight = math.sqrt(1.0 / (1.0 + math.exp(min(odds_exponent, 700.0))))
+        return float(weight * gap[0]), float(weight * gap[1])
 
     def _innovation(
         self, x: np.ndarray, p: np.ndarray, var: float

@@ -1,5 +1,5 @@
 """The held-out effect flights of ``replay/sitl_held`` flown on fast legs and through wind
-changes (``uav-energy sitl-record held7`` … ``held10``), and every held-out set by name
+changes (``uav-energy sitl-record held7`` … ``held11``), and every held-out set by name
 (:data:`HELD_SETS`; the earlier ones are :mod:`estimator.sitl.held_scenarios`).
 
 Each set was recorded right after the commit that defined it froze the online tracker and the
@@ -8,7 +8,9 @@ seventh after the tracker's 1σ carried the model's P(V) shape as a consider ter
 after its lag term decayed at the autopilot's time constant where the report stalls; the
 ninth after an undecided duel between a mass step and a wind change was reported as the
 mixture of the two; the tenth after the autopilot's report was taken as a wind change at
-χ²₂ at 1 % and the step after a change alarm, beyond the gate, as the rest of the change.
+χ²₂ at 1 % and the step after a change alarm, beyond the gate, as the rest of the change; the
+eleventh after the report's gap from the estimate was weighed in the wind 1σ by the
+probability that the two disagree.
 Steps as in :mod:`estimator.sitl.scenarios` (positions and velocities
 NED, m and m/s; durations s).
 """
@@ -249,6 +251,57 @@ HELD_SCENARIOS_10: dict[str, Scenario] = by_name(
     ),
 )
 
+#: The eleventh held-out set (recorded after the commit that weighed the autopilot report's gap
+#: in the tracker's wind 1σ by the probability that the two disagree; none of it tuned on):
+#: gusts that end on legs, circles and fast legs, with and without the payload, a weakening,
+#: an onset, a turn, a release after a gust, and a still-air flight.
+HELD_SCENARIOS_11: dict[str, Scenario] = by_name(
+    vertical_scenario(
+        "held11_gust_end_legs",
+        "wind 6 m/s from 030° for about 60 s of legs; legs",
+        Takeoff(), *LEGS[:3], SetWind(6, 30), *LEGS[3:7], SetWind(0), *LEGS[7:], *LEGS[1:4],
+    ),
+    vertical_scenario(
+        "held11_payload_gust_circles",
+        "1 kg gripper payload from take-off; wind 4 m/s from 250° for about 70 s of circles; "
+        "then legs",
+        Grip(True), Hover(3), Takeoff(), *CIRCLES[:2], SetWind(4, 250), *CIRCLES[2:5],
+        SetWind(0), *CIRCLES[5:], *LEGS[1:6],
+    ),
+    vertical_scenario(
+        "held11_stop_fast_legs",
+        "wind 5 m/s from 300° from take-off, stopped mid-flight; long legs at 8-9 m/s",
+        SetWind(5, 300), Takeoff(), *FAST_LEGS, SetWind(0), *FAST_LEGS[1:],
+    ),
+    vertical_scenario(
+        "held11_weaken_circles",
+        "wind 6 m/s from 150° from take-off, weakening to 2 m/s mid-flight; circles, then legs",
+        SetWind(6, 150), Takeoff(), *CIRCLES, SetWind(2, 150), *CIRCLES[1:], *LEGS[1:5],
+    ),
+    vertical_scenario(
+        "held11_onset_fast_legs",
+        "wind 5 m/s from 070° switched on mid-flight; long legs at 8-9 m/s",
+        Takeoff(), *FAST_LEGS, SetWind(5, 70), *FAST_LEGS[1:],
+    ),
+    vertical_scenario(
+        "held11_release_after_gust",
+        "1 kg gripper payload from take-off; wind 4 m/s from 190° for about 60 s of legs; then "
+        "the payload released in a hover",
+        Grip(True), Hover(3), Takeoff(), *LEGS[:2], SetWind(4, 190), *LEGS[2:6], SetWind(0),
+        *LEGS[6:9], Hover(10), Grip(False), Hover(10), *LEGS[1:6],
+    ),
+    vertical_scenario(
+        "held11_turn_legs",
+        "wind 5 m/s from 340° turning to 060° mid-flight; legs",
+        SetWind(5, 340), Takeoff(), *LEGS, SetWind(5, 60), *LEGS[1:],
+    ),
+    vertical_scenario(
+        "held11_clean_circles",
+        "no effect; circles, then legs",
+        Takeoff(), *CIRCLES, *LEGS[1:],
+    ),
+)
+
 #: Every held-out set by the name ``uav-energy sitl-record`` records it under.
 HELD_SETS: dict[str, dict[str, Scenario]] = {
     "held": HELD_SCENARIOS,
@@ -261,5 +314,6 @@ HELD_SETS: dict[str, dict[str, Scenario]] = {
     "held8": HELD_SCENARIOS_8,
     "held9": HELD_SCENARIOS_9,
     "held10": HELD_SCENARIOS_10,
+    "held11": HELD_SCENARIOS_11,
 }
 # fmt: on
