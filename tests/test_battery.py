@@ -132,3 +132,19 @@ def test_the_scalar_curve_lookups_give_numpy_s_values_to_the_bit() -> None:
                 assert numpy_v == scalar_v or (math.isnan(numpy_v) and math.isnan(scalar_v))
         for energy_wh in energies:
             assert float(pack.soc_from_energy(energy_wh)) == pack.soc_from_energy_scalar(energy_wh)
+
+
+def test_the_ocv_at_an_energy_is_the_ocv_at_its_charge() -> None:
+    """The endurance integral's one lookup of the OCV at each energy level equals the OCV at
+    the charge holding that energy (both tables are linear on the same segments), on and
+    between the table's points and beyond its ends, for the label and a learned capacity."""
+    rng = np.random.default_rng(5)
+    for battery in (default_vehicle().battery, load_vehicle(SITL_VEHICLE).battery):
+        for capacity_ah in (battery.capacity_ah, 0.8 * battery.capacity_ah):
+            pack = PackModel(replace(battery, capacity_ah=capacity_ah))
+            full_wh = float(pack.energy_wh(1.0))
+            energies = np.concatenate(
+                (rng.uniform(-1.0, 1.2 * full_wh, 3000), pack.energy_wh(pack.soc_points))
+            )
+            composed_v = pack.ocv_v(pack.soc_from_energy(energies))
+            np.testing.assert_allclose(pack.ocv_from_energy_v(energies), composed_v, rtol=1e-12)
