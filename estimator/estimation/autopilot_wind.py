@@ -38,6 +38,7 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
+from estimator.estimation.hypotheses import second_probability
 from estimator.telemetry.samples import WindSample
 
 if TYPE_CHECKING:
@@ -140,8 +141,8 @@ class AutopilotWind:
         if not self.fresh(time_s):
             return 0.0, 0.0
         gap, _, distance2 = self._innovation(x, p, self.settings.autopilot_wind_sigma_mps**2)
-        odds_exponent = -0.5 * (distance2 - self.settings.autopilot_wind_gap_chi2)
-        weight = math.sqrt(1.0 / (1.0 + math.exp(min(odds_exponent, 700.0))))
+        log_ratio = 0.5 * (distance2 - self.settings.autopilot_wind_gap_chi2)
+        weight = math.sqrt(second_probability(log_ratio))
         return float(weight * gap[0]), float(weight * gap[1])
 
     def _innovation(

@@ -38,6 +38,13 @@ class Hypothesis(NamedTuple):
     s_var: float = 1.0
 
 
+def second_probability(log_ratio: float) -> float:
+    """The probability of the second of two hypotheses, at even prior odds, from the log of
+    its likelihood over the first's (the logistic; its exponent bounded, so a ratio beyond a
+    float's range gives 0 or 1, never an overflow)."""
+    return 1.0 / (1.0 + math.exp(min(-log_ratio, 700.0)))
+
+
 def duel(
     first: Hypothesis, second: Hypothesis, steps: int, nats: float, max_steps: int
 ) -> tuple[Hypothesis, Hypothesis | None]:
@@ -56,7 +63,7 @@ def mixture(a: Hypothesis, b: Hypothesis) -> tuple[np.ndarray, np.ndarray, np.nd
     Kirubarajan 2001, §11.6): the mean between them and a covariance that spans both, so an
     undecided duel is reported as undecided and its state stays unidentified rather than
     confidently the leader's. The sensitivity is the weighted mean of theirs."""
-    w_b = 1.0 / (1.0 + math.exp(min(a.loglik - b.loglik, 700.0)))
+    w_b = second_probability(b.loglik - a.loglik)
     w_a = 1.0 - w_b
     x = w_a * a.x + w_b * b.x
     d_a, d_b = a.x - x, b.x - x
