@@ -5,10 +5,13 @@ from __future__ import annotations
 import json
 from pathlib import Path
 
+import numpy as np
 import pytest
 from tlog_builder import flight_frames, write_tlog
 
 from estimator.cli import main
+from estimator.physics.effect_tables import effects_from_tables
+from estimator.physics.effects import FlightState, Heave, predict_power_w
 from estimator.physics.vehicle import load_vehicle
 
 REPO = Path(__file__).resolve().parent.parent
@@ -79,6 +82,33 @@ def test_a_slow_error_fraction_out_of_range_exits_2(
 ) -> None:
     err = _fails_with_one_line(capsys, ["fit", str(IRIS[0]), "--slow-error-fraction", fraction])
     assert "--slow-error-fraction must be between 0 and 0.5" in err
+
+
+@pytest.mark.parametrize("gain", ["3.5", "-0.1", "nan"])
+def test_a_heave_gain_out_of_range_exits_2(capsys: pytest.CaptureFixture[str], gain: str) -> None:
+    err = _fails_with_one_line(capsys, ["fit", str(IRIS[0]), "--heave-gain", gain])
+    assert "--heave-gain must be between 0 and 3" in err
+
+
+def test_a_stated_heave_gain_is_in_the_vehicle_file_and_in_its_power(tmp_path: Path) -> None:
+    """``--heave-gain``: the file states the effect, and its model power follows a vertical
+    acceleration by it (a climb that starts costs more than the level model says)."""
+    out = tmp_path / "iris.toml"
+    argv = ["fit", IRIS[0].as_posix(), "--out", str(out), "--mass-kg", "1.6"]
+    assert main([*argv, "--capacity-ah", "5.1", "--folds", "2", "--heave-gain", "1.0"]) == 0
+    vehicle = load_vehicle(out)
+    assert vehicle.effects == {"heave": {"gain": 1.0}}
+    (heave,) = effects_from_tables(vehicle.effects)
+    assert isinstance(heave, Heave) and heave.gain == 1.0
+    hover = np.zeros(1)
+    power_w = [
+        float(predict_power_w(vehicle.model, vehicle.mass_kg, state, [heave])[0])
+        for state in (
+            FlightState(*[hover] * 8, ad_mps2=np.full(1, -2.0)),  # 2 m/s² up: a climb starts
+            FlightState(*[hover] * 8),
+        )
+    ]
+    assert power_w[0] > power_w[1] + 0.1 * vehicle.model.hover_power_w
 
 
 def test_json_report_and_vehicle_file(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:

@@ -27,6 +27,7 @@ from estimator.analysis.theory_fit import Priors
 from estimator.errors import UserError
 from estimator.logs import FORMATS, FlightSeries, load_flights
 from estimator.logs.sanity import flight_warnings
+from estimator.physics.effects import Heave
 from estimator.physics.vehicle import CHEMISTRIES, SLOW_ERROR_RANGE, BatterySpec, Vehicle
 
 #: Highest per-cell voltage of a charged LiPo under light load, V (for inferring the cell count).
@@ -79,6 +80,13 @@ def register(subparsers: argparse._SubParsersAction[argparse.ArgumentParser]) ->
         type=float,
         help="1σ of the model's error that stays correlated over tens of seconds, as a "
         "fraction of its hover power (the online tracker's; default: not stated)",
+    )
+    v.add_argument(
+        "--heave-gain",
+        type=float,
+        help="state the heave effect (the thrust of a vertical acceleration) with this gain; "
+        "1 is eq. (2)'s rotor, whose profile power does not follow the thrust (default: not "
+        "stated)",
     )
     v.add_argument(
         "--note", action="append", default=[], help="comment line at the top of the file"
@@ -176,6 +184,10 @@ def _check_args(args: argparse.Namespace) -> None:
     low, high = SLOW_ERROR_RANGE
     if slow is not None and not (math.isfinite(slow) and low <= slow <= high):
         raise UserError(f"--slow-error-fraction must be between {low:g} and {high:g}")
+    heave = args.heave_gain
+    low, high = Heave.bounds["gain"]
+    if heave is not None and not (math.isfinite(heave) and low <= heave <= high):
+        raise UserError(f"--heave-gain must be between {low:g} and {high:g}")
     if not 0.0 <= args.reserve_fraction < 1.0:
         raise UserError("--reserve-fraction must be in [0, 1)")
     if args.out is not None and (args.mass_kg is None or args.capacity_ah is None):
@@ -238,6 +250,7 @@ def _vehicle(
         battery=battery,
         model_stderr=dict(report.theory.coeff_stderr),
         slow_error_fraction=args.slow_error_fraction,
+        effects={} if args.heave_gain is None else {Heave.name: {"gain": args.heave_gain}},
     )
 
 
