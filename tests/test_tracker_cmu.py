@@ -12,6 +12,9 @@ import pytest
 from script_loader import load_script
 
 from estimator.analysis.tracker_truth import TrackerRun
+from estimator.commands.residuals import online_summary
+from estimator.logs import cmu
+from estimator.physics.vehicle import load_vehicle
 
 ROOT = Path(__file__).resolve().parent.parent
 DATA = ROOT.parent / "shared" / "data" / "cmu_m100_subset"
@@ -85,3 +88,20 @@ def test_the_mass_sigma_is_not_too_wide_either(
     """Two-sided: pooled over the flights' steps, the mass lies within 1σ for 55-80 % of
     them (59 % measured), so the slow error does not buy its coverage with a σ too wide."""
     assert 0.55 <= SCRIPT.pooled(runs[0], 1.0)[0] <= 0.80
+
+
+def test_residuals_online_ends_where_the_daemons_tracker_ends(
+    runs: tuple[list[TrackerRun], list[TrackerRun]],
+) -> None:
+    """``uav-energy residuals --online`` runs the daemon's pipeline over each flight's rows:
+    its final wind and mass are the last step of the table's runs (the tracker alone, stepped
+    on every reading, ended flight 273 at −1.64 kg and 11.6 m/s where these end at +0.08 kg)."""
+    vehicle = load_vehicle(SCRIPT.VEHICLE)
+    flights = cmu.load_flights(sorted(DATA.glob("*.csv")))
+    online = {o["flight"]: o for o in online_summary(flights, vehicle)}
+    for run in runs[0]:
+        wind_n, wind_e, mass_kg = run.estimate[-1]
+        got = online[run.name]
+        assert got["mass_delta_kg"] == pytest.approx(mass_kg, abs=1e-3), run.name
+        assert got["mass_sigma_kg"] == pytest.approx(run.sigma[-1, 2], abs=1e-3), run.name
+        assert got["wind_speed_mps"] == pytest.approx(np.hypot(wind_n, wind_e), abs=1e-2)

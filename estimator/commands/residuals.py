@@ -21,14 +21,15 @@ from rich.console import Console
 
 from estimator.analysis.residual_samples import ResidualOptions
 from estimator.analysis.residuals import ResidualResult, analyze
+from estimator.analysis.tracker_truth import track_samples
 from estimator.errors import UserError
-from estimator.estimation.online_effects import OnlineEffects
-from estimator.estimation.track_runner import track_series
 from estimator.logs import FORMATS, FlightSeries, load_flights
 from estimator.logs.sanity import flight_warnings
+from estimator.logs.series_samples import series_samples
 from estimator.physics.effect_tables import effects_to_tables
-from estimator.physics.effects import EFFECT_TYPES, Climb
+from estimator.physics.effects import EFFECT_TYPES, wind_from_deg
 from estimator.physics.vehicle import Vehicle, load_vehicle
+from estimator.telemetry.plausibility import NOMINAL_CELL_VOLTAGE_V
 
 
 def register(subparsers: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
@@ -186,34 +187,37 @@ def _select(flights: list[FlightSeries], ids: list[str]) -> list[FlightSeries]:
     return chosen
 
 
+#: The truth the tracker is compared with: none here (only its estimates are reported).
+_NO_TRUTH = (0.0, 0.0, 0.0)
+
+
 def online_summary(flights: list[FlightSeries], vehicle: Vehicle) -> list[dict[str, Any]]:
-    """Per flight, the online tracker's final wind and mass (started from ``vehicle``), and
-    their medians over the second half of the flight. Like the daemon's pipeline, a default
-    climb effect is added when the vehicle file has none."""
-    extra = () if "climb" in vehicle.effects else (Climb(),)
+    """Per flight, the online tracker's final wind and mass and their medians over the second
+    half of its steps: each flight fed to the daemon's pipeline (started from ``vehicle``) as
+    the samples of its rows (:func:`~estimator.logs.series_samples.series_samples`; where the
+    log has power only, at the pack's nominal voltage), the tracker read after each step."""
+    nominal_v = vehicle.battery.cells * NOMINAL_CELL_VOLTAGE_V
     out = []
     for flight in flights:
-        points = track_series(flight, OnlineEffects.from_vehicle(vehicle, extra))
-        if not points:
+        samples = series_samples(flight, nominal_v)
+        run = track_samples(flight.flight_id, samples, vehicle, lambda _: _NO_TRUTH)
+        if not len(run.time_s):
             continue
-        last = points[-1]
-        late = points[len(points) // 2 :]
-        rad = np.radians([p.wind_from_deg for p in late])
-        speed = np.array([p.wind_speed_mps for p in late])
-        # median wind vector over the second half (blowing-from components)
-        wn, we = float(np.median(speed * np.cos(rad))), float(np.median(speed * np.sin(rad)))
+        wind_n, wind_e, mass_kg = run.estimate[-1]
+        late = run.estimate[len(run.time_s) // 2 :]
+        late_n, late_e = float(np.median(late[:, 0])), float(np.median(late[:, 1]))
         out.append(
             {
                 "flight": flight.flight_id,
-                "samples": len(points),
-                "wind_speed_mps": round(last.wind_speed_mps, 3),
-                "wind_from_deg": round(last.wind_from_deg, 1),
-                "mass_delta_kg": round(last.mass_delta_kg, 4),
-                "mass_sigma_kg": round(last.mass_sigma_kg, 4),
+                "steps": len(run.time_s),
+                "wind_speed_mps": round(math.hypot(wind_n, wind_e), 3),
+                "wind_from_deg": round(float(wind_from_deg(wind_n, wind_e)), 1),
+                "mass_delta_kg": round(float(mass_kg), 4),
+                "mass_sigma_kg": round(float(run.sigma[-1, 2]), 4),
                 "late_median": {
-                    "wind_speed_mps": round(math.hypot(wn, we), 3),
-                    "wind_from_deg": round(math.degrees(math.atan2(we, wn)) % 360.0, 1),
-                    "mass_delta_kg": round(float(np.median([p.mass_delta_kg for p in late])), 4),
+                    "wind_speed_mps": round(math.hypot(late_n, late_e), 3),
+                    "wind_from_deg": round(float(wind_from_deg(late_n, late_e)), 1),
+                    "mass_delta_kg": round(float(np.median(late[:, 2])), 4),
                 },
             }
         )

@@ -1,24 +1,21 @@
-"""The online wind and mass tracker (:mod:`estimator.estimation.online_effects`) run over a
-log or a flight already read, the way the daemon runs it: the causal kinematics filter on
-velocity, the autopilot's wind reports, and the airborne power readings
-(:class:`~estimator.estimation.airborne.AirborneGate`). ``uav-energy residuals --online`` and
-the tests use it; the daemon's pipeline feeds the tracker itself.
+"""The online wind and mass tracker (:mod:`estimator.estimation.online_effects`) run alone over
+a log's samples: the causal kinematics filter on velocity, the autopilot's wind reports, and an
+update per airborne power reading (:class:`~estimator.estimation.airborne.AirborneGate`). The
+tests use it to see the filter's own behaviour. The daemon's pipeline steps the tracker once
+per ``track_period_s`` on the readings since the last; ``uav-energy residuals --online`` and
+the figures of the daemon's tracker run that pipeline
+(:func:`estimator.analysis.tracker_truth.track_samples`).
 
 Units: s (the log's clock), m/s, deg (direction the wind comes from), kg, W, V.
 """
 
 from __future__ import annotations
 
-import math
 from collections.abc import Iterable
 from dataclasses import dataclass
 
-import numpy as np
-
 from estimator.estimation.airborne import AirborneGate, Phase
 from estimator.estimation.online_effects import OnlineEffects
-from estimator.logs import FlightSeries
-from estimator.physics.effects import Wind
 from estimator.physics.kinematics import KinematicsFilter, KinematicState
 from estimator.telemetry.samples import (
     ArmedSample,
@@ -101,33 +98,4 @@ def track_samples(samples: Iterable[Sample], tracker: OnlineEffects) -> list[Tra
             tracker.take_autopilot_wind(sample)
         elif isinstance(sample, BatterySample) and sample.power_w is not None:
             runner.power(sample.time_s, sample.power_w, sample.voltage_v)
-    return runner.points
-
-
-def track_series(series: FlightSeries, tracker: OnlineEffects) -> list[TrackPoint]:
-    """:func:`track_samples` over a flight already read into arrays (one row = a velocity
-    then a power reading; rows flagged disarmed in ``extras['armed']`` are skipped; the
-    autopilot's wind, when the log has it, goes in before each row)."""
-    runner = _Runner(tracker)
-    nan = np.full(len(series), np.nan)
-    armed = series.extras.get("armed", nan)
-    wind_mps = series.extras.get("autopilot_wind_speed_mps", nan)
-    wind_from_deg = series.extras.get("autopilot_wind_from_deg", nan)
-    for k in range(len(series)):
-        vn, ve = float(series.vn_mps[k]), float(series.ve_mps[k])
-        if not (math.isfinite(vn) and math.isfinite(ve)):
-            continue
-        alt = float(series.alt_m[k])
-        vd = float(series.vd_mps[k])
-        t = float(series.time_s[k])
-        if math.isfinite(wind_mps[k]):
-            wind = Wind(float(wind_mps[k]), float(wind_from_deg[k])).vector_ne_mps()
-            tracker.take_autopilot_wind(WindSample(t, *wind))
-        runner.velocity(
-            VelocitySample(
-                t, vn, ve, vd if math.isfinite(vd) else 0.0, alt if math.isfinite(alt) else None
-            )
-        )
-        runner.armed = None if not math.isfinite(armed[k]) else bool(armed[k])
-        runner.power(t, float(series.power_w[k]), float(series.voltage_v[k]))
     return runner.points

@@ -24,7 +24,8 @@ import numpy as np
 
 from estimator.errors import UserError
 from estimator.logs import FlightSeries, FloatArray, SampleStream
-from estimator.telemetry.samples import BatterySample, RebootSample, Sample, VelocitySample
+from estimator.logs.series_samples import series_samples
+from estimator.telemetry.samples import RebootSample, Sample
 
 #: DJI TB47D pack of the M100: 6S LiPo, 22.2 V nominal, 4.5 Ah (README.txt of the dataset).
 NOMINAL_VOLTAGE_V = 22.2
@@ -84,18 +85,12 @@ def iter_samples(path: Path) -> SampleStream:
 
 def flight_samples(flights: list[FlightSeries]) -> Iterator[Sample]:
     """The samples of ``flights`` as the daemon would receive them: velocity, then power at
-    the nominal voltage, row by row; a :class:`RebootSample` between flights (each flight's
-    clock starts again)."""
+    the nominal voltage, row by row (:func:`~estimator.logs.series_samples.series_samples`);
+    a :class:`RebootSample` between flights (each flight's clock starts again)."""
     for i, f in enumerate(flights):
         if i > 0:
             yield RebootSample(float(f.time_s[0]))
-        for j in range(len(f)):
-            t = float(f.time_s[j])
-            yield VelocitySample(
-                t, float(f.vn_mps[j]), float(f.ve_mps[j]), float(f.vd_mps[j]), float(f.alt_m[j])
-            )
-            power = float(f.power_w[j])
-            yield BatterySample(t, NOMINAL_VOLTAGE_V, power / NOMINAL_VOLTAGE_V)
+        yield from series_samples(f, NOMINAL_VOLTAGE_V)
 
 
 def rotate(quat_xyzw: FloatArray, vectors: FloatArray) -> FloatArray:
