@@ -27,7 +27,6 @@ Powers in W, energies in Wh, masses in kg, winds in m/s from degrees.
 from __future__ import annotations
 
 import json
-import math
 import tempfile
 from collections.abc import Callable, Mapping, Sequence
 from functools import cache
@@ -59,7 +58,6 @@ WIND_AGREES_MPS = 1.0
 MASS_AGREES_KG = 0.10
 #: An online wind this far (m/s) from the anemometer's is named apart from the others.
 WIND_APART_MPS = 3.0
-_NO_TRUTH = (math.nan, math.nan, math.nan)
 
 
 class WrittenReplay(NamedTuple):
@@ -111,7 +109,7 @@ def settled_masses_kg(data: Path) -> list[float]:
     vehicle = load_vehicle(MARCH_VEHICLE)
     masses = []
     for log in sorted(data.glob(SUMMER)):
-        run = track_samples(log.stem, iter_samples(log), vehicle, lambda _: _NO_TRUTH)
+        run = track_samples(log.stem, iter_samples(log), vehicle)
         steps = len(run.time_s)
         if steps >= 4:
             masses.append(float(np.median(run.estimate[int(steps * SETTLED_FROM) :, 2])))

@@ -33,6 +33,8 @@ from estimator.logs.cmu import flight_samples
 from estimator.physics.vehicle import Vehicle
 from estimator.telemetry.samples import Sample
 
+#: The truth of a flight without one (its steps are all kept: :func:`track_samples`).
+_UNKNOWN = (math.nan, math.nan, math.nan)
 #: The CMU log's regime code of cruise (take-off 0, cruise 1, landing 2).
 CRUISE_REGIME = 1
 
@@ -113,13 +115,14 @@ def track_samples(
     name: str,
     samples: Iterable[Sample],
     vehicle: Vehicle,
-    truth_at: Callable[[float], Sequence[float]],
+    truth_at: Callable[[float], Sequence[float]] | None = None,
     span_s: tuple[float, float] = (-math.inf, math.inf),
 ) -> TrackerRun:
     """Feed ``samples`` to a fresh pipeline with ``vehicle`` and record its tracker's running
     estimate after each of its steps taken within ``span_s`` (s), with the truth
     ``truth_at(time_s)`` then: [w_n, w_e, δm] (m/s, kg). A step across a change of the truth
-    (:attr:`TrackerRun.across_changes`) is counted, not scored: its readings saw both."""
+    (:attr:`TrackerRun.across_changes`) is counted, not scored: its readings saw both. Without
+    ``truth_at`` every step is kept and the truth is NaN (the estimates alone)."""
     pipeline = Pipeline(vehicle)
     rows: list[tuple[float, ...]] = []
     steps = across = 0
@@ -132,8 +135,9 @@ def track_samples(
         steps = tracker.steps
         if not span_s[0] <= sample.time_s <= span_s[1]:
             continue
-        truth = tuple(truth_at(sample.time_s))
-        changed, before = before is not None and truth != before, truth
+        truth = _UNKNOWN if truth_at is None else tuple(truth_at(sample.time_s))
+        changed = truth_at is not None and before is not None and truth != before
+        before = truth
         if changed:
             across += 1
             continue

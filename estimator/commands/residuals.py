@@ -187,10 +187,6 @@ def _select(flights: list[FlightSeries], ids: list[str]) -> list[FlightSeries]:
     return chosen
 
 
-#: The truth the tracker is compared with: none here (only its estimates are reported).
-_NO_TRUTH = (0.0, 0.0, 0.0)
-
-
 def online_summary(flights: list[FlightSeries], vehicle: Vehicle) -> list[dict[str, Any]]:
     """Per flight, the online tracker's final wind and mass and their medians over the second
     half of its steps: each flight fed to the daemon's pipeline (started from ``vehicle``) as
@@ -200,7 +196,7 @@ def online_summary(flights: list[FlightSeries], vehicle: Vehicle) -> list[dict[s
     out = []
     for flight in flights:
         samples = series_samples(flight, nominal_v)
-        run = track_samples(flight.flight_id, samples, vehicle, lambda _: _NO_TRUTH)
+        run = track_samples(flight.flight_id, samples, vehicle)
         if not len(run.time_s):
             continue
         wind_n, wind_e, mass_kg = run.estimate[-1]
