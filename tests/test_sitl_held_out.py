@@ -143,7 +143,7 @@ TRACKER_SHORT = {
     "held11_gust_end_legs": "wind 3.8σ (5.1 m/s off) at 74 s",
     "held2_gust_70s_circles": "wind 3.2σ (4.3 m/s off) at 162 s",
     "held2_gust_85s_legs": "wind 4.5σ (6.3 m/s off) at 84 s",
-    "held2_gust_90s_hovers": "wind 8.7σ (8.4 m/s off) at 174 s",
+    "held2_gust_90s_hovers": "wind 3.7σ (7.7 m/s off) at 84 s",
     "held2_release_low": "mass 6.4σ (+0.48 kg) at 129 s",
     "held2_wind_stop_vertical": "wind 5.8σ (6.8 m/s off) at 114 s",
     "held3_gust_45s_legs": "wind 87 % within 2σ, 8.7σ (7.4 m/s off) at 190 s; mass 85 % within 2σ "
@@ -165,7 +165,6 @@ TRACKER_SHORT = {
     "held_gust_60s": "wind 83 % within 2σ, 7.1σ (8.7 m/s off) at 124 s; mass 4.2σ (+0.15 kg) at "
     "148 s",
     "held_gust_90s_circles": "wind 7.0σ (6.5 m/s off) at 58 s",
-    "held_gust_vertical": "wind 5.1σ (6.3 m/s off) at 96 s",
     "held_onset_vertical": "wind 3.4σ (5.0 m/s off) at 114 s",
     "held_two_gusts": "wind 3.2σ (6.1 m/s off) at 180 s",
 }

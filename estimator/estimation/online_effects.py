@@ -208,6 +208,9 @@ class OnlineEffects:
         self._rival: Hypothesis | None = None  # the other hypothesis after a change
         self._duel_steps = 0
         self._changing = False  # the last step raised a change alarm
+        #: The last step's readings refuted the estimate (beyond the gate) and no alarm has
+        #: told yet whether they were an outlier or a change: its 1σ is a changed state's.
+        self._refuted = False
         #: Measurement noise beyond the configured one, learnt from the innovations, W².
         self.extra_noise_var_w2 = 0.0
         self._hover_w = model.hover_power_w
@@ -268,8 +271,13 @@ class OnlineEffects:
         what the model's form leaves unknown (:class:`OnlineSettings` ``wind_form_sigma_mps``,
         ``mass_form_sigma_fraction`` of the mass difference), and for the wind what the
         autopilot's report says is on its way (its lag, and its gap from the estimate:
-        :meth:`AutopilotWind.lag_ne_mps`, :meth:`AutopilotWind.gap_ne_mps`)."""
+        :meth:`AutopilotWind.lag_ne_mps`, :meth:`AutopilotWind.gap_ne_mps`). After a step
+        whose readings the gate refused, with no change alarm yet, the covariance's wind and
+        mass are a changed state's (their initial variance): the next step tells an outlier
+        from a change, and until then the old estimate is not vouched for."""
         x, p, form = self._reported()
+        if self._refuted:  # an outlier or the start of a change: either part may have changed
+            p = self._widened(self._widened(p, wind=True), wind=False)
         s = self.settings
         c_n, c_e, c_m = (float(v) for v in form[:3])
         wind_form_var = s.wind_form_sigma_mps**2
@@ -505,6 +513,7 @@ class OnlineEffects:
             self.rejected += 1
         elif main.nu is not None:
             self.updates += 1
+        self._refuted = self._rival is None and main.nu is not None and abs(main.nu) > s.gate_sigma
         self._x, self._p, self._form, self._loglik = main.x, main.p, main.form, main.loglik
         return self.effects
 
