@@ -1,5 +1,5 @@
 """The held-out effect flights of ``replay/sitl_held`` flown on fast legs and through wind
-changes (``uav-energy sitl-record held7`` … ``held11``), and every held-out set by name
+changes (``uav-energy sitl-record held7`` … ``held12``), and every held-out set by name
 (:data:`HELD_SETS`; the earlier ones are :mod:`estimator.sitl.held_scenarios`).
 
 Each set was recorded right after the commit that defined it froze the online tracker and the
@@ -10,7 +10,8 @@ ninth after an undecided duel between a mass step and a wind change was reported
 mixture of the two; the tenth after the autopilot's report was taken as a wind change at
 χ²₂ at 1 % and the step after a change alarm, beyond the gate, as the rest of the change; the
 eleventh after the report's gap from the estimate was weighed in the wind 1σ by the
-probability that the two disagree.
+probability that the two disagree; the twelfth after a step the gate refused, with no change
+alarm yet, was reported with a changed state's 1σ.
 Steps as in :mod:`estimator.sitl.scenarios` (positions and velocities
 NED, m and m/s; durations s).
 """
@@ -302,6 +303,60 @@ HELD_SCENARIOS_11: dict[str, Scenario] = by_name(
     ),
 )
 
+#: The twelfth held-out set (recorded after the commit that reported a step the gate refused,
+#: with no change alarm yet, with a changed state's 1σ; none of it tuned on): payloads
+#: released in hovers, on a leg and after circles, with and without wind, winds that stop,
+#: set in or turn during a hover, and a still-air flight with hovers.
+HELD_SCENARIOS_12: dict[str, Scenario] = by_name(
+    vertical_scenario(
+        "held12_release_hover_wind",
+        "1 kg gripper payload from take-off; wind 3 m/s from 100° from take-off; legs, then "
+        "the payload released in a hover",
+        SetWind(3, 100), Grip(True), Hover(3), Takeoff(), *LEGS[:6], Hover(8), Grip(False),
+        Hover(15), *LEGS[6:], *LEGS[1:4],
+    ),
+    vertical_scenario(
+        "held12_release_on_leg",
+        "1 kg gripper payload from take-off; released on a 4 m/s leg; legs",
+        Grip(True), Hover(3), Takeoff(), *LEGS[:5], Leg(0, 4, 8), Grip(False), Leg(0, 4, 12),
+        *LEGS[5:], *LEGS[1:4],
+    ),
+    vertical_scenario(
+        "held12_stop_in_hover",
+        "wind 7 m/s from 200° from take-off, stopped during a hover; legs",
+        SetWind(7, 200), Takeoff(), *LEGS, Hover(10), SetWind(0), Hover(15), *LEGS[1:],
+    ),
+    vertical_scenario(
+        "held12_onset_in_hover",
+        "wind 6 m/s from 320° switched on during a hover; circles, then legs",
+        Takeoff(), *CIRCLES[:4], Hover(10), SetWind(6, 320), Hover(15), *CIRCLES[4:],
+        *LEGS[1:6],
+    ),
+    vertical_scenario(
+        "held12_release_after_circles",
+        "1 kg gripper payload from take-off; circles, the payload released in a hover; circles",
+        Grip(True), Hover(3), Takeoff(), *CIRCLES, Hover(5), Grip(False), Hover(15),
+        *CIRCLES[1:],
+    ),
+    vertical_scenario(
+        "held12_payload_wind_fast_release",
+        "1 kg gripper payload from take-off; wind 5 m/s from 045° from take-off; long legs at "
+        "8-9 m/s, then the payload released in a hover",
+        SetWind(5, 45), Grip(True), Hover(3), Takeoff(), *FAST_LEGS, Hover(5), Grip(False),
+        Hover(15), *FAST_LEGS[1:7],
+    ),
+    vertical_scenario(
+        "held12_turn_in_hover",
+        "wind 5 m/s from 270° from take-off, turning to 000° during a hover; legs",
+        SetWind(5, 270), Takeoff(), *LEGS, Hover(10), SetWind(5, 0), Hover(15), *LEGS[1:],
+    ),
+    vertical_scenario(
+        "held12_clean_legs_hovers",
+        "no effect; legs with long hovers",
+        Takeoff(), *LEGS, Hover(30), *LEGS[1:6], Hover(30), *LEGS[6:],
+    ),
+)
+
 #: Every held-out set by the name ``uav-energy sitl-record`` records it under.
 HELD_SETS: dict[str, dict[str, Scenario]] = {
     "held": HELD_SCENARIOS,
@@ -315,5 +370,6 @@ HELD_SETS: dict[str, dict[str, Scenario]] = {
     "held9": HELD_SCENARIOS_9,
     "held10": HELD_SCENARIOS_10,
     "held11": HELD_SCENARIOS_11,
+    "held12": HELD_SCENARIOS_12,
 }
 # fmt: on
