@@ -56,7 +56,10 @@ uncertainty of a changed state back at its initial value (its cross-covariances 
 change that came in the middle of the alarm's step left that step's readings straddling it
 and the estimate half way with the 1σ of a settled one, and the step after is then the rest
 of the change, not an outlier (ArduCopter SITL: a release in hover read 0.5 kg with a 1σ of
-0.07 kg for a step, 7.8–8.2σ).
+0.07 kg for a step, 7.8–8.2σ). A step that did not settle the estimate (its readings beyond
+the gate with no alarm, or an alarm's redo outside a duel) is reported with a changed state's
+wind and mass 1σ until the next step (:attr:`~OnlineEffects.sigma`): an outlier and the start
+of a change look alike for one step, and an alarm's step may straddle the change.
 In hover that state is the mass (a wind shows in hover only through translational lift, weakly,
 and is held there, below). In forward flight a payload step and a wind change both move the
 power, so both hypotheses run side by side (one with the mass widened, one with the wind) until
@@ -208,9 +211,11 @@ class OnlineEffects:
         self._rival: Hypothesis | None = None  # the other hypothesis after a change
         self._duel_steps = 0
         self._changing = False  # the last step raised a change alarm
-        #: The last step's readings refuted the estimate (beyond the gate) and no alarm has
-        #: told yet whether they were an outlier or a change: its 1σ is a changed state's.
-        self._refuted = False
+        #: The last step did not settle the estimate: its readings were beyond the gate (an
+        #: outlier or a change starting, which the next step tells apart) or they raised a
+        #: change alarm (the redo rests on them alone, and they may straddle the change).
+        #: Its 1σ is then a changed state's.
+        self._unsettled = False
         #: Measurement noise beyond the configured one, learnt from the innovations, W².
         self.extra_noise_var_w2 = 0.0
         self._hover_w = model.hover_power_w
@@ -272,11 +277,13 @@ class OnlineEffects:
         ``mass_form_sigma_fraction`` of the mass difference), and for the wind what the
         autopilot's report says is on its way (its lag, and its gap from the estimate:
         :meth:`AutopilotWind.lag_ne_mps`, :meth:`AutopilotWind.gap_ne_mps`). After a step
-        whose readings the gate refused, with no change alarm yet, the covariance's wind and
-        mass are a changed state's (their initial variance): the next step tells an outlier
-        from a change, and until then the old estimate is not vouched for."""
+        that did not settle the estimate, its wind and mass variances are a changed state's
+        (their initial ones) until the next step: one whose readings the gate refused, with
+        no change alarm (an outlier, or a change that the next step confirms), or one that
+        raised the alarm outside a duel (the redo rests on that step's readings alone, and a
+        release in a hover straddled by them reads half way)."""
         x, p, form = self._reported()
-        if self._refuted:  # an outlier or the start of a change: either part may have changed
+        if self._unsettled:  # either part may have changed
             p = self._widened(self._widened(p, wind=True), wind=False)
         s = self.settings
         c_n, c_e, c_m = (float(v) for v in form[:3])
@@ -513,7 +520,9 @@ class OnlineEffects:
             self.rejected += 1
         elif main.nu is not None:
             self.updates += 1
-        self._refuted = self._rival is None and main.nu is not None and abs(main.nu) > s.gate_sigma
+        self._unsettled = self._rival is None and (
+            self._changing or (main.nu is not None and abs(main.nu) > s.gate_sigma)
+        )
         self._x, self._p, self._form, self._loglik = main.x, main.p, main.form, main.loglik
         return self.effects
 
