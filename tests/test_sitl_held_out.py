@@ -170,6 +170,8 @@ TRACKER_SHORT = {
     "held3_gust_45s_legs": "wind 87 % within 2σ, 8.7σ (7.4 m/s off) at 190 s; mass 85 % within 2σ "
     "(median -0.010 kg at 1σ 0.036 kg), 4.5σ (+0.16 kg) at 138 s",
     "held3_gust_75s_vertical": "wind 4.0σ (7.0 m/s off) at 162 s",
+    "held3_release_high": "mass 99 % within 3σ: 3.01σ (+0.17 kg) at 134 s, the step after the "
+    "release's alarm step",
     "held4_wind_strong_legs": "mass 87 % within 2σ (median -0.028 kg at 1σ 0.023 kg), 3.1σ (+0.10 "
     "kg) at 18 s",
     "held5_turn_legs": "wind 89 % within 2σ, 10.7σ (7.5 m/s off) at 144 s",
