@@ -277,11 +277,8 @@ class OnlineEffects:
         ``mass_form_sigma_fraction`` of the mass difference), and for the wind what the
         autopilot's report says is on its way (its lag, and its gap from the estimate:
         :meth:`AutopilotWind.lag_ne_mps`, :meth:`AutopilotWind.gap_ne_mps`). After a step
-        that did not settle the estimate, its wind and mass variances are a changed state's
-        (their initial ones) until the next step: one whose readings the gate refused, with
-        no change alarm (an outlier, or a change that the next step confirms), or one that
-        raised the alarm outside a duel (the redo rests on that step's readings alone, and a
-        release in a hover straddled by them reads half way)."""
+        that did not settle the estimate (module docstring), the wind and mass variances are
+        a changed state's (their initial ones) until the next step."""
         x, p, form = self._reported()
         if self._unsettled:  # either part may have changed
             p = self._widened(self._widened(p, wind=True), wind=False)
@@ -516,13 +513,12 @@ class OnlineEffects:
                 # gate)
                 excess = min(done.y2, s.gate_sigma**2 * done.s_var) - done.s_var
                 self.extra_noise_var_w2 = max(0.0, self.extra_noise_var_w2 + s.noise_gain * excess)
-        if main.nu is not None and abs(main.nu) > s.gate_sigma:
+        refused = main.nu is not None and abs(main.nu) > s.gate_sigma
+        if refused:
             self.rejected += 1
         elif main.nu is not None:
             self.updates += 1
-        self._unsettled = self._rival is None and (
-            self._changing or (main.nu is not None and abs(main.nu) > s.gate_sigma)
-        )
+        self._unsettled = self._rival is None and (self._changing or refused)
         self._x, self._p, self._form, self._loglik = main.x, main.p, main.form, main.loglik
         return self.effects
 
