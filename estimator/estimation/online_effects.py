@@ -107,17 +107,21 @@ from __future__ import annotations
 
 import math
 from collections.abc import Sequence
-from typing import NamedTuple
 
 import numpy as np
 
 from estimator.estimation.autopilot_wind import AutopilotWind, mahalanobis2
 from estimator.estimation.change_detector import ChangeDetector
-from estimator.estimation.form_error import carried, form_power_w
+from estimator.estimation.form_error import carried
 from estimator.estimation.hypotheses import Hypothesis, duel, mixture
 from estimator.estimation.kalman import MerweSigmaPoints
 from estimator.estimation.online_settings import OnlineSettings
-from estimator.estimation.tracker_readings import TrackerReading, select_readings
+from estimator.estimation.tracker_readings import (
+    StepData,
+    TrackerReading,
+    select_readings,
+    step_data,
+)
 from estimator.physics.effect_tables import effects_from_tables
 from estimator.physics.effects import (
     Effect,
@@ -138,19 +142,6 @@ from estimator.telemetry.samples import (
 
 #: Variance (m²/s²) standing in for a held wind's in the sigma points (positive definite).
 _HELD_VARIANCE = 1e-9
-
-
-class _Step(NamedTuple):
-    """One filter step's data: readings' flight-state rows (k × 9, the FlightState fields),
-    their mean measured power (W) and its noise variance (W²), whether the vehicle moves
-    (else hovers), and the model form's power error h there (W, 1σ:
-    :mod:`~estimator.estimation.form_error`)."""
-
-    rows: np.ndarray
-    measured_w: float
-    noise_var_w2: float
-    moving: bool
-    form_w: float
 
 
 class OnlineEffects:
@@ -452,27 +443,7 @@ class OnlineEffects:
             ][:n]
         )
         decay = np.array([1.0, 1.0, 1.0, kept_b][:n])
-        rows = np.array(
-            [(*motion, 0.0, r.voltage_v, r.state.ad_mps2) for r, motion in kept], dtype=float
-        )
-        measured = np.array([r.measured_power_w for r, _ in kept])
-        kinetic_sd = self.mass_kg * np.array(
-            [r.state.speed_mps * r.state.accel_sigma_mps2 for r, _ in kept]
-        )
-        r_each = s.power_noise_w**2 + (s.power_noise_fraction * measured) ** 2 + kinetic_sd**2
-        step = _Step(
-            rows,
-            float(measured.mean()),
-            float(r_each.sum()) / len(kept) ** 2 + self.extra_noise_var_w2,
-            float(np.mean([r.state.speed_mps for r, _ in kept])) > s.moving_speed_mps,
-            form_power_w(
-                rows,
-                self._x[:2],
-                self._hover_w,
-                s.speed_form_sigma_fraction,
-                s.speed_form_reference_mps,
-            ),
-        )
+        step = step_data(kept, s, self.mass_kg, self.extra_noise_var_w2, self._x[:2], self._hover_w)
         reopen = step.moving and self._hovering
         self._hovering = not step.moving
         main = self._prior(Hypothesis(self._x, self._p, self._form, self._loglik), decay, q, reopen)
@@ -543,7 +514,7 @@ class OnlineEffects:
         return Hypothesis(x, 0.5 * (p + p.T), h.form * decay, h.loglik)
 
     def _step(
-        self, prior: Hypothesis, step: _Step, extra: np.ndarray | None = None
+        self, prior: Hypothesis, step: StepData, extra: np.ndarray | None = None
     ) -> tuple[Hypothesis, list[float]]:
         """One filter step of a hypothesis: the updated one (the prior itself when the
         innovation is beyond the gate or the covariance broke), and the mean model powers (W)

@@ -10,6 +10,8 @@ hover power, idling motors (``idle``). And when the vertical gates left out more
 ``max_vertical_share`` of a step's readings, the rest too (``vertical``): a climb or descent
 starts or ends within the step, the power leads the filtered state by about half a second, and
 the readings the gates kept are the transition's.
+
+:func:`step_data` then makes of the kept readings what a filter step needs.
 """
 
 from __future__ import annotations
@@ -18,6 +20,9 @@ import math
 from collections.abc import Sequence
 from typing import NamedTuple
 
+import numpy as np
+
+from estimator.estimation.form_error import form_power_w
 from estimator.estimation.online_settings import OnlineSettings
 from estimator.physics.kinematics import KinematicState
 
@@ -73,3 +78,51 @@ def select_readings(
     if vertical > s.max_vertical_share * len(readings):
         return Selection([], rejected, vertical + len(kept), idle)
     return Selection(kept, rejected, vertical, idle)
+
+
+class StepData(NamedTuple):
+    """One filter step's data: readings' flight-state rows (k × 9, the FlightState fields),
+    their mean measured power (W) and its noise variance (W²), whether the vehicle moves
+    (else hovers), and the model form's power error h there (W, 1σ:
+    :mod:`~estimator.estimation.form_error`)."""
+
+    rows: np.ndarray
+    measured_w: float
+    noise_var_w2: float
+    moving: bool
+    form_w: float
+
+
+def step_data(
+    kept: Sequence[tuple[TrackerReading, Motion]],
+    settings: OnlineSettings,
+    mass_kg: float,
+    extra_noise_var_w2: float,
+    wind_ne_mps: np.ndarray,
+    hover_power_w: float,
+) -> StepData:
+    """A step's data from its ``kept`` readings (not empty): the noise of their mean power is
+    each reading's (a floor, a fraction of the power, the kinetic term's m·V·σ_a with
+    ``mass_kg``) over the count squared plus the learnt ``extra_noise_var_w2`` (W², not
+    divided: model error does not average out); the form error at the estimate's wind
+    ``wind_ne_mps`` (m/s, north and east)."""
+    s = settings
+    rows = np.array(
+        [(*motion, 0.0, r.voltage_v, r.state.ad_mps2) for r, motion in kept], dtype=float
+    )
+    measured = np.array([r.measured_power_w for r, _ in kept])
+    kinetic_sd = mass_kg * np.array([r.state.speed_mps * r.state.accel_sigma_mps2 for r, _ in kept])
+    r_each = s.power_noise_w**2 + (s.power_noise_fraction * measured) ** 2 + kinetic_sd**2
+    return StepData(
+        rows,
+        float(measured.mean()),
+        float(r_each.sum()) / len(kept) ** 2 + extra_noise_var_w2,
+        float(np.mean([r.state.speed_mps for r, _ in kept])) > s.moving_speed_mps,
+        form_power_w(
+            rows,
+            wind_ne_mps,
+            hover_power_w,
+            s.speed_form_sigma_fraction,
+            s.speed_form_reference_mps,
+        ),
+    )
