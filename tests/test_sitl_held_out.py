@@ -136,16 +136,15 @@ ABOVE_FLOOR = {
 #: χ²₂ 1 % apart for three steps. A release in a hover reads half way for the step that
 #: straddles it (the step after, beyond the gate, completes it; a landing descent's start did
 #: too, until a step the vertical gates mostly left out was left out whole), and that step and
-#: one the gate refused are reported with a changed state's 1σ; a release the alarm takes
-#: two steps late still reads half way at a settled 1σ (held10_release_after_stop,
-#: held2_release_low). The payloads
+#: one the gate refused are reported with a changed state's 1σ, as are steps whose innovations
+#: lean towards a change (the CUSUM grown past half its threshold: a release the alarm takes
+#: two steps late, held10_release_after_stop, held2_release_low). The payloads
 #: read a few percent heavy lie within the reported 1σ
 #: (``OnlineSettings.mass_form_sigma_fraction``), and so, with the P(V) shape's error carried
 #: as a consider term (``estimation/form_error.py``), do most flights without a payload read
 #: 0.03 kg light when flown fast (held4_wind_strong_legs: 87 % within 2σ).
 TRACKER_SHORT = {
     "held10_payload_gust_legs": "wind 4.0σ (4.3 m/s off) at 86 s",
-    "held10_release_after_stop": "mass 9.2σ (+0.68 kg) at 298 s",
     "held10_stop_circles": "wind 3.4σ (4.6 m/s off) at 198 s",
     "held10_turn_fast_legs": "wind 10.0σ (8.2 m/s off) at 160 s; mass 89 % within 2σ (median "
     "-0.040 kg at 1σ 0.029 kg)",
@@ -165,7 +164,6 @@ TRACKER_SHORT = {
     "held2_gust_70s_circles": "wind 3.2σ (4.3 m/s off) at 162 s",
     "held2_gust_85s_legs": "wind 4.5σ (6.3 m/s off) at 84 s",
     "held2_gust_90s_hovers": "wind 3.7σ (7.7 m/s off) at 84 s",
-    "held2_release_low": "mass 5.0σ (+0.26 kg) at 131 s",
     "held2_wind_stop_vertical": "wind 5.8σ (6.8 m/s off) at 114 s",
     "held3_gust_45s_legs": "wind 87 % within 2σ, 8.7σ (7.4 m/s off) at 190 s; mass 85 % within 2σ "
     "(median -0.010 kg at 1σ 0.036 kg), 4.5σ (+0.16 kg) at 138 s",
@@ -175,7 +173,6 @@ TRACKER_SHORT = {
     "held4_wind_strong_legs": "mass 87 % within 2σ (median -0.028 kg at 1σ 0.023 kg), 3.1σ (+0.10 "
     "kg) at 18 s",
     "held5_turn_legs": "wind 89 % within 2σ, 10.7σ (7.5 m/s off) at 144 s",
-    "held6_gust_payload_climbs": "wind 5.6σ (5.5 m/s off) at 96 s",
     "held7_gust_fast_legs": "wind 3.8σ (7.1 m/s off) at 62 s",
     "held8_onset_fast_legs": "wind 7.4σ (7.4 m/s off) at 78 s",
     "held8_payload_gust_fast": "wind 3.8σ (6.1 m/s off) at 61 s",
@@ -183,7 +180,7 @@ TRACKER_SHORT = {
     "held8_two_gusts_legs": "wind 3.2σ (5.0 m/s off) at 74 s",
     "held9_gust_then_release": "mass 3.5σ (+0.17 kg) at 250 s",
     "held9_reversal_fast_legs": "wind 85 % within 2σ, 12.3σ (9.6 m/s off) at 160 s",
-    "held_gust_60s": "wind 83 % within 2σ, 7.1σ (8.7 m/s off) at 124 s; mass 4.2σ (+0.15 kg) at "
+    "held_gust_60s": "wind 83 % within 2σ, 5.3σ (8.1 m/s off) at 138 s; mass 4.2σ (+0.15 kg) at "
     "148 s",
     "held_gust_90s_circles": "wind 7.0σ (6.5 m/s off) at 58 s",
     "held_onset_vertical": "wind 3.4σ (5.0 m/s off) at 114 s",

@@ -57,9 +57,11 @@ change that came in the middle of the alarm's step left that step's readings str
 and the estimate half way with the 1σ of a settled one, and the step after is then the rest
 of the change, not an outlier (ArduCopter SITL: a release in hover read 0.5 kg with a 1σ of
 0.07 kg for a step, 7.8–8.2σ). A step that did not settle the estimate (its readings beyond
-the gate with no alarm, or an alarm's redo outside a duel) is reported with a changed state's
-wind and mass 1σ until the next step (:attr:`~OnlineEffects.sigma`): an outlier and the start
-of a change look alike for one step, and an alarm's step may straddle the change.
+the gate with no alarm, an alarm's redo outside a duel, or a CUSUM standing half way to its
+alarm) is reported with a changed state's wind and mass 1σ until the next step
+(:attr:`~OnlineEffects.sigma`): an outlier and the start of a change look alike for one step,
+an alarm's step may straddle the change, and innovations leaning one way say the estimate may
+be following a change at the random walk's pace (a release read half way, at a settled 1σ).
 In hover that state is the mass (a wind shows in hover only through translational lift, weakly,
 and is held there, below). In forward flight a payload step and a wind change both move the
 power, so both hypotheses run side by side (one with the mass widened, one with the wind) until
@@ -203,9 +205,9 @@ class OnlineEffects:
         self._duel_steps = 0
         self._changing = False  # the last step raised a change alarm
         #: The last step did not settle the estimate: its readings were beyond the gate (an
-        #: outlier or a change starting, which the next step tells apart) or they raised a
-        #: change alarm (the redo rests on them alone, and they may straddle the change).
-        #: Its 1σ is then a changed state's.
+        #: outlier or a change starting, which the next step tells apart), they raised a
+        #: change alarm (the redo rests on them alone, and they may straddle the change), or
+        #: the CUSUM stands half way to an alarm. Its 1σ is then a changed state's.
         self._unsettled = False
         #: Measurement noise beyond the configured one, learnt from the innovations, W².
         self.extra_noise_var_w2 = 0.0
@@ -461,6 +463,7 @@ class OnlineEffects:
         done, (estimate_w, file_w) = self._step(main, step, np.vstack([main.x, file_x]))
         self.last_step_w = (step.measured_w, estimate_w, file_w)
         changing, self._changing = self._changing, False
+        fed = self._rival is None and done.nu is not None  # the CUSUM takes this step
         if self._rival is not None:
             rival = self._prior(self._rival, decay, q, reopen)
             if wind_var is not None:
@@ -489,7 +492,8 @@ class OnlineEffects:
             self.rejected += 1
         elif main.nu is not None:
             self.updates += 1
-        self._unsettled = self._rival is None and (self._changing or refused)
+        leaning = fed and self._detector.half_way()
+        self._unsettled = self._rival is None and (self._changing or refused or leaning)
         self._x, self._p, self._form, self._loglik = main.x, main.p, main.form, main.loglik
         return self.effects
 

@@ -1,5 +1,5 @@
 """The held-out effect flights of ``replay/sitl_held`` flown on fast legs and through wind
-changes (``uav-energy sitl-record held7`` … ``held13``), and every held-out set by name
+changes (``uav-energy sitl-record held7`` … ``held14``), and every held-out set by name
 (:data:`HELD_SETS`; the earlier ones are :mod:`estimator.sitl.held_scenarios`).
 
 Each set was recorded right after the commit that defined it froze the online tracker and the
@@ -12,7 +12,8 @@ mixture of the two; the tenth after the autopilot's report was taken as a wind c
 eleventh after the report's gap from the estimate was weighed in the wind 1σ by the
 probability that the two disagree; the twelfth after a step the gate refused, with no change
 alarm yet, was reported with a changed state's 1σ; the thirteenth after a step that raised
-the alarm was too.
+the alarm was too; the fourteenth after a step whose innovations lean towards a change (the
+CUSUM grown past half its threshold) was too.
 Steps as in :mod:`estimator.sitl.scenarios` (positions and velocities
 NED, m and m/s; durations s).
 """
@@ -416,6 +417,66 @@ HELD_SCENARIOS_13: dict[str, Scenario] = by_name(
     ),
 )
 
+#: The fourteenth held-out set (recorded after the commit that reported a step whose
+#: innovations lean towards a change, the CUSUM grown past half its threshold, with a changed
+#: state's 1σ; none of it tuned on): payloads released after a descent, on a slow leg, in a
+#: hover before a wind sets in, after a wind stop and after a climb, a gust over circles with
+#: the payload, a wind that weakens, and a still-air flight with climbs.
+HELD_SCENARIOS_14: dict[str, Scenario] = by_name(
+    vertical_scenario(
+        "held14_release_after_descent",
+        "1 kg gripper payload from take-off; legs, a descent at 3 m/s to 8 m, the payload "
+        "released in a hover there; legs",
+        Grip(True), Hover(3), Takeoff(), *LEGS[:5], Leg(0, 0, 4, 3), Hover(8), Grip(False),
+        Hover(12), Leg(0, 0, 4, -3), *LEGS[5:], *LEGS[1:3],
+    ),
+    vertical_scenario(
+        "held14_release_slow_leg",
+        "1 kg gripper payload from take-off; released on a 2 m/s leg; legs",
+        Grip(True), Hover(3), Takeoff(), *LEGS[:6], Leg(2, 0, 10), Grip(False), Leg(2, 0, 15),
+        *LEGS[6:], *LEGS[1:4],
+    ),
+    vertical_scenario(
+        "held14_release_then_onset",
+        "1 kg gripper payload from take-off; released in a hover; then wind 5 m/s from 130° "
+        "switched on mid-flight; legs",
+        Grip(True), Hover(3), Takeoff(), *LEGS[:5], Hover(5), Grip(False), Hover(15),
+        *LEGS[5:8], SetWind(5, 130), *LEGS[8:], *LEGS[1:5],
+    ),
+    vertical_scenario(
+        "held14_stop_hover_release",
+        "1 kg gripper payload from take-off; wind 6 m/s from 300° from take-off, stopped on a "
+        "leg; the payload released in a hover 40 s later; legs",
+        SetWind(6, 300), Grip(True), Hover(3), Takeoff(), *LEGS[:6], SetWind(0), *LEGS[6:9],
+        Hover(8), Grip(False), Hover(12), *LEGS[9:], *LEGS[1:4],
+    ),
+    vertical_scenario(
+        "held14_release_after_climb",
+        "1 kg gripper payload from take-off; a climb at 4 m/s by 24 m, the payload released "
+        "in a hover at the top; the descent at 2 m/s; legs",
+        Grip(True), Hover(3), Takeoff(), *LEGS[:4], Leg(0, 0, 6, -4), Hover(8), Grip(False),
+        Hover(10), Leg(0, 0, 12, 2), Hover(5), *LEGS[4:], *LEGS[1:4],
+    ),
+    vertical_scenario(
+        "held14_gust_circles_payload",
+        "1 kg gripper payload from take-off; wind 6 m/s from 190° for about 70 s of circles; "
+        "circles, then legs",
+        Grip(True), Hover(3), Takeoff(), *CIRCLES[:3], SetWind(6, 190), *CIRCLES[3:7],
+        SetWind(0), *CIRCLES[7:], *LEGS[1:6],
+    ),
+    vertical_scenario(
+        "held14_weaken_legs",
+        "wind 7 m/s from 120° from take-off, weakening to 3 m/s mid-flight; legs",
+        SetWind(7, 120), Takeoff(), *LEGS, SetWind(3, 120), *LEGS[1:],
+    ),
+    vertical_scenario(
+        "held14_clean_climbs_legs",
+        "no effect; climbs at 3 and 6 m/s and descents at 2 and 4 m/s over 20-30 m among legs",
+        Takeoff(), *LEGS[:5], *up_and_down(3, 2, 20), *LEGS[5:], *up_and_down(6, 4, 30),
+        *LEGS[1:4],
+    ),
+)
+
 #: Every held-out set by the name ``uav-energy sitl-record`` records it under.
 HELD_SETS: dict[str, dict[str, Scenario]] = {
     "held": HELD_SCENARIOS,
@@ -431,5 +492,6 @@ HELD_SETS: dict[str, dict[str, Scenario]] = {
     "held11": HELD_SCENARIOS_11,
     "held12": HELD_SCENARIOS_12,
     "held13": HELD_SCENARIOS_13,
+    "held14": HELD_SCENARIOS_14,
 }
 # fmt: on
