@@ -36,6 +36,7 @@ CLEAN_VERTICAL = (
     "held_clean_climbing_legs", "held_clean_vertical", "held2_clean_fast_vertical",
     "held2_clean_slow_climbs", "held3_clean_mixed_vertical", "held3_clean_tall_slow",
     "held4_clean_circles_vertical", "held5_clean_legs_climbs", "held6_clean_fast_climbs",
+    "held14_clean_climbs_legs",
 )  # fmt: skip
 #: The issue's aim: a flight's heave gain within this share of the file's.
 HEAVE_AGREEMENT = 0.1
