@@ -57,8 +57,8 @@ change that came in the middle of the alarm's step left that step's readings str
 and the estimate half way with the 1σ of a settled one, and the step after is then the rest
 of the change, not an outlier (ArduCopter SITL: a release in hover read 0.5 kg with a 1σ of
 0.07 kg for a step, 7.8–8.2σ). A step that did not settle the estimate (its readings beyond
-the gate with no alarm, an alarm's redo outside a duel, or a CUSUM standing half way to its
-alarm) is reported with a changed state's wind and mass 1σ until the next step
+the gate with no alarm, an alarm's redo outside a duel, or a CUSUM sum that grew past half
+way to its alarm) is reported with a changed state's wind and mass 1σ until the next step
 (:attr:`~OnlineEffects.sigma`): an outlier and the start of a change look alike for one step,
 an alarm's step may straddle the change, and innovations leaning one way say the estimate may
 be following a change at the random walk's pace (a release read half way, at a settled 1σ).
@@ -207,7 +207,7 @@ class OnlineEffects:
         #: The last step did not settle the estimate: its readings were beyond the gate (an
         #: outlier or a change starting, which the next step tells apart), they raised a
         #: change alarm (the redo rests on them alone, and they may straddle the change), or
-        #: the CUSUM stands half way to an alarm. Its 1σ is then a changed state's.
+        #: a CUSUM sum grew past half way to an alarm. Its 1σ is then a changed state's.
         self._unsettled = False
         #: Measurement noise beyond the configured one, learnt from the innovations, W².
         self.extra_noise_var_w2 = 0.0
