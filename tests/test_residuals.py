@@ -13,7 +13,12 @@ import pytest
 from estimator.analysis.residual_attribution import MAX_KNN_TRAIN_ROWS, attribute
 from estimator.analysis.residual_candidates import candidates_for
 from estimator.analysis.residual_fit import best_switch, best_window
-from estimator.analysis.residual_samples import ResidualOptions, Samples, prepare
+from estimator.analysis.residual_samples import (
+    ResidualOptions,
+    Samples,
+    prepare,
+    through_accel_filter,
+)
 from estimator.analysis.residuals import ResidualResult, _block_gain_z, analyze
 from estimator.logs import FlightSeries, load_flights
 from estimator.physics.effect_tables import effects_to_tables
@@ -457,3 +462,32 @@ def test_attribution_of_a_long_flight_learns_from_a_sample_and_still_names_the_c
     assert scores[0].channel == "heading_deg"
     assert scores[0].r2 > 0.95
     assert abs(scores[1].r2) < 0.05
+
+
+def test_a_power_through_the_accelerations_filter_fits_a_sharp_transients_gain() -> None:
+    """A power linear in the vertical acceleration (20 W per m/s²), sampled at 2 Hz like
+    ArduCopter's telemetry, over climbs that start and stop with a 1.5 s bump of 5 m/s²
+    every 12.3 s: against the smoothed derivative of the sampled velocity the raw power fits a
+    gain well above 20 W per m/s² (the filter flattens the transients); through the same
+    filter it fits 20."""
+    fine_s = np.arange(0.0, 200.0, 0.01)
+    phase_s = np.mod(fine_s, 12.3)
+    bump = np.where(phase_s < 1.5, np.sin(np.pi * phase_s / 1.5) ** 2, 0.0)
+    accel_up = 5.0 * (bump - np.roll(bump, 300))  # a climb starts, and stops 3 s later
+    accel_up[fine_s < 10.0] = 0.0
+    climb_mps = np.cumsum(accel_up) * 0.01
+    t = np.arange(0.0, 200.0, 0.5)
+    at = np.searchsorted(fine_s, t)
+    zeros = np.zeros(len(t))
+    flight = FlightSeries(
+        "sharp", t, zeros, zeros, -climb_mps[at], 20.0 + np.cumsum(climb_mps[at]) * 0.5,
+        np.full(len(t), 16.0), np.full(len(t), 20.0), 300.0 + 20.0 * accel_up[at],
+    )  # fmt: skip
+    samples = prepare([flight])
+    accel = -samples.state.ad_mps2
+    extra_w = samples.power_w - 300.0
+    raw = float(np.dot(extra_w, accel) / np.dot(accel, accel))
+    filtered_w = through_accel_filter(samples, extra_w, ResidualOptions())
+    filtered = float(np.dot(filtered_w, accel) / np.dot(accel, accel))
+    assert raw > 1.2 * 20.0
+    assert filtered == pytest.approx(20.0, rel=0.05)

@@ -9,11 +9,17 @@ from __future__ import annotations
 from collections.abc import Sequence
 from functools import cache
 from pathlib import Path
+from typing import NamedTuple
 
 import numpy as np
 from scipy.optimize import minimize_scalar
 
-from estimator.analysis.residual_samples import ResidualOptions, Samples, prepare
+from estimator.analysis.residual_samples import (
+    ResidualOptions,
+    Samples,
+    prepare,
+    through_accel_filter,
+)
 from estimator.logs import load_flights
 from estimator.physics.effect_tables import effects_from_tables
 from estimator.physics.effects import Climb, Effect, Heave, predict_power_w
@@ -73,6 +79,37 @@ def fitted_heave(samples: Samples, vehicle: Vehicle, climb: Climb) -> Heave:
         method="bounded",
     )
     return Heave(float(fit.x))
+
+
+class GainFit(NamedTuple):
+    """A heave gain and its 1σ (a delete-one-chunk jackknife over the held-out chunks)."""
+
+    gain: float
+    sigma: float
+
+
+def filtered_heave_gain(flights: Sequence[Samples], vehicle: Vehicle) -> GainFit:
+    """The heave gain of least squares over ``flights`` pooled (each with its own climb
+    efficiency), the residual power seen through the accelerations' filter
+    (:func:`through_accel_filter`, default options: like with like), and its 1σ."""
+    products, squares, chunks = [], [], []
+    base = 0  # chunk ids are unique within one Samples: offset each by those before it
+    for samples in flights:
+        climb = fitted_climb(samples, vehicle)
+        residual = residual_w(samples, vehicle, (climb,))
+        heave_w = residual - residual_w(samples, vehicle, (climb, Heave(1.0)))
+        products.append(heave_w * through_accel_filter(samples, residual, ResidualOptions()))
+        squares.append(heave_w**2)
+        chunks.append(samples.chunk + base)
+        base += int(samples.chunk.max()) + 1
+    product, square, chunk = map(np.concatenate, (products, squares, chunks))
+    ids = np.unique(chunk)
+    left_out = np.array(
+        [(product.sum() - product[chunk == k].sum()) / (square.sum() - square[chunk == k].sum())
+         for k in ids]
+    )  # fmt: skip
+    spread = float(np.sqrt((len(ids) - 1) / len(ids) * np.sum((left_out - left_out.mean()) ** 2)))
+    return GainFit(float(product.sum() / square.sum()), spread)
 
 
 def vertical_response(flights: Sequence[Samples], vehicle: Vehicle) -> np.ndarray:

@@ -293,6 +293,31 @@ def _smooth(t: FloatArray, x: FloatArray, seg: IntArray, sigma_s: float) -> Floa
     return num / den
 
 
+def through_accel_filter(samples: Samples, values: FloatArray, opt: ResidualOptions) -> FloatArray:
+    """``values`` (one per row of ``samples``; e.g. power, W) through the filter the rows'
+    accelerations went through, within gap-free stretches: the central difference that
+    differentiates the velocities (on even steps a mean over the two intervals around a row,
+    trapezoid weights) and their Gaussian smoothing (1σ ``opt.smooth_s``).
+
+    An acceleration is a smoothed derivative of sampled velocities: a transient shorter than
+    the filter reads lower and longer than it was. A power compared with it unfiltered fits
+    a gain that grows with the transients' sharpness; through the same filter the two are
+    compared like with like (a linear term's gain is then the filter's independent)."""
+    t = samples.state.time_s
+    x = np.nan_to_num(np.asarray(values, dtype=float))
+    dt = np.diff(t)
+    joined = (np.diff(samples.flight) == 0) & (dt > 0) & (dt <= opt.max_gap_s)
+    seg = np.r_[0, np.cumsum(~joined)]
+    span = np.where(joined, dt, 0.0)
+    left, right = np.r_[0.0, span], np.r_[span, 0.0]
+    total = left + right
+    mean = x.copy()
+    both = total > 0
+    prev, nxt = np.r_[x[:1], x[:-1]], np.r_[x[1:], x[-1:]]
+    mean[both] = (left * (prev + x) + right * (x + nxt))[both] / (2.0 * total[both])
+    return _smooth(t, mean, seg, opt.smooth_s)
+
+
 def _gradient(x: FloatArray, t: FloatArray, seg: IntArray) -> FloatArray:
     out = np.zeros(len(x))
     for s in np.unique(seg):

@@ -1,5 +1,5 @@
 """The held-out effect flights of ``replay/sitl_held`` flown on fast legs and through wind
-changes (``uav-energy sitl-record held7`` … ``held14``), and every held-out set by name
+changes (``uav-energy sitl-record held7`` … ``held15``), and every held-out set by name
 (:data:`HELD_SETS`; the earlier ones are :mod:`estimator.sitl.held_scenarios`).
 
 Each set was recorded right after the commit that defined it froze the online tracker and the
@@ -13,7 +13,8 @@ eleventh after the report's gap from the estimate was weighed in the wind 1σ by
 probability that the two disagree; the twelfth after a step the gate refused, with no change
 alarm yet, was reported with a changed state's 1σ; the thirteenth after a step that raised
 the alarm was too; the fourteenth after a step whose innovations lean towards a change (the
-CUSUM grown past half its threshold) was too.
+CUSUM grown past half its threshold) was too. The fifteenth, clean flights with vertical
+legs, after the heave gain was fitted with the power through the accelerations' filter.
 Steps as in :mod:`estimator.sitl.scenarios` (positions and velocities
 NED, m and m/s; durations s).
 """
@@ -477,6 +478,46 @@ HELD_SCENARIOS_14: dict[str, Scenario] = by_name(
     ),
 )
 
+#: Clean flights with vertical legs, held out for the heave gain fitted like with like
+#: (recorded after ``through_accel_filter``).
+HELD_SCENARIOS_15: dict[str, Scenario] = by_name(
+    vertical_scenario(
+        "held15_clean_steps_legs",
+        "no effect; legs, a climb at 4 m/s by 25 m and a descent at 2 m/s; legs; a climb at "
+        "8 m/s by 50 m and a descent at 5 m/s",
+        Takeoff(), *LEGS[:5], *up_and_down(4, 2, 25), *LEGS[5:], *up_and_down(8, 5, 50),
+        Hover(10),
+    ),
+    vertical_scenario(
+        "held15_clean_slow_climbs",
+        "no effect; climbs at 1 and 2 m/s by 12 and 30 m, descents at 1 and 1.5 m/s; legs",
+        Takeoff(), Hover(10), *up_and_down(1, 1, 12), *up_and_down(2, 1.5, 30), *LEGS[1:6],
+    ),
+    vertical_scenario(
+        "held15_clean_circles_climbs",
+        "no effect; circles, a climb at 6 m/s by 35 m and a descent at 3 m/s, circles",
+        Takeoff(), *CIRCLES[:4], *up_and_down(6, 3, 35), *CIRCLES[4:],
+    ),
+    vertical_scenario(
+        "held15_clean_stairs",
+        "no effect; four climbs of 10 m at 3 m/s with hovers between, a descent of 40 m at "
+        "4 m/s; legs",
+        Takeoff(), Hover(10), *(Leg(0, 0, 10 / 3, -3), Hover(6)) * 4, Leg(0, 0, 10, 4),
+        Hover(8), *LEGS[1:5],
+    ),
+    vertical_scenario(
+        "held15_clean_tall_fast",
+        "no effect; a climb at 9 m/s by 54 m and a descent at 6 m/s; legs",
+        Takeoff(), Hover(15), *up_and_down(9, 6, 54), *LEGS[1:7],
+    ),
+    vertical_scenario(
+        "held15_clean_climbing_legs",
+        "no effect; legs that climb and descend at 1-3 m/s while flying at 4-8 m/s",
+        Takeoff(), Hover(10), Leg(6, 0, 8, -3), Leg(-6, 0, 8, 3), Leg(0, 8, 6, -2),
+        Leg(0, -8, 6, 2), Leg(4, 4, 10, -1), Leg(-4, -4, 10, 1), *LEGS[1:5],
+    ),
+)
+
 #: Every held-out set by the name ``uav-energy sitl-record`` records it under.
 HELD_SETS: dict[str, dict[str, Scenario]] = {
     "held": HELD_SCENARIOS,
@@ -493,5 +534,6 @@ HELD_SETS: dict[str, dict[str, Scenario]] = {
     "held12": HELD_SCENARIOS_12,
     "held13": HELD_SCENARIOS_13,
     "held14": HELD_SCENARIOS_14,
+    "held15": HELD_SCENARIOS_15,
 }
 # fmt: on
