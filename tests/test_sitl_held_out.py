@@ -3,7 +3,8 @@ were frozen (``held_*`` after commit 870ed85, ``held2_*`` after 7e98e75, ``held3
 0882b25, ``held4_*`` after a89bc67, ``held5_*`` after 4c0a20c, ``held6_*`` after 58b857a,
 ``held7_*`` after 85c501c, ``held8_*`` after 6c86e16, ``held9_*`` after 267e25a,
 ``held10_*`` after f1c5f35, ``held11_*`` after 6843aff, ``held12_*`` after daa503a,
-``held13_*`` after c695f88, ``held14_*`` after 83546f5; docs/residuals.md, "Held-out SITL
+``held13_*`` after c695f88, ``held14_*`` after 83546f5, ``held15_*`` (clean, with vertical
+legs) after 63ab45b; docs/residuals.md, "Held-out SITL
 flights"): what ``uav-energy residuals`` names against their truth, and the online tracker
 step by step.
 
@@ -19,7 +20,8 @@ disagreement of 6843aff, and the first eleven before its changed state's 1σ aft
 gate refused of daa503a, and the first twelve before it also after a step that raised a
 change alarm of c695f88, and the first thirteen before it also after a step that grew the
 CUSUM past half its threshold of 83546f5: for the residual analysis ``held3_*`` to
-``held14_*`` are held out, for the tracker ``held14_*`` alone. Each flight
+``held15_*`` are held out, for the tracker ``held14_*`` and ``held15_*``, for the heave gain
+fitted through the accelerations' filter ``held15_*`` alone. Each flight
 is held to the issue's aims: the first named effect is a true one, the held-out RMSE after
 ends within 2.5 noise floors, and the running mass and wind hold 90 % of the steps within 2σ
 and all within 3σ. A flight that misses stays here as a strict xfail with its cause, read off
@@ -283,14 +285,18 @@ def test_the_docs_give_the_results_as_measured(
 #: The clean held-out flights with vertical legs; docs/residuals.md gives their heave gains
 #: (``residuals-sitl-held-heave``).
 CLEAN_VERTICAL = FIGURES.vertical_figures.CLEAN_VERTICAL
-#: Why a flight's heave gain, with the power through the accelerations' filter, is still
-#: beyond 2σ of the axial flights': these two have the sharpest vertical transients (GUIDED
+#: Why a flight's vertical parameters are still apart from those of the pure vertical legs.
+#: The first two: the filtered heave gain beyond 2σ on the sharpest vertical transients (GUIDED
 #: at WPNAV_ACCEL_Z 500: up to 5 m/s² for about a second, against 1 m/s² on the axial
 #: flights), which 2 Hz telemetry resolves least; the filter matches a linear term, and the
-#: heave term is not linear at 5 m/s² (n^1.5).
-HEAVE_APART = {
+#: heave term is not linear at 5 m/s² (n^1.5). The third (held out for the filter): the climb
+#: efficiency. SITL's vertical power is a drag law, not momentum theory (docs/residuals.md),
+#: so the efficiency that fits it depends on the rates flown: a 54 m climb at 9 m/s weighs the
+#: fast end, where the two differ most.
+VERTICAL_APART = {
     "held_clean_vertical": "filtered gain 1.323 ± 0.037, 3.5σ above the axial flights'",
     "held2_clean_fast_vertical": "filtered gain 1.279 ± 0.039, 2.2σ above the axial flights'",
+    "held15_clean_tall_fast": "climb efficiency 0.83 against the file's 1.0 (heave gain 0.3σ)",
 }
 
 
@@ -306,8 +312,8 @@ def axial_heave() -> vertical_fit.GainFit:
 @pytest.mark.parametrize(
     "flight",
     [
-        pytest.param(f, marks=pytest.mark.xfail(strict=True, reason=HEAVE_APART[f]))
-        if f in HEAVE_APART
+        pytest.param(f, marks=pytest.mark.xfail(strict=True, reason=VERTICAL_APART[f]))
+        if f in VERTICAL_APART
         else f
         for f in CLEAN_VERTICAL
     ],

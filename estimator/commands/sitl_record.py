@@ -1,7 +1,7 @@
 """``uav-energy sitl-record SCENARIO… --out DIR``: fly scenarios in ArduCopter SITL, record them.
 
 Each scenario (estimator/sitl/scenarios.py; ``all`` for every one of ``replay/sitl``,
-``held``, ``held2`` … ``held14`` for the held-out flights of
+``held``, ``held2`` … ``held15`` for the held-out flights of
 ``replay/sitl_held``, ``episodes`` for those of ``replay/sitl_episodes``, ``packs`` for every
 ``pack_*`` flight of ``replay/sitl_packs``) is flown in a fresh SITL
 (scratch directory, free instance) and written to ``DIR/<scenario>/``: ``flight.tlog``,
@@ -33,7 +33,7 @@ def register(subparsers: argparse._SubParsersAction[argparse.ArgumentParser]) ->
         nargs="*",
         metavar="SCENARIO",
         help="scenario names (the effects of replay/sitl, pack_* packs of replay/sitl_packs), "
-        "or all (every effect scenario), held / held2 … held14 (the held-out effect "
+        "or all (every effect scenario), held / held2 … held15 (the held-out effect "
         "flights), "
         "episodes (wind episodes to tune on), or packs / "
         "packs2 / ... / packs7 (the first to seventh set of pack_* scenarios)",
