@@ -112,6 +112,26 @@ def test_pooled_the_steps_hold_90_percent_within_2_sigma_and_3_sigma_always(
     assert SCRIPT.meets_aim(runs)
 
 
+def test_the_mass_sigma_is_not_too_wide_either(flights: Flights) -> None:
+    """Two-sided, pooled over the steps: the mass lies within 1σ on 60-80 % of them (68 % for
+    a right 1σ; 69 % measured), so the 3σ aim is not bought with a 1σ too wide."""
+    assert 0.60 <= SCRIPT.pooled([r for _, r in flights], 1.0)[0] <= 0.80
+
+
+@pytest.mark.xfail(
+    strict=True,
+    reason="the wind's 1σ is about twice too wide in the bulk: both components within 1σ on "
+    "85 % of the steps, against 47 % for a right 1σ. The filter's own 1σ (about 0.5 m/s, its "
+    "random walk kept for changes) and the model form's 0.5 m/s add to about 0.7 m/s where "
+    "the error is about 0.35 m/s; narrowed uniformly (× 0.9, on all 163 SITL flights) it "
+    "meets the tracker aim on 10 fewer flights",
+)
+def test_the_wind_sigma_is_not_too_wide_either(flights: Flights) -> None:
+    """Two-sided, pooled over the steps: both wind components lie within 1σ on 35-60 % of
+    them (47 % for a right 1σ, the two independent)."""
+    assert 0.35 <= SCRIPT.pooled([r for _, r in flights], 1.0)[1] <= 0.60
+
+
 def test_told_the_model_error_is_slow_the_mass_holds_its_sigma_and_the_wind_gains() -> None:
     """The cause named for the mass misses left (no payload, read 0.04 kg light): the same
     flights with ``[model] slow_error_fraction = 0.02`` (``scripts/tracker_sitl.py
