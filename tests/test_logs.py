@@ -10,6 +10,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from pymavlink import mavutil
 from pymavlink.dialects.v20 import common as mavlink
 from tlog_builder import EPOCH_US, flight_frames, write_tlog
 
@@ -19,6 +20,7 @@ from estimator.logs import detect_format, iter_samples, load_flights
 from estimator.logs.cmu import REQUIRED_COLUMNS, rotate
 from estimator.logs.sanity import flight_warnings
 from estimator.telemetry.decode import TelemetryDecoder
+from estimator.telemetry.firmware import copter_vz_up
 from estimator.telemetry.frames import FrameParser
 from estimator.telemetry.plausibility import InputLimits
 from estimator.telemetry.samples import BatterySample, GripperSample, VelocitySample
@@ -298,12 +300,53 @@ def test_stamp_layout_is_big_endian_microseconds() -> None:
 ARDUCOPTER_TLOG = Path(__file__).parent / "data" / "arducopter_guided.tlog"
 
 
-def test_iris_vertical_velocity_is_the_wrong_way_up_and_said_once() -> None:
-    """APM:Copter 3.3 sends GLOBAL_POSITION_INT.vz positive up: against the altitude rate the
-    sign disagrees on every climbing or descending pair; current ArduCopter agrees."""
+def _statustext(codec: mavlink.MAVLink, t_ms: int, words: str) -> tuple[int, bytes]:
+    """(receive µs, frame) of a STATUSTEXT ``words`` sent at ``t_ms`` of the flight."""
+    msg = codec.statustext_encode(mavlink.MAV_SEVERITY_INFO, words.encode())
+    return EPOCH_US + t_ms * 1000, msg.pack(codec)
+
+
+def test_a_copter_before_3_6_has_its_vz_read_positive_up(tmp_path: Path) -> None:
+    """Copter before 3.6 sent GLOBAL_POSITION_INT.vz positive up (ArduPilot pull request
+    7672): after its firmware text the decoder reads it so. A later Copter, another vehicle,
+    or no firmware text leave MAVLink's positive down."""
+    codec = mavlink.MAVLink(None, srcSystem=1, srcComponent=1)
+
+    def vd_mps(words: str) -> set[float]:
+        frames = flight_frames(seconds=10.0, vz_cmps=150)
+        if words:
+            frames = sorted([*frames, _statustext(codec, 1_100, words)], key=lambda f: f[0])
+        path = write_tlog(tmp_path / f"{len(words)}.tlog", frames)
+        samples = iter_samples(path)
+        return {s.vd_mps for s in samples if isinstance(s, VelocitySample) and s.time_s > 1.5}
+
+    assert vd_mps("APM:Copter V3.3 (d3e14c1c)") == {-1.5}
+    assert vd_mps("ArduCopter V3.5.7 (b11c6af3)") == {-1.5}
+    assert vd_mps("ArduCopter V3.6.12 (c2e4a3c3)") == {1.5}
+    assert vd_mps("ArduPlane V3.8.5 (6a2c5e34)") == {1.5}
+    assert vd_mps("") == {1.5}
+
+
+def test_iris_vertical_velocity_is_read_up_and_without_the_firmware_text_said_once(
+    tmp_path: Path,
+) -> None:
+    """The IRIS+ logs (APM:Copter V3.3) name their firmware: read positive up, their vz agrees
+    with the altitude rate. The same log without that text is read as MAVLink defines it, and
+    the sanity check finds it the wrong way up on every climbing or descending pair; current
+    ArduCopter agrees."""
     stream = iter_samples(IRIS_MARCH)
     list(stream)
-    (warning,) = stream.warnings()
+    assert stream.warnings(cells=3) == []
+    records = []
+    log = mavutil.mavmmaplog(str(IRIS_MARCH))
+    while (msg := log.recv_msg()) is not None:
+        if not (msg.get_type() == "STATUSTEXT" and copter_vz_up(msg.text) is not None):
+            records.append(struct.pack(">Q", round(msg._timestamp * 1e6)) + msg.get_msgbuf())
+    unnamed = tmp_path / "unnamed.tlog"
+    unnamed.write_bytes(b"".join(records))
+    stream = iter_samples(unnamed)
+    list(stream)
+    (warning,) = stream.warnings(cells=3)
     assert warning.startswith("GLOBAL_POSITION_INT.vz disagrees in sign with the altitude rate")
     assert "positive up" in warning
     modern = iter_samples(ARDUCOPTER_TLOG)
@@ -325,9 +368,8 @@ def test_vehicle_file_for_another_cell_count_is_a_warning_not_a_silent_zero() ->
 def test_replay_prints_one_warning_line_per_problem(capsys: pytest.CaptureFixture[str]) -> None:
     assert cli_main(["replay", str(IRIS_MARCH)]) == 0  # built-in vehicle: 6 cells on a 3S log
     lines = [line for line in capsys.readouterr().err.splitlines() if "warning" in line]
-    assert len(lines) == 2
+    assert len(lines) == 1
     assert all(line.startswith("uav-energy replay: warning: ") for line in lines)
-    assert any("vz disagrees in sign" in line for line in lines)
     assert any("[battery] cells right? (3 cells would fit)" in line for line in lines)
 
 
@@ -354,16 +396,11 @@ def test_gripper_texts_become_a_released_channel(tmp_path: Path) -> None:
     """ArduPilot's STATUSTEXT of a finished release marks the rows after it; before the first
     report the gripper held (a release says so); other texts that mention it are not read."""
     codec = mavlink.MAVLink(None, srcSystem=1, srcComponent=1)
-
-    def text(t_ms: int, words: str) -> tuple[int, bytes]:
-        msg = codec.statustext_encode(mavlink.MAV_SEVERITY_INFO, words.encode())
-        return EPOCH_US + t_ms * 1000, msg.pack(codec)
-
     frames = [
         *flight_frames(seconds=30.0),
-        text(10_100, "Gripper load releasing"),
-        text(15_100, "Gripper load released"),
-        text(20_100, "PreArm: Gripper load released"),
+        _statustext(codec, 10_100, "Gripper load releasing"),
+        _statustext(codec, 15_100, "Gripper load released"),
+        _statustext(codec, 20_100, "PreArm: Gripper load released"),
     ]
     frames.sort(key=lambda f: f[0])
     path = write_tlog(tmp_path / "gripper.tlog", frames)

@@ -20,8 +20,10 @@ def flight_frames(
     velocity: bool = True,
     speed_mps: float = 3.0,
     mavlink1: bool = True,
+    vz_cmps: int = 0,
 ) -> list[tuple[int, bytes]]:
-    """(receive µs, frame) of a simple armed flight at 2 Hz: heartbeat, position, battery.
+    """(receive µs, frame) of a simple armed flight at 2 Hz: heartbeat, position (its vz
+    ``vz_cmps``, cm/s as sent), battery.
 
     Also sends VFR_HUD, which the decoder does not use (it must be skipped).
     """
@@ -43,7 +45,7 @@ def flight_frames(
         if velocity:
             msgs.append(
                 codec.global_position_int_encode(
-                    t_ms, 0, 0, 10_000, 5_000, int(speed_mps * 100), 0, 0, 0
+                    t_ms, 0, 0, 10_000, 5_000, int(speed_mps * 100), 0, vz_cmps, 0
                 )
             )
         msgs.append(codec.sys_status_encode(0, 0, 0, 500, 11_800, current_ca, 80, 0, 0, 0, 0, 0, 0))

@@ -19,7 +19,8 @@ the record before it. What is used:
   become ``None`` (no usable voltage drops the record). Logs older than ``BAT``
   (Copter ≤ 3.4) have ``CURR``: its ``Volt`` / ``Curr`` are integer centivolts / centiamps up
   to Copter 3.3 and float V / A in 3.4, ``CurrTot`` mAh;
-- firmware: the first ``MSG`` text naming it (:data:`FIRMWARE_TEXT`), as ``firmware``;
+- firmware: the first ``MSG`` text naming it
+  (:data:`~estimator.telemetry.firmware.FIRMWARE_TEXT`), as ``firmware``;
 - gripper actions: ``MSG`` texts "Gripper load released"/"grabbed" (as the tlog's STATUSTEXT,
   :func:`~estimator.telemetry.decode.gripper_released`);
 - armed state: ``ARM.ArmState``, or ``EV`` ids 10 (armed) / 11 (disarmed) in older logs.
@@ -42,7 +43,6 @@ import io
 import itertools
 import math
 import os
-import re
 import sys
 from collections.abc import Iterator
 from pathlib import Path
@@ -54,6 +54,7 @@ from pymavlink.DFReader import DFReader_binary
 from estimator.errors import UserError
 from estimator.logs import SampleStream, dataflash_records
 from estimator.telemetry.decode import gripper_released
+from estimator.telemetry.firmware import FIRMWARE_TEXT
 from estimator.telemetry.samples import (
     ArmedSample,
     BatterySample,
@@ -70,9 +71,6 @@ BATTERY_TYPES = ("BAT", "CURR")
 EVENT_ARMED, EVENT_DISARMED = 10, 11
 #: A GPS ``Status`` at least this is a 3-D fix.
 GPS_FIX_3D = 3
-#: The ``MSG`` text naming the firmware and its version, written when logging starts
-#: ("ArduCopter V3.2.1 (36b405fb)", "APM:Copter V3.1.5 (3c57e771)").
-FIRMWARE_TEXT = re.compile(r"^(?:Ardu\w+|APM:\w+) V?\d+\.\d+")
 #: Records are re-sorted by time within this window (ArduPilot logs from several threads).
 REORDER_WINDOW_S = 0.5
 #: Records the library parses between yields (its diagnostics are silenced per batch).

@@ -3,9 +3,10 @@
 - vertical velocity against the altitude rate: on every pair of successive velocity samples
   (at most :data:`MAX_PAIR_GAP_S` apart) where the height changes by at least
   :data:`MIN_RATE_MPS` and the logged climb rate is as large, their signs should agree; a log
-  where they disagree on most such pairs has its vertical velocity the wrong way up (the
-  IRIS+ logs of APM:Copter 3.3 send GLOBAL_POSITION_INT.vz positive up), and the climb power
-  is predicted with the wrong sign;
+  where they disagree on most such pairs has its vertical velocity the wrong way up, and the
+  climb power is predicted with the wrong sign (a Copter before 3.6 sends
+  GLOBAL_POSITION_INT.vz positive up: a log that names its firmware is read so,
+  :mod:`estimator.telemetry.firmware`; this finds one that does not);
 - pack voltage against the vehicle file's cell count: the 95th percentile of the logged pack
   voltage (the pack near rest) per cell must lie where a lithium cell can
   (:func:`estimator.telemetry.plausibility.pack_voltage_problem`); else the energy figures are wrong

@@ -34,6 +34,9 @@ Messages (parsed from bytes by :mod:`estimator.telemetry.frames`) become
   0/0 (no fix, home not set) and values off the globe are counted and skipped;
 - EXTENDED_SYS_STATE's landed state (PX4's landed detector) becomes a :class:`LandedSample`
   at each change (UNDEFINED is no sample);
+- a Copter older than 3.6, named by its firmware STATUSTEXT ("APM:Copter V3.3 (…)"), has its
+  GLOBAL_POSITION_INT.vz taken as it was sent, positive up (:mod:`estimator.telemetry.firmware`),
+  from that text on;
 - ArduPilot's gripper texts (STATUSTEXT "Gripper load released"/"grabbed", "Gripper
   Released"/"Grabbed" from a mission; :data:`GRIPPER_TEXT`) become a :class:`GripperSample`;
 - only the selected autopilot is decoded (default: the first autopilot HEARTBEAT);
@@ -53,6 +56,7 @@ from collections.abc import Iterable
 
 from pymavlink.dialects.v20 import common as mavlink
 
+from estimator.telemetry.firmware import copter_vz_up
 from estimator.telemetry.frames import frame_payload, frame_source
 from estimator.telemetry.plausibility import (
     MAX_WIND_MPS,
@@ -162,6 +166,9 @@ class TelemetryDecoder:
         self._battery_status_s = -math.inf
         self._armed: bool | None = None
         self._on_ground: bool | None = None
+        #: −1 while the autopilot's firmware text names a Copter that sends
+        #: GLOBAL_POSITION_INT.vz positive up (:func:`copter_vz_up`), else 1.
+        self._vz_down_sign = 1
         #: The message type and pack voltage (V) of the latest battery reading skipped as
         #: ``voltage_implausible``; None before the first.
         self.implausible_voltage: tuple[str, float] | None = None
@@ -311,7 +318,7 @@ class TelemetryDecoder:
         return out
 
     def _global_position(self, msg: mavlink.MAVLink_message) -> list[Sample]:
-        v = (msg.vx / 100.0, msg.vy / 100.0, msg.vz / 100.0)
+        v = (msg.vx / 100.0, msg.vy / 100.0, self._vz_down_sign * msg.vz / 100.0)
         alt_m = msg.relative_alt / 1000.0
         t = msg.time_boot_ms / 1000.0
         out = self._velocity(msg, v, alt_m)
@@ -352,6 +359,9 @@ class TelemetryDecoder:
         return self._time.clocked(sample)
 
     def _statustext(self, msg: mavlink.MAVLink_message) -> list[Sample]:
+        vz_up = copter_vz_up(str(msg.text))
+        if vz_up is not None:
+            self._vz_down_sign = -1 if vz_up else 1
         released = gripper_released(str(msg.text))
         clock_s = self._clock_s()
         if released is None or clock_s is None:
