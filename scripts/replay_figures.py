@@ -29,11 +29,13 @@ from types import ModuleType
 from typing import Any
 
 import numpy as np
+from pymavlink import mavutil
 
 from estimator.analysis.replay import replay_log, summarize
 from estimator.logs import iter_samples, sanity
 from estimator.logs.sanity import SanityRecorder
 from estimator.physics.vehicle import BatterySpec, Vehicle, default_vehicle
+from estimator.telemetry.firmware import copter_vz_up
 
 #: What ``uav-energy ARGV…`` prints on stdout (``scripts/figures.py`` runs it in process).
 Cli = Callable[..., str]
@@ -62,24 +64,42 @@ def _agreement(rate: np.ndarray, climb: np.ndarray) -> tuple[int, float, float]:
     return agree, float(np.corrcoef(rate, climb)[0, 1]), float(np.median(np.abs(climb / rate)))
 
 
+def names_old_copter(path: Path) -> bool:
+    """Whether the tlog ``path`` has a firmware STATUSTEXT of a Copter that sends
+    GLOBAL_POSITION_INT.vz positive up (:func:`copter_vz_up`): the reader then reads it so."""
+    log = mavutil.mavmmaplog(str(path))
+    while (msg := log.recv_match(type="STATUSTEXT")) is not None:
+        if copter_vz_up(msg.text):
+            return True
+    return False
+
+
 def iris_vz_sign(iris: Path, fits: ModuleType) -> str:
-    """docs/replay.md: the vertical velocity check on every IRIS+ log (under ``iris``) — the
-    logs with enough judged pairs, how many warn, their signs, correlation and |vz| against
-    the height rate; ``fits``: ``scripts/fit_figures.py`` (its number formats)."""
+    """docs/replay.md: the vertical velocity check on every IRIS+ log (under ``iris``): how
+    many name an old Copter; the logs with enough judged pairs, their vz as sent (MAVLink's
+    positive down: the firmware text's flip undone) and as read, how many warn, their signs,
+    correlation and |vz| against the height rate; ``fits``: ``scripts/fit_figures.py`` (its
+    number formats)."""
     logs = sorted(iris.glob("**/*.log"))
-    judged = [p for p in map(vertical_pairs, logs) if len(p[0]) >= sanity.MIN_PAIRS]
-    figures = [_agreement(rate, climb) for rate, climb, _ in judged]
-    warned = sum(warns for _, _, warns in judged)
-    agree, pairs = sum(f[0] for f in figures), sum(len(p[0]) for p in judged)
-    opposite = "every judged pair" if agree == 0 else f"{pairs - agree} of their {pairs} pairs"
-    corr = [f[1] for f in figures]
-    every = "all warn" if warned == len(judged) else f"{warned} warn"
+    named = {p: names_old_copter(p) for p in logs}
+    judged = [(p, *vertical_pairs(p)) for p in logs]
+    judged = [j for j in judged if len(j[1]) >= sanity.MIN_PAIRS]
+    sent = [_agreement(rate, -climb if named[p] else climb) for p, rate, climb, _ in judged]
+    read = [_agreement(rate, climb) for _, rate, climb, _ in judged]
+    pairs = sum(len(j[1]) for j in judged)
+    corr = [f[1] for f in sent]
+    warned = sum(j[3] for j in judged)
+    unnamed = sum(not named[j[0]] for j in judged)
     return (
-        f"of the {len(logs)} logs in `../shared/data/iris_quadcopter_logs`, the {len(judged)} "
-        f"with at least {sanity.MIN_PAIRS} climbing or descending pairs {every}, with the signs "
-        f"opposite on {opposite} (correlation {fits.number(min(corr), '.2f')} to "
-        f"{fits.number(max(corr), '.2f')}, |vz| "
-        f"≈ {fits.span([f[2] for f in figures], '.1f')} × the altitude rate)"
+        f"of the {len(logs)} logs in `../shared/data/iris_quadcopter_logs`, "
+        f"{sum(named.values())} name their firmware as a Copter before 3.6; the "
+        f"{len(judged)} with at least {sanity.MIN_PAIRS} climbing or descending pairs, their "
+        f"vz read as MAVLink defines it, have the signs opposite on "
+        f"{pairs - sum(f[0] for f in sent)} of their {pairs} pairs (correlation "
+        f"{fits.number(min(corr), '.2f')} to {fits.number(max(corr), '.2f')}, |vz| "
+        f"≈ {fits.span([f[2] for f in sent], '.1f')} × the altitude rate); read as the "
+        f"firmware text says, the signs agree on {sum(f[0] for f in read)} of them, and "
+        f"{warned} log(s) warn, {unnamed} of the {len(judged)} naming no firmware"
     )
 
 
