@@ -10,9 +10,8 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from pymavlink import mavutil
 from pymavlink.dialects.v20 import common as mavlink
-from tlog_builder import EPOCH_US, flight_frames, write_tlog
+from tlog_builder import EPOCH_US, flight_frames, without_firmware_text, write_tlog
 
 from estimator.cli import main as cli_main
 from estimator.errors import UserError
@@ -20,7 +19,6 @@ from estimator.logs import detect_format, iter_samples, load_flights
 from estimator.logs.cmu import REQUIRED_COLUMNS, rotate
 from estimator.logs.sanity import flight_warnings
 from estimator.telemetry.decode import TelemetryDecoder
-from estimator.telemetry.firmware import copter_vz_up
 from estimator.telemetry.frames import FrameParser
 from estimator.telemetry.plausibility import InputLimits
 from estimator.telemetry.samples import BatterySample, GripperSample, VelocitySample
@@ -337,14 +335,7 @@ def test_iris_vertical_velocity_is_read_up_and_without_the_firmware_text_said_on
     stream = iter_samples(IRIS_MARCH)
     list(stream)
     assert stream.warnings(cells=3) == []
-    records = []
-    log = mavutil.mavmmaplog(str(IRIS_MARCH))
-    while (msg := log.recv_msg()) is not None:
-        if not (msg.get_type() == "STATUSTEXT" and copter_vz_up(msg.text) is not None):
-            records.append(struct.pack(">Q", round(msg._timestamp * 1e6)) + msg.get_msgbuf())
-    unnamed = tmp_path / "unnamed.tlog"
-    unnamed.write_bytes(b"".join(records))
-    stream = iter_samples(unnamed)
+    stream = iter_samples(without_firmware_text(IRIS_MARCH, tmp_path / "unnamed.tlog"))
     list(stream)
     (warning,) = stream.warnings(cells=3)
     assert warning.startswith("GLOBAL_POSITION_INT.vz disagrees in sign with the altitude rate")

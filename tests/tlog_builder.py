@@ -5,7 +5,10 @@ from __future__ import annotations
 import struct
 from pathlib import Path
 
+from pymavlink import mavutil
 from pymavlink.dialects.v20 import common as mavlink
+
+from estimator.telemetry.firmware import copter_vz_up
 
 EPOCH_US = 1_458_000_000_000_000
 
@@ -86,3 +89,16 @@ def with_pack(data: bytes, serial: bytes, shift_s: float = 0.0) -> bytes:
             out += stamp + smart_battery_info(serial).pack(codec)
         pos = end
     return bytes(out)
+
+
+def without_firmware_text(log: Path, out: Path) -> Path:
+    """A copy of the tlog ``log`` at ``out`` without the STATUSTEXT that names an old Copter
+    (:func:`copter_vz_up`): a log that sends GLOBAL_POSITION_INT.vz positive up and does not
+    say so (the IRIS+ logs without their "APM:Copter V3.3" line)."""
+    records = []
+    reader = mavutil.mavmmaplog(str(log))
+    while (msg := reader.recv_msg()) is not None:
+        if not (msg.get_type() == "STATUSTEXT" and copter_vz_up(msg.text) is not None):
+            records.append(struct.pack(">Q", round(msg._timestamp * 1e6)) + msg.get_msgbuf())
+    out.write_bytes(b"".join(records))
+    return out

@@ -302,7 +302,8 @@ def through_accel_filter(samples: Samples, values: FloatArray, opt: ResidualOpti
     An acceleration is a smoothed derivative of sampled velocities: a transient shorter than
     the filter reads lower and longer than it was. A power compared with it unfiltered fits
     a gain that grows with the transients' sharpness; through the same filter the two are
-    compared like with like (a linear term's gain is then the filter's independent)."""
+    compared like with like (a term linear in the acceleration then fits a gain that does not
+    depend on the filter). The vertical figures of docs/residuals.md fit the heave gain so."""
     t = samples.state.time_s
     x = np.nan_to_num(np.asarray(values, dtype=float))
     dt = np.diff(t)

@@ -516,6 +516,19 @@ HELD_SCENARIOS_15: dict[str, Scenario] = by_name(
         Takeoff(), Hover(10), Leg(6, 0, 8, -3), Leg(-6, 0, 8, 3), Leg(0, 8, 6, -2),
         Leg(0, -8, 6, 2), Leg(4, 4, 10, -1), Leg(-4, -4, 10, 1), *LEGS[1:5],
     ),
+    vertical_scenario(
+        "held15_clean_staged_descents",
+        "no effect; circles, a climb at 5 m/s by 40 m, descents of 14 m at 2, 4 and 6 m/s with "
+        "hovers between; circles",
+        Takeoff(), *CIRCLES[:3], Leg(0, 0, 8, -5), Hover(6), Leg(0, 0, 7, 2), Hover(6),
+        Leg(0, 0, 3.5, 4), Hover(6), Leg(0, 0, 14 / 6, 6), Hover(6), *CIRCLES[3:],
+    ),
+    vertical_scenario(
+        "held15_clean_short_climbs",
+        "no effect; three climbs and descents of 10 m at 3 m/s, one of 30 m at 7 m/s up and "
+        "4 m/s down; legs",
+        Takeoff(), Hover(10), *up_and_down(3, 3, 10) * 3, *up_and_down(7, 4, 30), *LEGS[1:6],
+    ),
 )
 
 #: Every held-out set by the name ``uav-energy sitl-record`` records it under.
