@@ -41,7 +41,7 @@ CLEAN_VERTICAL = (
     "held4_clean_circles_vertical", "held5_clean_legs_climbs", "held6_clean_fast_climbs",
     "held14_clean_climbs_legs", "held15_clean_steps_legs", "held15_clean_slow_climbs",
     "held15_clean_circles_climbs", "held15_clean_stairs", "held15_clean_tall_fast",
-    "held15_clean_climbing_legs",
+    "held15_clean_climbing_legs", "held15_clean_staged_descents", "held15_clean_short_climbs",
 )  # fmt: skip
 #: The issue's aim: a flight's heave gain, the power through the accelerations' filter, within
 #: this many σ (the two fits' jackknife 1σ combined) of the same fit on the axial flights.
