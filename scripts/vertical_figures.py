@@ -94,7 +94,7 @@ def axial_effects(fit: dict[str, Any], vertical_fit: ModuleType) -> str:
     )
 
 
-def heave_z(vertical_fit: ModuleType, flight: Any, axial: Any) -> float:
+def heave_z(flight: Any, axial: Any) -> float:
     """A flight's filtered heave gain against the axial flights', in their combined 1σ
     (``vertical_fit.GainFit`` each)."""
     return float((flight.gain - axial.gain) / math.hypot(flight.sigma, axial.sigma))
@@ -128,7 +128,7 @@ def held_gains(vertical_fit: ModuleType) -> str:
             if f.startswith(FILTER_HELD_OUT) == held_out
         ]
         gains = [fit.gain for fit in fits]
-        apart = sum(abs(heave_z(vertical_fit, fit, axial)) > HEAVE_Z for fit in fits)
+        apart = sum(abs(heave_z(fit, axial)) > HEAVE_Z for fit in fits)
         return f"{min(gains):.2f}–{max(gains):.2f} on the {len(fits)} {what}, {apart} beyond"
 
     return (

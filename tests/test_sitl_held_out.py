@@ -332,5 +332,5 @@ def test_the_vertical_parameters_agree_with_a_fit_on_pure_vertical_legs(flight: 
     assert isinstance(file_climb, Climb)
     assert climb.efficiency == pytest.approx(file_climb.efficiency, abs=0.1)
     heave = vertical_fit.filtered_heave_gain([samples], vehicle)
-    z = FIGURES.vertical_figures.heave_z(vertical_fit, heave, axial_heave())
+    z = FIGURES.vertical_figures.heave_z(heave, axial_heave())
     assert abs(z) <= FIGURES.vertical_figures.HEAVE_Z, f"{heave}, {z:+.2f}σ"
