@@ -114,7 +114,8 @@ class CoursesFlown:
         )
         if not len(shifts):
             return None
-        back = np.stack((north[::-1], east[::-1]))  # newest first
+        back = np.empty((2, n))  # newest first
+        back[0], back[1] = north[::-1], east[::-1]
         sums = np.concatenate((np.zeros((2, 1)), np.cumsum(back, axis=1)), axis=1)
         squares = np.concatenate(([0.0], np.cumsum((back**2).sum(axis=0))))
         mean = sums[:, 2 * shifts] / (2 * shifts)
@@ -126,11 +127,13 @@ class CoursesFlown:
         inside = steps < shifts[None, :]
         later = back[:, :longest, None]
         # back[:, i + k] at step i and period k (a view: the periods are consecutive)
-        earlier = np.lib.stride_tricks.as_strided(
-            back[:, shifts[0] :],
-            shape=(2, longest, len(shifts)),
-            strides=(back.strides[0], back.strides[1], back.strides[1]),
-            writeable=False,
+        step_bytes = back.strides[1]
+        earlier = np.ndarray(
+            (2, longest, len(shifts)),
+            float,
+            back,
+            int(shifts[0]) * step_bytes,
+            (back.strides[0], step_bytes, step_bytes),
         )
         products = later[0] * earlier[0] + later[1] * earlier[1]
         cross = np.where(inside, products, 0.0).sum(axis=0)

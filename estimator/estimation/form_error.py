@@ -50,7 +50,7 @@ def form_power_w(
     m/s) flown through the air mass moving at ``wind_ne_mps`` (north, east; m/s)."""
     air_n = rows[:, 1] - wind_ne_mps[0]
     air_e = rows[:, 2] - wind_ne_mps[1]
-    airspeed2 = float(np.mean(air_n * air_n + air_e * air_e))
+    airspeed2 = float((air_n * air_n + air_e * air_e).sum()) / len(rows)  # the mean
     return fraction * hover_power_w * airspeed2 / reference_mps**2
 
 

@@ -353,12 +353,14 @@ class OnlineEffects:
         taken out of the velocity (what :class:`Wind` does), the mass goes in as
         :class:`SampleMass`."""
         m, k = len(points), len(rows)
-        columns = np.tile(rows.T, m)  # 9 × (m·k), hypothesis-major
-        columns[1] -= np.repeat(points[:, 0], k)
-        columns[2] -= np.repeat(points[:, 1], k)
+        blocks = np.empty((9, m, k))  # 9 × (m·k), hypothesis-major
+        blocks[:] = rows.T[:, None, :]
+        blocks[1:3] -= points[:, :2].T[:, :, None]
         floor_kg = (self.settings.min_mass_fraction - 1.0) * self.mass_kg
-        mass = SampleMass(np.repeat(np.maximum(points[:, 2], floor_kg), k))
-        state = FlightState.of_columns(columns)
+        delta_kg = np.empty((m, k))
+        delta_kg[:] = np.maximum(points[:, 2], floor_kg)[:, None]
+        state = FlightState.of_columns(blocks.reshape(9, m * k))
+        mass = SampleMass(delta_kg.reshape(m * k))
         power = predict_power_w(self.model, self.mass_kg, state, (mass, *self.others))
         return power.reshape(m, k) + (points[:, 3:4] if points.shape[1] > 3 else 0.0)
 
@@ -400,24 +402,25 @@ class OnlineEffects:
         state = KinematicState.of_motion(
             time_s, (vn_mps, ve_mps, vd_mps), (an_mps2, ae_mps2), None, accel_sigma_mps2
         )
-        return self.update_readings([TrackerReading(state, measured_power_w, voltage_v)])
+        self.update_readings([TrackerReading(state, measured_power_w, voltage_v)])
+        return self.effects
 
     def update_kinematics(
         self, state: KinematicState, measured_power_w: float, voltage_v: float = math.nan
     ) -> tuple[Effect, ...]:
         """:meth:`update` from the pipeline's filtered kinematic state."""
-        return self.update_readings([TrackerReading(state, measured_power_w, voltage_v)])
+        self.update_readings([TrackerReading(state, measured_power_w, voltage_v)])
+        return self.effects
 
-    def update_readings(self, readings: Sequence[TrackerReading]) -> tuple[Effect, ...]:
+    def update_readings(self, readings: Sequence[TrackerReading]) -> None:
         """Fold in readings taken close together (in time order) in one filter step: their
         mean measured power against the mean of the powers predicted at each reading's own
         flight state, with the noise of a mean. While the estimate moves little between
         the readings this carries what they would carry one by one, at the cost of one step.
         The readings it takes are those
         :func:`~estimator.estimation.tracker_readings.select_readings` keeps (the others
-        counted in ``rejected``, ``vertical``, ``idle``).
-
-        Returns :attr:`effects` after the update.
+        counted in ``rejected``, ``vertical``, ``idle``); :attr:`effects` then gives the
+        effects after the update.
         """
         s = self.settings
         selection = select_readings(
@@ -428,7 +431,7 @@ class OnlineEffects:
         self.idle += selection.idle
         kept = selection.kept
         if not kept:
-            return self.effects
+            return
         self.steps += 1
         time_s = kept[-1][0].state.time_s
         dt = 0.0 if self._time_s is None else max(time_s - self._time_s, 0.0)
@@ -495,7 +498,6 @@ class OnlineEffects:
         leaning = fed and self._detector.half_way()
         self._unsettled = self._rival is None and (self._changing or refused or leaning)
         self._x, self._p, self._form, self._loglik = main.x, main.p, main.form, main.loglik
-        return self.effects
 
     def _change_goes_on(self, nu: float, changing: bool) -> bool:
         """Whether the step of normalised innovation ``nu`` starts a change (an alarm of the
