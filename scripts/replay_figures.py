@@ -33,9 +33,9 @@ from pymavlink import mavutil
 
 from estimator.analysis.replay import replay_log, summarize
 from estimator.logs import iter_samples, sanity
-from estimator.logs.sanity import SanityRecorder
 from estimator.physics.vehicle import BatterySpec, Vehicle, default_vehicle
 from estimator.telemetry.firmware import copter_vz_up
+from estimator.telemetry.vz_sense import DECIDING_PAIRS
 
 #: What ``uav-energy ARGV…`` prints on stdout (``scripts/figures.py`` runs it in process).
 Cli = Callable[..., str]
@@ -49,13 +49,24 @@ SIM_WIND = "6@135"
 
 def vertical_pairs(path: Path) -> tuple[np.ndarray, np.ndarray, bool]:
     """(height rate, logged climb rate) in m/s of the sample pairs a log's vertical velocity
-    check judges (:class:`SanityRecorder`), and whether the check warns."""
-    recorder = SanityRecorder()
-    for sample in iter_samples(path):
-        recorder.observe(sample)
-    rate, climb = recorder.judged_pairs() or (np.empty(0), np.empty(0))
-    warns = any(cause == sanity.VERTICAL_VELOCITY for cause, _ in recorder.problems())
+    check judges (its stream's :class:`~estimator.logs.sanity.SanityRecorder`), and whether
+    the log warns about its vertical velocity."""
+    stream = iter_samples(path)
+    list(stream)
+    rate, climb = stream.sanity.judged_pairs() or (np.empty(0), np.empty(0))
+    warns = any(cause == sanity.VERTICAL_VELOCITY for cause, _ in stream.problems())
     return rate, climb, warns
+
+
+def sent_pairs(path: Path) -> tuple[np.ndarray, np.ndarray]:
+    """(height rate, climb rate) in m/s of a tlog's successive GLOBAL_POSITION_INT messages as
+    sent, vz taken positive down as MAVLink defines it (the pairs
+    :func:`~estimator.logs.sanity.rate_pairs` judges)."""
+    log = mavutil.mavmmaplog(str(path))
+    rows = []
+    while (msg := log.recv_match(type="GLOBAL_POSITION_INT")) is not None:
+        rows.append((msg.time_boot_ms / 1000.0, msg.vz / 100.0, msg.relative_alt / 1000.0))
+    return sanity.rate_pairs(*np.array(rows, dtype=float).reshape(-1, 3).T)
 
 
 def _agreement(rate: np.ndarray, climb: np.ndarray) -> tuple[int, float, float]:
@@ -82,24 +93,26 @@ def iris_vz_sign(iris: Path, fits: ModuleType) -> str:
     number formats)."""
     logs = sorted(iris.glob("**/*.log"))
     named = {p: names_old_copter(p) for p in logs}
-    judged = [(p, *vertical_pairs(p)) for p in logs]
+    judged = [(p, *sent_pairs(p), *vertical_pairs(p)) for p in logs]
     judged = [j for j in judged if len(j[1]) >= sanity.MIN_PAIRS]
-    sent = [_agreement(rate, -climb if named[p] else climb) for p, rate, climb, _ in judged]
-    read = [_agreement(rate, climb) for _, rate, climb, _ in judged]
+    sent = [_agreement(rate, climb) for _, rate, climb, *_ in judged]
+    read = [_agreement(rate, climb) for *_, rate, climb, _ in judged]
     pairs = sum(len(j[1]) for j in judged)
+    read_pairs = sum(len(j[3]) for j in judged)
     corr = [f[1] for f in sent]
-    warned = sum(j[3] for j in judged)
+    warned = sum(j[5] for j in judged)
     unnamed = sum(not named[j[0]] for j in judged)
     return (
         f"of the {len(logs)} logs in `../shared/data/iris_quadcopter_logs`, "
         f"{sum(named.values())} name their firmware as a Copter before 3.6; the "
-        f"{len(judged)} with at least {sanity.MIN_PAIRS} climbing or descending pairs, their "
-        f"vz read as MAVLink defines it, have the signs opposite on "
-        f"{pairs - sum(f[0] for f in sent)} of their {pairs} pairs (correlation "
+        f"{len(judged)} with at least {sanity.MIN_PAIRS} climbing or descending pairs of "
+        f"GLOBAL_POSITION_INT, their vz as sent taken as MAVLink defines it, have the signs "
+        f"opposite on {pairs - sum(f[0] for f in sent)} of their {pairs} pairs (correlation "
         f"{fits.number(min(corr), '.2f')} to {fits.number(max(corr), '.2f')}, |vz| "
         f"≈ {fits.span([f[2] for f in sent], '.1f')} × the altitude rate); read as the "
-        f"firmware text says, the signs agree on {sum(f[0] for f in read)} of them, and "
-        f"{warned} log(s) warn, {unnamed} of the {len(judged)} naming no firmware"
+        f"firmware text says or, in the {unnamed} naming no firmware, as their height says "
+        f"after {DECIDING_PAIRS} judged pairs, the signs agree on {sum(f[0] for f in read)} of "
+        f"their {read_pairs} pairs as read, and {warned} log(s) say how they read their vz"
     )
 
 

@@ -5,8 +5,9 @@
   :data:`MIN_RATE_MPS` and the logged climb rate is as large, their signs should agree; a log
   where they disagree on most such pairs has its vertical velocity the wrong way up, and the
   climb power is predicted with the wrong sign (a Copter before 3.6 sends
-  GLOBAL_POSITION_INT.vz positive up: a log that names its firmware is read so,
-  :mod:`estimator.telemetry.firmware`; this finds one that does not);
+  GLOBAL_POSITION_INT.vz positive up: the tlog reader reads it so once the firmware text or
+  the messages' own height says so, :mod:`estimator.telemetry.vz_sense`, and its word on that
+  is this check's warning; this finds what it cannot: other sources, too few climbs to tell);
 - pack voltage against the vehicle file's cell count: the 95th percentile of the logged pack
   voltage (the pack near rest) per cell must lie where a lithium cell can
   (:func:`estimator.telemetry.plausibility.pack_voltage_problem`); else the energy figures are wrong
@@ -31,14 +32,11 @@ from numpy.typing import ArrayLike
 
 from estimator.telemetry.plausibility import pack_voltage_problem
 from estimator.telemetry.samples import BatterySample, RebootSample, Sample, VelocitySample
+from estimator.telemetry.vz_sense import MAX_PAIR_GAP_S, MIN_RATE_MPS
 
 if TYPE_CHECKING:  # the package imports this module
     from estimator.logs import FlightSeries
 
-#: Smallest height rate (and logged climb rate) a pair of samples is judged on, m/s.
-MIN_RATE_MPS = 0.5
-#: Successive velocity samples further apart than this (s) are not paired.
-MAX_PAIR_GAP_S = 5.0
 #: Fewest judged pairs for a verdict.
 MIN_PAIRS = 5
 #: Share of judged pairs whose signs disagree above which the log is warned about.
@@ -56,10 +54,10 @@ def vertical_velocity_problem(
 ) -> str | None:
     """A sentence when the logged down-velocity (m/s, NED) disagrees in sign with the rate of
     the height over home (m) on most climbing or descending pairs, else None."""
-    return _vertical_verdict(*_judged_pairs(time_s, vd_mps, alt_m), source)
+    return _vertical_verdict(*rate_pairs(time_s, vd_mps, alt_m), source)
 
 
-def _judged_pairs(
+def rate_pairs(
     time_s: ArrayLike, vd_mps: ArrayLike, alt_m: ArrayLike
 ) -> tuple[np.ndarray, np.ndarray]:
     """(height rate, logged climb rate) in m/s of the successive sample pairs judged."""
@@ -159,6 +157,9 @@ class SanityRecorder:
     def __init__(self) -> None:
         self._velocity: list[list[tuple[float, float, float | None]]] = [[]]
         self._voltage_v: list[float] = []
+        #: The reader's word on a vertical velocity it found sent the wrong way up and read
+        #: right from then on (:mod:`estimator.telemetry.vz_sense`), else None.
+        self.vertical_note: str | None = None
 
     def observe(self, sample: Sample) -> None:
         if isinstance(sample, VelocitySample):
@@ -187,9 +188,7 @@ class SanityRecorder:
         """(height rate, logged climb rate) in m/s of the velocity sample pairs the vertical
         check judges (no pair spans a reboot); None before two samples of one boot."""
         pairs = [
-            _judged_pairs(*np.array(boot, dtype=float).T)
-            for boot in self._velocity
-            if len(boot) > 1
+            rate_pairs(*np.array(boot, dtype=float).T) for boot in self._velocity if len(boot) > 1
         ]
         if not pairs:
             return None
@@ -203,7 +202,9 @@ class SanityRecorder:
         is known); no pair of velocity samples spans a reboot."""
         out = []
         pairs = self.judged_pairs()
-        if pairs is not None and (problem := _vertical_verdict(*pairs, source)) is not None:
+        if self.vertical_note is not None:  # the samples before the reader knew are wrong
+            out.append((VERTICAL_VELOCITY, self.vertical_note))
+        elif pairs is not None and (problem := _vertical_verdict(*pairs, source)) is not None:
             out.append((VERTICAL_VELOCITY, problem))
         if cells is not None and (problem := voltage_problem(self._voltage_v, cells)):
             out.append((PACK_VOLTAGE, problem))

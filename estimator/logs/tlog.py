@@ -129,6 +129,7 @@ def _records(data: bytes, stream: SampleStream, decoder: TelemetryDecoder) -> It
         yield from decoder.decode(msg)
     yield from decoder.flush()
     stream.count_checks(decoder.counts)
+    stream.sanity.vertical_note = decoder.vz_sense.note
     if decoder.velocity_type is not None:
         stream.velocity_source = f"{decoder.velocity_type}.vz"
     stream.autopilot = decoder.target

@@ -126,6 +126,7 @@ class Service:
         if config.return_autopilot != "auto":
             self._follow_rtl(config.return_autopilot)
         self._cells_checked = False  # a pack voltage of other cells looked at (once a run)
+        self._vz_noted = False
         self.lock = AutopilotLock(target, (config.system_id, OWN_COMPONENT))
         self.internal_errors = 0
         self.link: MavlinkLink | None = None
@@ -350,6 +351,9 @@ class Service:
         reboots, jumps = counts["reboots"], counts["clock_jumps"]
         samples = self.decoder.decode(msg)
         self._infer_cells()
+        if self.decoder.vz_sense.note is not None and not self._vz_noted:
+            self._vz_noted = True  # the telemetry's vz found sent positive up: said once
+            log.warning("%s", self.decoder.vz_sense.note)
         if msg.get_type() == "HEARTBEAT" and message_source(msg) == self.decoder.target:
             self._home_first = msg.autopilot == mavlink.MAV_AUTOPILOT_ARDUPILOTMEGA
             self._px4 = msg.autopilot == mavlink.MAV_AUTOPILOT_PX4

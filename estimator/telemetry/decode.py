@@ -36,7 +36,8 @@ Messages (parsed from bytes by :mod:`estimator.telemetry.frames`) become
   at each change (UNDEFINED is no sample);
 - a Copter older than 3.6, named by its firmware STATUSTEXT ("APM:Copter V3.3 (…)"), has its
   GLOBAL_POSITION_INT.vz taken as it was sent, positive up (:mod:`estimator.telemetry.firmware`),
-  from that text on;
+  from that text on; without the text, from when the messages' own height has shown it
+  (:mod:`estimator.telemetry.vz_sense`);
 - ArduPilot's gripper texts (STATUSTEXT "Gripper load released"/"grabbed", "Gripper
   Released"/"Grabbed" from a mission; :data:`GRIPPER_TEXT`) become a :class:`GripperSample`;
 - only the selected autopilot is decoded (default: the first autopilot HEARTBEAT);
@@ -81,6 +82,7 @@ from estimator.telemetry.samples import (
     VelocitySample,
     WindSample,
 )
+from estimator.telemetry.vz_sense import VerticalSense
 
 UINT16_MAX = 65535
 #: Battery currents that mean "not measured" (cA): MAVLink's −1, and −1 A, which PX4 reports
@@ -166,9 +168,8 @@ class TelemetryDecoder:
         self._battery_status_s = -math.inf
         self._armed: bool | None = None
         self._on_ground: bool | None = None
-        #: −1 while the autopilot's firmware text names a Copter that sends
-        #: GLOBAL_POSITION_INT.vz positive up (:func:`copter_vz_up`), else 1.
-        self._vz_down_sign = 1
+        #: Which way up GLOBAL_POSITION_INT.vz is sent (its firmware text, else its height).
+        self.vz_sense = VerticalSense()
         #: The message type and pack voltage (V) of the latest battery reading skipped as
         #: ``voltage_implausible``; None before the first.
         self.implausible_voltage: tuple[str, float] | None = None
@@ -318,9 +319,11 @@ class TelemetryDecoder:
         return out
 
     def _global_position(self, msg: mavlink.MAVLink_message) -> list[Sample]:
-        v = (msg.vx / 100.0, msg.vy / 100.0, self._vz_down_sign * msg.vz / 100.0)
         alt_m = msg.relative_alt / 1000.0
         t = msg.time_boot_ms / 1000.0
+        sense = self.vz_sense
+        sense.observe(t, msg.vz / 100.0, alt_m)
+        v = (msg.vx / 100.0, msg.vy / 100.0, sense.down_sign * msg.vz / 100.0)
         out = self._velocity(msg, v, alt_m)
         if self._velocity_type == "GLOBAL_POSITION_INT" or self._velocity_type is None:
             # the frame's stamp was judged with its velocity: its position goes with it
@@ -361,7 +364,7 @@ class TelemetryDecoder:
     def _statustext(self, msg: mavlink.MAVLink_message) -> list[Sample]:
         vz_up = copter_vz_up(str(msg.text))
         if vz_up is not None:
-            self._vz_down_sign = -1 if vz_up else 1
+            self.vz_sense.firmware(vz_up)
         released = gripper_released(str(msg.text))
         clock_s = self._clock_s()
         if released is None or clock_s is None:

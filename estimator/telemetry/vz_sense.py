@@ -1,0 +1,79 @@
+"""Which way up an autopilot sends GLOBAL_POSITION_INT.vz, from the height in the same messages.
+
+MAVLink defines vz positive down; Copter before 3.6 sent it positive up
+(:mod:`estimator.telemetry.firmware`). Its firmware text says which, when the reader sees it: a
+log cut after the autopilot's boot, or a daemon started after it, does not. Then the message
+says it itself: its ``relative_alt`` (mm over home) rises where the vehicle climbs. On pairs of
+successive messages at most :data:`MAX_PAIR_GAP_S` apart where the height changes by at least
+:data:`MIN_RATE_MPS` and vz is as large, the height rate and vz read positive down agree in
+sign when vz is sent positive down. Once :data:`DECIDING_PAIRS` pairs are judged, a share of
+:data:`DECIDING_SHARE` either way decides (else the judging goes on): a Copter that sends vz
+positive up is read so from then on, after the first seconds of its first climb or descent
+read the wrong way. A firmware text decides whenever it comes, over the height's verdict.
+"""
+
+from __future__ import annotations
+
+import math
+
+#: Smallest height rate (and climb rate from vz) a pair of messages is judged on, m/s.
+MIN_RATE_MPS = 0.5
+#: Successive messages further apart than this (s) are not paired.
+MAX_PAIR_GAP_S = 5.0
+#: Judged pairs before the height's verdict: on every ArduCopter tlog of ``../shared`` and
+#: ``replay/`` the judged pairs agree, or disagree, all of them (up to 421 a flight), and the
+#: IRIS+ flights climb for a few seconds only (3 to 133 judged pairs without a firmware text).
+DECIDING_PAIRS = 3
+#: Share of the judged pairs that must agree (or disagree) for a verdict.
+DECIDING_SHARE = 0.8
+
+
+class VerticalSense:
+    """The sign that turns a GLOBAL_POSITION_INT.vz as sent into positive down
+    (:attr:`down_sign`): 1 (MAVLink's) until a firmware text or the height says otherwise."""
+
+    def __init__(self) -> None:
+        self.down_sign = 1
+        #: What decided the sign: "firmware", "height", or None (not yet: MAVLink's).
+        self.decided_by: str | None = None
+        #: When the height found vz sent positive up: a sentence saying so, else None.
+        self.note: str | None = None
+        self._last: tuple[float, float, float] | None = None
+        self._agree = self._disagree = 0
+
+    def firmware(self, vz_up: bool) -> None:
+        """The firmware text says whether vz is sent positive up (:func:`copter_vz_up`)."""
+        self.down_sign = -1 if vz_up else 1
+        self.decided_by = "firmware"
+
+    def observe(self, time_s: float, vz_sent_mps: float, alt_m: float) -> None:
+        """One message: its time (s since boot), vz as sent (m/s) and height over home (m)."""
+        if self.decided_by is not None:
+            return
+        last, self._last = self._last, (time_s, vz_sent_mps, alt_m)
+        if last is None:
+            return
+        dt_s = time_s - last[0]
+        if not 0.0 < dt_s <= MAX_PAIR_GAP_S:
+            return
+        rate_mps = (alt_m - last[2]) / dt_s
+        climb_mps = -0.5 * (vz_sent_mps + last[1])  # read positive down
+        if not (abs(rate_mps) >= MIN_RATE_MPS and abs(climb_mps) >= MIN_RATE_MPS):
+            return  # level, or not finite
+        if math.copysign(1.0, rate_mps) == math.copysign(1.0, climb_mps):
+            self._agree += 1
+        else:
+            self._disagree += 1
+        judged = self._agree + self._disagree
+        if judged < DECIDING_PAIRS:
+            return
+        if self._agree >= DECIDING_SHARE * judged:
+            self.decided_by = "height"
+        elif self._disagree >= DECIDING_SHARE * judged:
+            self.down_sign, self.decided_by = -1, "height"
+            self.note = (
+                f"GLOBAL_POSITION_INT.vz disagrees in sign with the altitude rate on "
+                f"{self._disagree} of the first {judged} climbing or descending samples: read "
+                "positive up from then on, as a Copter before 3.6 sends it (the telemetry named "
+                "no firmware)"
+            )
