@@ -69,6 +69,16 @@ def test_the_firmware_text_decides_over_the_height(vz_up: bool) -> None:
     assert (sense.down_sign, sense.decided_by) == (-1 if vz_up else 1, "firmware")
     climb(sense, -1.0 if vz_up else 1.0, DECIDING_PAIRS, start_s=100.0)
     assert sense.down_sign == (-1 if vz_up else 1)
+    assert sense.note is None  # the height's verdict, NED, said nothing; the text's stands
+
+
+def test_a_firmware_text_after_the_heights_verdict_keeps_or_takes_back_its_note() -> None:
+    for vz_up in (True, False):
+        sense = VerticalSense()
+        climb(sense, 1.0, DECIDING_PAIRS)
+        assert sense.note is not None
+        sense.firmware(vz_up)
+        assert (sense.note is not None) is vz_up
 
 
 async def test_a_daemon_that_missed_the_firmware_text_reads_the_climb_up(

@@ -42,9 +42,12 @@ class VerticalSense:
         self._agree = self._disagree = 0
 
     def firmware(self, vz_up: bool) -> None:
-        """The firmware text says whether vz is sent positive up (:func:`copter_vz_up`)."""
+        """The firmware text says whether vz is sent positive up (:func:`copter_vz_up`); a
+        text that says otherwise than the height did takes back the height's note too."""
         self.down_sign = -1 if vz_up else 1
         self.decided_by = "firmware"
+        if not vz_up:
+            self.note = None
 
     def observe(self, time_s: float, vz_sent_mps: float, alt_m: float) -> None:
         """One message: its time (s since boot), vz as sent (m/s) and height over home (m)."""
