@@ -58,31 +58,26 @@ def vertical_pairs(path: Path) -> tuple[np.ndarray, np.ndarray, bool]:
     return rate, climb, warns
 
 
-def sent_pairs(path: Path) -> tuple[np.ndarray, np.ndarray]:
-    """(height rate, climb rate) in m/s of a tlog's successive GLOBAL_POSITION_INT messages as
-    sent, vz taken positive down as MAVLink defines it (the pairs
-    :func:`~estimator.logs.sanity.rate_pairs` judges)."""
+def sent_pairs(path: Path) -> tuple[bool, np.ndarray, np.ndarray]:
+    """Whether the tlog ``path`` has a firmware STATUSTEXT of a Copter that sends
+    GLOBAL_POSITION_INT.vz positive up (:func:`copter_vz_up`: the reader then reads it so),
+    and the (height rate, climb rate) in m/s of its successive GLOBAL_POSITION_INT as sent,
+    vz taken positive down as MAVLink defines it (the pairs
+    :func:`~estimator.logs.sanity.rate_pairs` judges); one pass over the log."""
     log = mavutil.mavmmaplog(str(path))
-    rows = []
-    while (msg := log.recv_match(type="GLOBAL_POSITION_INT")) is not None:
-        rows.append((msg.time_boot_ms / 1000.0, msg.vz / 100.0, msg.relative_alt / 1000.0))
-    return sanity.rate_pairs(*np.array(rows, dtype=float).reshape(-1, 3).T)
+    named, rows = False, []
+    while (msg := log.recv_match(type=["STATUSTEXT", "GLOBAL_POSITION_INT"])) is not None:
+        if msg.get_type() == "STATUSTEXT":
+            named = named or bool(copter_vz_up(msg.text))
+        else:
+            rows.append((msg.time_boot_ms / 1000.0, msg.vz / 100.0, msg.relative_alt / 1000.0))
+    return named, *sanity.rate_pairs(*np.array(rows, dtype=float).reshape(-1, 3).T)
 
 
 def _agreement(rate: np.ndarray, climb: np.ndarray) -> tuple[int, float, float]:
     """Pairs whose signs agree, the correlation, and the median |climb| / |height rate|."""
     agree = int(np.count_nonzero(np.sign(rate) == np.sign(climb)))
     return agree, float(np.corrcoef(rate, climb)[0, 1]), float(np.median(np.abs(climb / rate)))
-
-
-def names_old_copter(path: Path) -> bool:
-    """Whether the tlog ``path`` has a firmware STATUSTEXT of a Copter that sends
-    GLOBAL_POSITION_INT.vz positive up (:func:`copter_vz_up`): the reader then reads it so."""
-    log = mavutil.mavmmaplog(str(path))
-    while (msg := log.recv_match(type="STATUSTEXT")) is not None:
-        if copter_vz_up(msg.text):
-            return True
-    return False
 
 
 def iris_vz_sign(iris: Path, fits: ModuleType) -> str:
@@ -92,19 +87,18 @@ def iris_vz_sign(iris: Path, fits: ModuleType) -> str:
     correlation and |vz| against the height rate; ``fits``: ``scripts/fit_figures.py`` (its
     number formats)."""
     logs = sorted(iris.glob("**/*.log"))
-    named = {p: names_old_copter(p) for p in logs}
-    judged = [(p, *sent_pairs(p), *vertical_pairs(p)) for p in logs]
-    judged = [j for j in judged if len(j[1]) >= sanity.MIN_PAIRS]
+    every = [(*sent_pairs(p), *vertical_pairs(p)) for p in logs]
+    judged = [j for j in every if len(j[1]) >= sanity.MIN_PAIRS]
     sent = [_agreement(rate, climb) for _, rate, climb, *_ in judged]
     read = [_agreement(rate, climb) for *_, rate, climb, _ in judged]
     pairs = sum(len(j[1]) for j in judged)
     read_pairs = sum(len(j[3]) for j in judged)
     corr = [f[1] for f in sent]
     warned = sum(j[5] for j in judged)
-    unnamed = sum(not named[j[0]] for j in judged)
+    unnamed = sum(not j[0] for j in judged)
     return (
         f"of the {len(logs)} logs in `../shared/data/iris_quadcopter_logs`, "
-        f"{sum(named.values())} name their firmware as a Copter before 3.6; the "
+        f"{sum(j[0] for j in every)} name their firmware as a Copter before 3.6; the "
         f"{len(judged)} with at least {sanity.MIN_PAIRS} climbing or descending pairs of "
         f"GLOBAL_POSITION_INT, their vz as sent taken as MAVLink defines it, have the signs "
         f"opposite on {pairs - sum(f[0] for f in sent)} of their {pairs} pairs (correlation "
