@@ -3,14 +3,19 @@
 
 from __future__ import annotations
 
+import asyncio
 import copy
 import logging
 import math
 
 import pytest
 from test_service import flight, play, running, wait_for  # noqa: F401 (flight: a fixture)
+from test_trust import autopilot_to, daemon_port
 
+from estimator.mavlink import autopilot_lock
 from estimator.mavlink.config import ServiceConfig
+from estimator.telemetry.decode import TelemetryDecoder
+from estimator.telemetry.samples import VelocitySample
 from estimator.telemetry.vz_sense import DECIDING_PAIRS, VerticalSense
 
 
@@ -81,6 +86,22 @@ def test_a_firmware_text_after_the_heights_verdict_keeps_or_takes_back_its_note(
         assert (sense.note is not None) is vz_up
 
 
+def first_seconds(records: list, seconds: float, vz_sign: int) -> list:
+    """The (time, message) records' messages of its first ``seconds`` (autopilot clock) without
+    LOCAL_POSITION_NED (GLOBAL_POSITION_INT is the velocity), vz sent times ``vz_sign``."""
+    messages = []
+    for _, msg in records:
+        if msg.get_type() == "LOCAL_POSITION_NED":
+            continue
+        if msg.get_type() == "GLOBAL_POSITION_INT":
+            msg = copy.copy(msg)
+            msg.vz = vz_sign * msg.vz
+        if getattr(msg, "time_boot_ms", 0) > 1000 * seconds:
+            break
+        messages.append(msg)
+    return messages
+
+
 async def test_a_daemon_that_missed_the_firmware_text_reads_the_climb_up(
     flight: list,  # noqa: F811 (the fixture)
     caplog: pytest.LogCaptureFixture,
@@ -90,18 +111,8 @@ async def test_a_daemon_that_missed_the_firmware_text_reads_the_climb_up(
     no other velocity: its take-off climb (2 m/s, 3–12 s) is read as a climb within three
     judged pairs, and the daemon says so once."""
     caplog.set_level(logging.WARNING, logger="uav_energy")
-    messages = []
-    for _, msg in flight:
-        if msg.get_type() == "LOCAL_POSITION_NED":
-            continue  # GLOBAL_POSITION_INT is the velocity
-        if msg.get_type() == "GLOBAL_POSITION_INT":
-            msg = copy.copy(msg)
-            msg.vz = -msg.vz
-        if getattr(msg, "time_boot_ms", 0) > 10_000:
-            break
-        messages.append(msg)
     async with running(ServiceConfig(stale_after_s=600.0)) as (service, sender):
-        await play(sender, messages)
+        await play(sender, first_seconds(flight, 10.0, -1))
         await wait_for(lambda: (e := service.out.latest) is not None and e.time_s >= 9.0)
         sense = service.decoder.vz_sense
         assert (sense.down_sign, sense.decided_by) == (-1, "height")
@@ -109,3 +120,56 @@ async def test_a_daemon_that_missed_the_firmware_text_reads_the_climb_up(
         assert service.out.latest.climb_mps == pytest.approx(2.0, abs=0.3)
     said = [r.getMessage() for r in caplog.records if "read positive up" in r.getMessage()]
     assert said == [sense.note]
+
+
+async def test_another_autopilot_locked_after_the_first_falls_silent_has_its_own_vz_sign(
+    flight: list,  # noqa: F811 (the fixture)
+    monkeypatch: pytest.MonkeyPatch,
+) -> None:
+    """An old Copter (vz sent positive up, no firmware text) climbs and falls silent; another
+    autopilot (system 2, vz positive down as MAVLink defines it) takes its place over UDP. The
+    sign the height decided on the first is not carried over: the second one's climb is
+    published as a climb (2 m/s), not as a 2 m/s descent."""
+    monkeypatch.setattr(autopilot_lock, "REPIN_AFTER_S", 0.3)  # wall s of silence
+    async with running(ServiceConfig(stale_after_s=600.0)) as (service, sender):
+        await play(sender, first_seconds(flight, 10.0, -1))
+        await wait_for(lambda: service.decoder.vz_sense.decided_by == "height")
+        assert service.decoder.vz_sense.down_sign == -1
+        await asyncio.sleep(0.5)  # the first autopilot is silent past REPIN_AFTER_S
+        second = await autopilot_to(daemon_port(service), system=2)
+        await second.play(first_seconds(flight, 12.0, 1))
+        await wait_for(lambda: service.lock.locked == (2, 1))
+        await wait_for(lambda: (e := service.out.latest) is not None and e.time_s >= 11.0)
+        assert service.lock.counts["relocked"] == 1
+        sense = service.decoder.vz_sense
+        assert (sense.down_sign, sense.decided_by, sense.note) == (1, "height", None)
+        assert service.out.latest.climb_mps == pytest.approx(2.0, abs=0.3)
+
+
+def test_another_autopilot_has_its_own_velocity_message_and_vz_sign(
+    flight: list,  # noqa: F811 (the fixture)
+) -> None:
+    """The decoder retargeted to another autopilot forgets what it learned of the last one:
+    the first sent GLOBAL_POSITION_INT only, vz positive up; the second sends
+    LOCAL_POSITION_NED only (without the change, its velocity would be skipped as a second
+    source), and no vz sign is carried over to it."""
+    decoder = TelemetryDecoder()
+    decoder.decode_all(first_seconds(flight, 10.0, -1))
+    assert (decoder.target, decoder.velocity_type) == ((1, 1), "GLOBAL_POSITION_INT")
+    assert decoder.vz_sense.down_sign == -1
+    decoder.retarget((2, 1))
+    second = []
+    for _, msg in flight:
+        if msg.get_type() == "GLOBAL_POSITION_INT":
+            continue
+        if getattr(msg, "time_boot_ms", 0) > 12_000:
+            break
+        msg = copy.copy(msg)
+        msg._header = copy.copy(msg._header)
+        msg._header.srcSystem = 2
+        second.append(msg)
+    velocities = [s for s in decoder.decode_all(second) if isinstance(s, VelocitySample)]
+    assert decoder.velocity_type == "LOCAL_POSITION_NED"
+    assert (decoder.vz_sense.down_sign, decoder.vz_sense.decided_by) == (1, None)
+    at_8_s = min(velocities, key=lambda s: abs(s.time_s - 8.0))
+    assert at_8_s.vd_mps == pytest.approx(-2.0, abs=0.3)  # climbing at 2 m/s

@@ -341,7 +341,9 @@ class Service:
         telemetry."""
         locked = self.lock.locked
         assert locked is not None and self.link is not None
-        self.decoder.target = locked
+        if locked != self.decoder.target:
+            self._vz_noted = False  # another autopilot's vz is judged and said anew
+        self.decoder.retarget(locked)
         self.link.answer_only(self.lock.peer)
         self._request_streams(now_s)
         self._start_mission(locked)

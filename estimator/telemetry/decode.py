@@ -154,13 +154,21 @@ class TelemetryDecoder:
         self.target = target
         self.own = own
         self.battery_id = battery_id
+        self.limits = limits or InputLimits()
+        self.counts: Counter[str] = Counter()
+        # a new clock (a reboot, another autopilot) is found and announced by these
+        self._time = ClockFilter(self.counts, clock)
+        self._jumps = VelocityJumps(self.counts)
+        self._start_autopilot()
+        #: The message type and pack voltage (V) of the latest battery reading skipped as
+        #: ``voltage_implausible``; None before the first.
+        self.implausible_voltage: tuple[str, float] | None = None
+
+    def _start_autopilot(self) -> None:
+        """What the decoder learns of one autopilot's telemetry, as before its first message."""
         # BATTERY_STATUS of one other id in a row while none of ours has come (see above)
         self._own_battery_seen = False
         self._other_battery: tuple[int, int] | None = None  # (id, frames in a row)
-        self.limits = limits or InputLimits()
-        self.counts: Counter[str] = Counter()
-        self._time = ClockFilter(self.counts, clock)
-        self._jumps = VelocityJumps(self.counts)
         self._velocity_type: str | None = None
         self._last_velocity_s: float | None = None
         # BATTERY_STATUS in a row and the clock of the last one (SYS_STATUS fallback)
@@ -170,9 +178,16 @@ class TelemetryDecoder:
         self._on_ground: bool | None = None
         #: Which way up GLOBAL_POSITION_INT.vz is sent (its firmware text, else its height).
         self.vz_sense = VerticalSense()
-        #: The message type and pack voltage (V) of the latest battery reading skipped as
-        #: ``voltage_implausible``; None before the first.
-        self.implausible_voltage: tuple[str, float] | None = None
+
+    def retarget(self, target: tuple[int, int]) -> None:
+        """Decode the autopilot ``target`` (system, component) from now on. Another autopilot
+        than the one decoded so far starts afresh: its velocity message type, battery id and
+        which way up it sends vz are its own (a sign decided on the last one is not carried
+        over). Its clock is judged as a new clock of the last one's (a reboot or a jump, so
+        the pipeline moves to it); the counters go on."""
+        if self.target is not None and target != self.target:
+            self._start_autopilot()
+        self.target = target
 
     @property
     def clock_s(self) -> float | None:
