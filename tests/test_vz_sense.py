@@ -9,6 +9,7 @@ import logging
 import math
 
 import pytest
+from pymavlink.dialects.v20 import common as mavlink
 from test_service import flight, play, running, wait_for  # noqa: F401 (flight: a fixture)
 from test_trust import autopilot_to, daemon_port
 
@@ -173,3 +174,35 @@ def test_another_autopilot_has_its_own_velocity_message_and_vz_sign(
     assert (decoder.vz_sense.down_sign, decoder.vz_sense.decided_by) == (1, None)
     at_8_s = min(velocities, key=lambda s: abs(s.time_s - 8.0))
     assert at_8_s.vd_mps == pytest.approx(-2.0, abs=0.3)  # climbing at 2 m/s
+
+
+def test_only_an_ardupilot_autopilot_is_asked_its_height() -> None:
+    """Another stack never sent vz positive up: its HEARTBEAT settles MAVLink's sign, and a
+    climb sent the wrong way does not turn it over (nor does it take back a firmware text)."""
+    for ardupilot, down_sign in ((True, -1), (False, 1)):
+        sense = VerticalSense()
+        sense.autopilot(ardupilot)
+        climb(sense, 1.0, 2 * DECIDING_PAIRS)
+        assert sense.down_sign == down_sign
+        assert (sense.note is not None) is ardupilot
+    sense = VerticalSense()
+    sense.firmware(True)
+    sense.autopilot(False)
+    assert (sense.down_sign, sense.decided_by) == (-1, "firmware")
+
+
+def test_a_px4_heartbeat_keeps_a_flipped_stream_as_sent(
+    flight: list,  # noqa: F811 (the fixture)
+) -> None:
+    """The simulated take-off with vz sent positive up and its HEARTBEATs naming PX4: the
+    decoder reads vz as MAVLink defines it (the climb as a descent, as sent)."""
+    decoder = TelemetryDecoder()
+    messages = first_seconds(flight, 10.0, -1)
+    for i, msg in enumerate(messages):
+        if msg.get_type() == "HEARTBEAT":
+            messages[i] = copy.copy(msg)
+            messages[i].autopilot = mavlink.MAV_AUTOPILOT_PX4
+    velocities = [s for s in decoder.decode_all(messages) if isinstance(s, VelocitySample)]
+    assert (decoder.vz_sense.down_sign, decoder.vz_sense.decided_by) == (1, "autopilot")
+    at_8_s = min(velocities, key=lambda s: abs(s.time_s - 8.0))
+    assert at_8_s.vd_mps == pytest.approx(2.0, abs=0.3)  # as sent

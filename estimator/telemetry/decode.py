@@ -285,6 +285,7 @@ class TelemetryDecoder:
         return clock.time_s
 
     def _heartbeat(self, msg: mavlink.MAVLink_message) -> list[Sample]:
+        self.vz_sense.autopilot(msg.autopilot == mavlink.MAV_AUTOPILOT_ARDUPILOTMEGA)
         armed = bool(msg.base_mode & mavlink.MAV_MODE_FLAG_SAFETY_ARMED)
         clock_s = self._clock_s()
         if clock_s is None or armed == self._armed:

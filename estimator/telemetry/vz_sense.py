@@ -9,7 +9,10 @@ successive messages at most :data:`MAX_PAIR_GAP_S` apart where the height change
 sign when vz is sent positive down. Once :data:`DECIDING_PAIRS` pairs are judged, a share of
 :data:`DECIDING_SHARE` either way decides (else the judging goes on): a Copter that sends vz
 positive up is read so from then on, after the first seconds of its first climb or descent
-read the wrong way. A firmware text decides whenever it comes, over the height's verdict.
+read the wrong way. A firmware text decides whenever it comes, over the height's verdict. Only
+ArduPilot ever sent vz positive up: an autopilot whose HEARTBEAT names another stack is read
+as MAVLink defines it, and its height is not asked (a forged stream cannot turn its climbs
+over).
 """
 
 from __future__ import annotations
@@ -34,7 +37,8 @@ class VerticalSense:
 
     def __init__(self) -> None:
         self.down_sign = 1
-        #: What decided the sign: "firmware", "height", or None (not yet: MAVLink's).
+        #: What decided the sign: "firmware", "autopilot" (not ArduPilot), "height", or None
+        #: (not yet: MAVLink's).
         self.decided_by: str | None = None
         #: When the height found vz sent positive up: a sentence saying so, else None.
         self.note: str | None = None
@@ -48,6 +52,12 @@ class VerticalSense:
         self.decided_by = "firmware"
         if not vz_up:
             self.note = None
+
+    def autopilot(self, ardupilot: bool) -> None:
+        """The autopilot's HEARTBEAT: whether it names ArduPilot (the only stack that sent vz
+        positive up); another is read as MAVLink defines vz, whatever its height said."""
+        if not ardupilot and self.decided_by != "firmware":
+            self.down_sign, self.decided_by, self.note = 1, "autopilot", None
 
     def observe(self, time_s: float, vz_sent_mps: float, alt_m: float) -> None:
         """One message: its time (s since boot), vz as sent (m/s) and height over home (m)."""
