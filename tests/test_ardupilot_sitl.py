@@ -17,6 +17,7 @@ import asyncio
 import contextlib
 import json
 import os
+import re
 import struct
 import subprocess
 import sys
@@ -300,6 +301,11 @@ def test_live_arducopter_sitl_flight_reaches_the_ground_station(tmp_path: Path) 
     daemon_log = live.log_path.read_text()
     assert live.daemon.returncode == 0, daemon_log
     assert "autopilot found: system 1 component 1" in daemon_log, daemon_log
+    # asked, the autopilot tells its version: a Copter 4 sends vz as MAVLink defines it
+    said = re.findall(
+        r"autopilot firmware (\d+)\.\d+\.\d+ \(its AUTOPILOT_VERSION\): (.*)", daemon_log
+    )
+    assert said == [("4", "GLOBAL_POSITION_INT.vz read positive down")], daemon_log
     estimates = live.estimates()
     flying = [e for e in estimates if e["power_measured_w"] and e["power_measured_w"] > 100]
     assert flying, "no estimate with measured flight power"

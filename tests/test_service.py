@@ -445,7 +445,9 @@ async def test_daemon_as_tcp_client_like_ardupilot_sitl(flight: Messages) -> Non
         assert "HEARTBEAT" not in kinds
         commands = [m for m in requests if m.get_type() == "COMMAND_LONG"]
         home = (mavlink.MAV_CMD_REQUEST_MESSAGE, mavlink.MAVLINK_MSG_ID_HOME_POSITION)
-        intervals = [m for m in commands if (m.command, int(m.param1)) != home]
+        version = (mavlink.MAV_CMD_REQUEST_AUTOPILOT_CAPABILITIES, 1)
+        assert version in {(m.command, int(m.param1)) for m in commands}
+        intervals = [m for m in commands if (m.command, int(m.param1)) not in (home, version)]
         assert all(m.command == mavlink.MAV_CMD_SET_MESSAGE_INTERVAL for m in intervals)
         assert {int(m.param1) for m in intervals} >= {
             mavlink.MAVLINK_MSG_ID_GLOBAL_POSITION_INT,

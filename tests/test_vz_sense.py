@@ -181,13 +181,14 @@ def test_only_an_ardupilot_autopilot_is_asked_its_height() -> None:
     climb sent the wrong way does not turn it over (nor does it take back a firmware text)."""
     for ardupilot, down_sign in ((True, -1), (False, 1)):
         sense = VerticalSense()
-        sense.autopilot(ardupilot)
+        stack = mavlink.MAV_AUTOPILOT_ARDUPILOTMEGA if ardupilot else mavlink.MAV_AUTOPILOT_PX4
+        sense.heartbeat(stack, mavlink.MAV_TYPE_QUADROTOR)
         climb(sense, 1.0, 2 * DECIDING_PAIRS)
         assert sense.down_sign == down_sign
         assert (sense.note is not None) is ardupilot
     sense = VerticalSense()
     sense.firmware(True)
-    sense.autopilot(False)
+    sense.heartbeat(mavlink.MAV_AUTOPILOT_PX4, mavlink.MAV_TYPE_QUADROTOR)
     assert (sense.down_sign, sense.decided_by) == (-1, "firmware")
 
 
@@ -206,3 +207,85 @@ def test_a_px4_heartbeat_keeps_a_flipped_stream_as_sent(
     assert (decoder.vz_sense.down_sign, decoder.vz_sense.decided_by) == (1, "autopilot")
     at_8_s = min(velocities, key=lambda s: abs(s.time_s - 8.0))
     assert at_8_s.vd_mps == pytest.approx(2.0, abs=0.3)  # as sent
+
+
+def autopilot_version(major: int, minor: int, patch: int) -> mavlink.MAVLink_message:
+    """AUTOPILOT_VERSION of a release (type 255) from system 1, component 1, as ArduPilot
+    fills flight_sw_version."""
+    codec = mavlink.MAVLink(None, srcSystem=1, srcComponent=1)
+    version = major << 24 | minor << 16 | patch << 8 | 0xFF
+    msg = codec.autopilot_version_encode(
+        0, version, 0, 0, 0, b"\0" * 8, b"\0" * 8, b"\0" * 8, 0, 0, 0
+    )
+    msg.pack(codec)
+    return msg
+
+
+@pytest.mark.parametrize(
+    ("version", "down_sign"), [((3, 3, 0), -1), ((3, 6, 0), 1), ((4, 6, 2), 1)]
+)
+def test_an_arducopters_version_decides_before_its_first_climb(
+    flight: list,  # noqa: F811 (the fixture)
+    version: tuple[int, int, int],
+    down_sign: int,
+) -> None:
+    """The take-off with vz sent as a Copter of ``version`` sends it and an AUTOPILOT_VERSION
+    after the first HEARTBEAT: the version decides before the climb, so the climb is read as
+    a climb from its first samples (the height would need three judged pairs)."""
+    messages = first_seconds(flight, 10.0, down_sign)
+    first_heartbeat = next(i for i, m in enumerate(messages) if m.get_type() == "HEARTBEAT")
+    messages.insert(first_heartbeat + 1, autopilot_version(*version))
+    decoder = TelemetryDecoder()
+    velocities = [s for s in decoder.decode_all(messages) if isinstance(s, VelocitySample)]
+    sense = decoder.vz_sense
+    assert (sense.down_sign, sense.decided_by, sense.note) == (down_sign, "firmware", None)
+    assert sense.firmware_version == version
+    climbing = [s.vd_mps for s in velocities if 3.0 <= s.time_s <= 9.0]
+    assert max(climbing) < 0.1 and min(climbing) < -1.5  # up all along, at 2 m/s
+
+
+def test_a_version_of_another_stack_or_none_decides_nothing(
+    flight: list,  # noqa: F811 (the fixture)
+) -> None:
+    """AUTOPILOT_VERSION 3.3 from a PX4 HEARTBEAT's autopilot is not a Copter's; a version of
+    0 is none."""
+    messages = [m for _, m in flight[:50]]
+    first_heartbeat = next(i for i, m in enumerate(messages) if m.get_type() == "HEARTBEAT")
+    px4 = copy.copy(messages[first_heartbeat])
+    px4.autopilot = mavlink.MAV_AUTOPILOT_PX4
+    decoder = TelemetryDecoder()
+    decoder.decode_all([px4, autopilot_version(3, 3, 0)])
+    assert (decoder.vz_sense.down_sign, decoder.vz_sense.decided_by) == (1, "autopilot")
+    decoder = TelemetryDecoder()
+    decoder.decode_all([messages[first_heartbeat], autopilot_version(0, 0, 0)])
+    assert (decoder.vz_sense.decided_by, decoder.vz_sense.firmware_version) == (None, None)
+
+
+async def test_the_daemon_asks_an_arducopter_its_version_and_reads_its_vz_so(
+    flight: list,  # noqa: F811 (the fixture)
+    caplog: pytest.LogCaptureFixture,
+) -> None:
+    """Live over UDP: the daemon asks the autopilot it locked for its AUTOPILOT_VERSION
+    (MAV_CMD_REQUEST_AUTOPILOT_CAPABILITIES); an answer of Copter 3.3 has its climb, sent
+    positive up, read as a climb without the height's judging, and the version said once."""
+    caplog.set_level(logging.INFO, logger="uav_energy")
+    messages = first_seconds(flight, 10.0, -1)
+    async with running(ServiceConfig(stale_after_s=600.0)) as (service, _):
+        autopilot = await autopilot_to(daemon_port(service))
+        asked = (mavlink.MAV_CMD_REQUEST_AUTOPILOT_CAPABILITIES, 1.0)
+        await autopilot.play(messages[:60])
+        await wait_for(
+            lambda: any(
+                m.get_type() == "COMMAND_LONG" and (m.command, m.param1) == asked
+                for m in autopilot.received
+            )
+        )
+        await autopilot.play([autopilot_version(3, 3, 0), *messages[60:]])
+        await wait_for(lambda: (e := service.out.latest) is not None and e.time_s >= 9.0)
+        sense = service.decoder.vz_sense
+        assert (sense.down_sign, sense.decided_by, sense.note) == (-1, "firmware", None)
+        assert service.out.latest.climb_mps == pytest.approx(2.0, abs=0.3)
+    said = [r.getMessage() for r in caplog.records if "its AUTOPILOT_VERSION" in r.getMessage()]
+    assert said == [
+        "autopilot firmware 3.3.0 (its AUTOPILOT_VERSION): GLOBAL_POSITION_INT.vz read positive up"
+    ]

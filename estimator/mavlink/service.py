@@ -77,6 +77,7 @@ from estimator.mavlink.streams import (
     ardupilot_requests,
     px4_requests,
     request_message,
+    version_request,
 )
 from estimator.physics.vehicle import Vehicle
 from estimator.telemetry.decode import (
@@ -127,6 +128,7 @@ class Service:
             self._follow_rtl(config.return_autopilot)
         self._cells_checked = False  # a pack voltage of other cells looked at (once a run)
         self._vz_noted = False
+        self._version_said: tuple[int, int, int] | None = None
         self.lock = AutopilotLock(target, (config.system_id, OWN_COMPONENT))
         self.internal_errors = 0
         self.link: MavlinkLink | None = None
@@ -329,6 +331,24 @@ class Service:
                         exc,
                     )
 
+    def _say_vertical_sense(self) -> None:
+        """Once per autopilot: its firmware version when it tells it (and which way up its vz
+        is read), or that its height found vz sent positive up."""
+        decoder = self.decoder
+        version = decoder.vz_sense.firmware_version
+        if version is not None and version != self._version_said:
+            self._version_said = version
+            up = "up" if decoder.vz_sense.down_sign < 0 else "down"
+            log.info(
+                "autopilot firmware %d.%d.%d (its AUTOPILOT_VERSION): GLOBAL_POSITION_INT.vz "
+                "read positive %s",
+                *version,
+                up,
+            )
+        if decoder.vz_sense.note is not None and not self._vz_noted:
+            self._vz_noted = True  # the telemetry's vz found sent positive up: said once
+            log.warning("%s", decoder.vz_sense.note)
+
     def _note_autopilot(self, messages: list[mavlink.MAVLink_message]) -> None:
         """Which autopilot stack the locked sender is, from its HEARTBEAT among ``messages``
         (kept when there is none)."""
@@ -343,9 +363,11 @@ class Service:
         assert locked is not None and self.link is not None
         if locked != self.decoder.target:
             self._vz_noted = False  # another autopilot's vz is judged and said anew
+            self._version_said = None
         self.decoder.retarget(locked)
         self.link.answer_only(self.lock.peer)
         self._request_streams(now_s)
+        self._request_version(locked)
         self._start_mission(locked)
 
     def _handle(self, msg: mavlink.MAVLink_message, now_s: float) -> None:
@@ -353,9 +375,7 @@ class Service:
         reboots, jumps = counts["reboots"], counts["clock_jumps"]
         samples = self.decoder.decode(msg)
         self._infer_cells()
-        if self.decoder.vz_sense.note is not None and not self._vz_noted:
-            self._vz_noted = True  # the telemetry's vz found sent positive up: said once
-            log.warning("%s", self.decoder.vz_sense.note)
+        self._say_vertical_sense()
         if msg.get_type() == "HEARTBEAT" and message_source(msg) == self.decoder.target:
             self._home_first = msg.autopilot == mavlink.MAV_AUTOPILOT_ARDUPILOTMEGA
             self._px4 = msg.autopilot == mavlink.MAV_AUTOPILOT_PX4
@@ -375,6 +395,8 @@ class Service:
             )
             self._streams_ok = False
             self._request_streams(now_s)
+            if self.decoder.target is not None:
+                self._request_version(self.decoder.target)  # reflashed, perhaps
         if counts["clock_jumps"] != jumps:
             self._throttled.event(
                 "clock_jumps",
@@ -493,6 +515,12 @@ class Service:
             cfg.velocity_rate_hz,
             cfg.battery_rate_hz,
         )
+
+    def _request_version(self, target: tuple[int, int]) -> None:
+        """An ArduPilot autopilot's AUTOPILOT_VERSION (which way up it sends vz), asked once it
+        is locked and after each reboot (an answer before the lock is not taken)."""
+        if self.config.request_streams and self.link is not None and not self._px4:
+            self.link.send(version_request(self.link.mav, target))
 
     def _request_pack_info(self, target: tuple[int, int]) -> None:
         """Once with the streams: the pack's serial number (MAV_CMD_REQUEST_MESSAGE)."""

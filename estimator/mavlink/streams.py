@@ -3,9 +3,10 @@ way, and single messages (:func:`request_message`; HOME_POSITION while positions
 without it, :class:`HomeRequest`).
 
 ArduPilot (:func:`ardupilot_requests`): REQUEST_DATA_STREAM for the POSITION and
-EXTENDED_STATUS groups, and one MAV_CMD_SET_MESSAGE_INTERVAL per message of
+EXTENDED_STATUS groups, one MAV_CMD_SET_MESSAGE_INTERVAL per message of
 :data:`ARDUPILOT_MESSAGES` (the velocity and battery messages, and the autopilot's wind for
-the return figures).
+the return figures); once locked, and after each reboot, its AUTOPILOT_VERSION
+(:func:`version_request`: which way up a Copter sends vz).
 
 PX4 (:func:`px4_requests`) ignores REQUEST_DATA_STREAM; it sets each message's rate on the
 link the command came in on. Its defaults on the onboard link (v1.16, SITL) are enough for
@@ -80,6 +81,15 @@ def ardupilot_requests(
     return streams + [
         _interval(mav, target, msg_id, rates[kind]) for msg_id, kind in ARDUPILOT_MESSAGES
     ]
+
+
+def version_request(mav: mavlink.MAVLink, target: tuple[int, int]) -> mavlink.MAVLink_message:
+    """COMMAND_LONG MAV_CMD_REQUEST_AUTOPILOT_CAPABILITIES to ``target``: its AUTOPILOT_VERSION,
+    whose version says which way up a Copter sends vz (before 3.6: positive up). ArduCopter
+    3.x answers it (its GCS_Mavlink.cpp), as 4.x does."""
+    return mav.command_long_encode(
+        *target, mavlink.MAV_CMD_REQUEST_AUTOPILOT_CAPABILITIES, 0, 1, 0, 0, 0, 0, 0, 0
+    )
 
 
 def px4_requests(

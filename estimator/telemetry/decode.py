@@ -34,10 +34,11 @@ Messages (parsed from bytes by :mod:`estimator.telemetry.frames`) become
   0/0 (no fix, home not set) and values off the globe are counted and skipped;
 - EXTENDED_SYS_STATE's landed state (PX4's landed detector) becomes a :class:`LandedSample`
   at each change (UNDEFINED is no sample);
-- a Copter older than 3.6, named by its firmware STATUSTEXT ("APM:Copter V3.3 (…)"), has its
-  GLOBAL_POSITION_INT.vz taken as it was sent, positive up (:mod:`estimator.telemetry.firmware`),
-  from that text on; without the text, from when the messages' own height has shown it
-  (:mod:`estimator.telemetry.vz_sense`);
+- a Copter older than 3.6, named by its firmware STATUSTEXT ("APM:Copter V3.3 (…)") or its
+  AUTOPILOT_VERSION, has its GLOBAL_POSITION_INT.vz taken as it was sent, positive up
+  (:mod:`estimator.telemetry.firmware`), from then on; without either, from when the messages'
+  own height has shown it (:mod:`estimator.telemetry.vz_sense`; an autopilot whose HEARTBEAT
+  names another stack than ArduPilot, never);
 - ArduPilot's gripper texts (STATUSTEXT "Gripper load released"/"grabbed", "Gripper
   Released"/"Grabbed" from a mission; :data:`GRIPPER_TEXT`) become a :class:`GripperSample`;
 - only the selected autopilot is decoded (default: the first autopilot HEARTBEAT);
@@ -109,6 +110,7 @@ USED_MESSAGE_IDS = frozenset(
         mavlink.MAVLINK_MSG_ID_MISSION_CURRENT,
         mavlink.MAVLINK_MSG_ID_STATUSTEXT,
         mavlink.MAVLINK_MSG_ID_EXTENDED_SYS_STATE,
+        mavlink.MAVLINK_MSG_ID_AUTOPILOT_VERSION,
         168,  # ArduPilot WIND (ardupilotmega dialect)
     }
 )
@@ -176,7 +178,8 @@ class TelemetryDecoder:
         self._battery_status_s = -math.inf
         self._armed: bool | None = None
         self._on_ground: bool | None = None
-        #: Which way up GLOBAL_POSITION_INT.vz is sent (its firmware text, else its height).
+        #: Which way up GLOBAL_POSITION_INT.vz is sent (its firmware text or version, else
+        #: its height), and the firmware version.
         self.vz_sense = VerticalSense()
 
     def retarget(self, target: tuple[int, int]) -> None:
@@ -285,7 +288,7 @@ class TelemetryDecoder:
         return clock.time_s
 
     def _heartbeat(self, msg: mavlink.MAVLink_message) -> list[Sample]:
-        self.vz_sense.autopilot(msg.autopilot == mavlink.MAV_AUTOPILOT_ARDUPILOTMEGA)
+        self.vz_sense.heartbeat(msg.autopilot, msg.type)
         armed = bool(msg.base_mode & mavlink.MAV_MODE_FLAG_SAFETY_ARMED)
         clock_s = self._clock_s()
         if clock_s is None or armed == self._armed:
@@ -386,6 +389,12 @@ class TelemetryDecoder:
         if released is None or clock_s is None:
             return []
         return self._time.clocked(GripperSample(clock_s, released))
+
+    def _autopilot_version(self, msg: mavlink.MAVLink_message) -> list[Sample]:
+        """AUTOPILOT_VERSION (the daemon asks for it; a ground station's log may hold it): an
+        ArduCopter's version says which way up it sends vz, as its firmware text does."""
+        self.vz_sense.version(int(msg.flight_sw_version))
+        return []
 
     def _lat_lon(self, lat_e7: int, lon_e7: int, what: str) -> tuple[float, float] | None:
         """WGS84 degrees from MAVLink's degE7, or None (counted: ``<what>_unknown`` for the
@@ -563,4 +572,5 @@ _HANDLERS = {
     "HOME_POSITION": TelemetryDecoder._home_position,
     "MISSION_CURRENT": TelemetryDecoder._mission_current,
     "STATUSTEXT": TelemetryDecoder._statustext,
+    "AUTOPILOT_VERSION": TelemetryDecoder._autopilot_version,
 }

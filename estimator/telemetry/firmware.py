@@ -1,7 +1,8 @@
 """What an autopilot's firmware text says about the messages it sends.
 
 ArduPilot names its firmware and version in a STATUSTEXT when a ground station connects and
-when logging starts ("APM:Copter V3.3 (d3e14c1c)", "ArduCopter V3.6.12 (…)"). Copter before
+when logging starts ("APM:Copter V3.3 (d3e14c1c)", "ArduCopter V3.6.12 (…)"), and its version
+in AUTOPILOT_VERSION when asked (MAV_CMD_REQUEST_AUTOPILOT_CAPABILITIES). Copter before
 3.6 sent GLOBAL_POSITION_INT.vz positive up, against MAVLink's definition (positive down);
 ArduPilot changed it to NED for every vehicle in February 2018 (ArduPilot pull request 7672,
 "fix velocity z-axis field in GLOBAL_POSITION_INT to be in NED format"), first released in
@@ -27,3 +28,17 @@ def copter_vz_up(text: str) -> bool | None:
     if match is None or match["vehicle"] != "Copter":
         return None
     return (int(match["major"]), int(match["minor"])) < COPTER_VZ_DOWN_SINCE
+
+
+def version_numbers(flight_sw_version: int) -> tuple[int, int, int] | None:
+    """(major, minor, patch) of AUTOPILOT_VERSION's ``flight_sw_version`` (major << 24 |
+    minor << 16 | patch << 8 | release type, as ArduPilot and PX4 fill it); None for 0 (not
+    filled in)."""
+    major, minor, patch = (flight_sw_version >> shift & 0xFF for shift in (24, 16, 8))
+    return (major, minor, patch) if flight_sw_version >> 8 else None
+
+
+def copter_version_vz_up(version: tuple[int, int, int]) -> bool:
+    """Whether an ArduCopter of this (major, minor, patch) sends GLOBAL_POSITION_INT.vz
+    positive up (before :data:`COPTER_VZ_DOWN_SINCE`)."""
+    return version[:2] < COPTER_VZ_DOWN_SINCE

@@ -9,7 +9,8 @@ successive messages at most :data:`MAX_PAIR_GAP_S` apart where the height change
 sign when vz is sent positive down. Once :data:`DECIDING_PAIRS` pairs are judged, a share of
 :data:`DECIDING_SHARE` either way decides (else the judging goes on): a Copter that sends vz
 positive up is read so from then on, after the first seconds of its first climb or descent
-read the wrong way. A firmware text decides whenever it comes, over the height's verdict. Only
+read the wrong way. A firmware text, or an ArduCopter's AUTOPILOT_VERSION (the daemon asks for
+it), decides whenever it comes, over the height's verdict. Only
 ArduPilot ever sent vz positive up: an autopilot whose HEARTBEAT names another stack is read
 as MAVLink defines it, and its height is not asked (a forged stream cannot turn its climbs
 over).
@@ -18,6 +19,10 @@ over).
 from __future__ import annotations
 
 import math
+
+from pymavlink.dialects.v20 import common as mavlink
+
+from estimator.telemetry.firmware import copter_version_vz_up, version_numbers
 
 #: Smallest height rate (and climb rate from vz) a pair of messages is judged on, m/s.
 MIN_RATE_MPS = 0.5
@@ -29,6 +34,19 @@ MAX_PAIR_GAP_S = 5.0
 DECIDING_PAIRS = 3
 #: Share of the judged pairs that must agree (or disagree) for a verdict.
 DECIDING_SHARE = 0.8
+#: HEARTBEAT ``type`` of the frames ArduCopter flies (its ``autopilot`` ArduPilot).
+COPTER_TYPES = frozenset(
+    {
+        mavlink.MAV_TYPE_QUADROTOR,
+        mavlink.MAV_TYPE_COAXIAL,
+        mavlink.MAV_TYPE_HELICOPTER,
+        mavlink.MAV_TYPE_HEXAROTOR,
+        mavlink.MAV_TYPE_OCTOROTOR,
+        mavlink.MAV_TYPE_TRICOPTER,
+        mavlink.MAV_TYPE_DODECAROTOR,
+        mavlink.MAV_TYPE_DECAROTOR,
+    }
+)
 
 
 class VerticalSense:
@@ -42,22 +60,37 @@ class VerticalSense:
         self.decided_by: str | None = None
         #: When the height found vz sent positive up: a sentence saying so, else None.
         self.note: str | None = None
+        #: (major, minor, patch) of the autopilot's AUTOPILOT_VERSION; None before one.
+        self.firmware_version: tuple[int, int, int] | None = None
+        self._copter = False  # the HEARTBEAT says ArduCopter
         self._last: tuple[float, float, float] | None = None
         self._agree = self._disagree = 0
 
     def firmware(self, vz_up: bool) -> None:
-        """The firmware text says whether vz is sent positive up (:func:`copter_vz_up`); a
-        text that says otherwise than the height did takes back the height's note too."""
+        """The firmware (its text, :func:`copter_vz_up`, or its version) says whether vz is
+        sent positive up; saying otherwise than the height did takes back the height's note."""
         self.down_sign = -1 if vz_up else 1
         self.decided_by = "firmware"
         if not vz_up:
             self.note = None
 
-    def autopilot(self, ardupilot: bool) -> None:
-        """The autopilot's HEARTBEAT: whether it names ArduPilot (the only stack that sent vz
-        positive up); another is read as MAVLink defines vz, whatever its height said."""
+    def heartbeat(self, autopilot: int, mav_type: int) -> None:
+        """The autopilot's HEARTBEAT (its ``autopilot`` and ``type``): only ArduPilot ever sent
+        vz positive up; another stack is read as MAVLink defines vz, whatever its height said."""
+        ardupilot = autopilot == mavlink.MAV_AUTOPILOT_ARDUPILOTMEGA
+        self._copter = ardupilot and mav_type in COPTER_TYPES
         if not ardupilot and self.decided_by != "firmware":
             self.down_sign, self.decided_by, self.note = 1, "autopilot", None
+
+    def version(self, flight_sw_version: int) -> None:
+        """AUTOPILOT_VERSION's ``flight_sw_version``: kept, and for an ArduCopter (its last
+        HEARTBEAT said so) it decides as its firmware text does."""
+        version = version_numbers(flight_sw_version)
+        if version is None:
+            return
+        self.firmware_version = version
+        if self._copter:
+            self.firmware(copter_version_vz_up(version))
 
     def observe(self, time_s: float, vz_sent_mps: float, alt_m: float) -> None:
         """One message: its time (s since boot), vz as sent (m/s) and height over home (m)."""
