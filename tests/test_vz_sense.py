@@ -181,14 +181,13 @@ def test_only_an_ardupilot_autopilot_is_asked_its_height() -> None:
     climb sent the wrong way does not turn it over (nor does it take back a firmware text)."""
     for ardupilot, down_sign in ((True, -1), (False, 1)):
         sense = VerticalSense()
-        stack = mavlink.MAV_AUTOPILOT_ARDUPILOTMEGA if ardupilot else mavlink.MAV_AUTOPILOT_PX4
-        sense.heartbeat(stack, mavlink.MAV_TYPE_QUADROTOR)
+        sense.heartbeat(ardupilot, copter=True)
         climb(sense, 1.0, 2 * DECIDING_PAIRS)
         assert sense.down_sign == down_sign
         assert (sense.note is not None) is ardupilot
     sense = VerticalSense()
     sense.firmware(True)
-    sense.heartbeat(mavlink.MAV_AUTOPILOT_PX4, mavlink.MAV_TYPE_QUADROTOR)
+    sense.heartbeat(ardupilot=False, copter=True)
     assert (sense.down_sign, sense.decided_by) == (-1, "firmware")
 
 

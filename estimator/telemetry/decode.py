@@ -114,6 +114,19 @@ USED_MESSAGE_IDS = frozenset(
         168,  # ArduPilot WIND (ardupilotmega dialect)
     }
 )
+#: HEARTBEAT ``type`` of the frames ArduCopter flies (its ``autopilot`` ArduPilot).
+COPTER_TYPES = frozenset(
+    {
+        mavlink.MAV_TYPE_QUADROTOR,
+        mavlink.MAV_TYPE_COAXIAL,
+        mavlink.MAV_TYPE_HELICOPTER,
+        mavlink.MAV_TYPE_HEXAROTOR,
+        mavlink.MAV_TYPE_OCTOROTOR,
+        mavlink.MAV_TYPE_TRICOPTER,
+        mavlink.MAV_TYPE_DODECAROTOR,
+        mavlink.MAV_TYPE_DECAROTOR,
+    }
+)
 #: ArduPilot's WIND message: id, payload layout (direction the wind comes from in degrees,
 #: speed m/s, vertical speed m/s; float32 little-endian).
 ARDUPILOT_WIND_ID = 168
@@ -288,7 +301,8 @@ class TelemetryDecoder:
         return clock.time_s
 
     def _heartbeat(self, msg: mavlink.MAVLink_message) -> list[Sample]:
-        self.vz_sense.heartbeat(msg.autopilot, msg.type)
+        ardupilot = msg.autopilot == mavlink.MAV_AUTOPILOT_ARDUPILOTMEGA
+        self.vz_sense.heartbeat(ardupilot, msg.type in COPTER_TYPES)
         armed = bool(msg.base_mode & mavlink.MAV_MODE_FLAG_SAFETY_ARMED)
         clock_s = self._clock_s()
         if clock_s is None or armed == self._armed:

@@ -20,8 +20,6 @@ from __future__ import annotations
 
 import math
 
-from pymavlink.dialects.v20 import common as mavlink
-
 from estimator.telemetry.firmware import copter_version_vz_up, version_numbers
 
 #: Smallest height rate (and climb rate from vz) a pair of messages is judged on, m/s.
@@ -34,19 +32,6 @@ MAX_PAIR_GAP_S = 5.0
 DECIDING_PAIRS = 3
 #: Share of the judged pairs that must agree (or disagree) for a verdict.
 DECIDING_SHARE = 0.8
-#: HEARTBEAT ``type`` of the frames ArduCopter flies (its ``autopilot`` ArduPilot).
-COPTER_TYPES = frozenset(
-    {
-        mavlink.MAV_TYPE_QUADROTOR,
-        mavlink.MAV_TYPE_COAXIAL,
-        mavlink.MAV_TYPE_HELICOPTER,
-        mavlink.MAV_TYPE_HEXAROTOR,
-        mavlink.MAV_TYPE_OCTOROTOR,
-        mavlink.MAV_TYPE_TRICOPTER,
-        mavlink.MAV_TYPE_DODECAROTOR,
-        mavlink.MAV_TYPE_DECAROTOR,
-    }
-)
 
 
 class VerticalSense:
@@ -74,11 +59,11 @@ class VerticalSense:
         if not vz_up:
             self.note = None
 
-    def heartbeat(self, autopilot: int, mav_type: int) -> None:
-        """The autopilot's HEARTBEAT (its ``autopilot`` and ``type``): only ArduPilot ever sent
-        vz positive up; another stack is read as MAVLink defines vz, whatever its height said."""
-        ardupilot = autopilot == mavlink.MAV_AUTOPILOT_ARDUPILOTMEGA
-        self._copter = ardupilot and mav_type in COPTER_TYPES
+    def heartbeat(self, ardupilot: bool, copter: bool) -> None:
+        """The autopilot's HEARTBEAT: whether it names ArduPilot, and ArduCopter (a copter's
+        frame type). Only ArduPilot ever sent vz positive up; another stack is read as MAVLink
+        defines vz, whatever its height said."""
+        self._copter = ardupilot and copter
         if not ardupilot and self.decided_by != "firmware":
             self.down_sign, self.decided_by, self.note = 1, "autopilot", None
 
