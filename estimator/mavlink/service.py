@@ -361,10 +361,9 @@ class Service:
         telemetry."""
         locked = self.lock.locked
         assert locked is not None and self.link is not None
-        if locked != self.decoder.target:
+        if self.decoder.retarget(locked):
             self._vz_noted = False  # another autopilot's vz is judged and said anew
             self._version_said = None
-        self.decoder.retarget(locked)
         self.link.answer_only(self.lock.peer)
         self._request_streams(now_s)
         self._request_version(locked)

@@ -195,15 +195,17 @@ class TelemetryDecoder:
         #: its height), and the firmware version.
         self.vz_sense = VerticalSense()
 
-    def retarget(self, target: tuple[int, int]) -> None:
-        """Decode the autopilot ``target`` (system, component) from now on. Another autopilot
-        than the one decoded so far starts afresh: its velocity message type, battery id and
-        which way up it sends vz are its own (a sign decided on the last one is not carried
-        over). Its clock is judged as a new clock of the last one's (a reboot or a jump, so
-        the pipeline moves to it); the counters go on."""
-        if self.target is not None and target != self.target:
+    def retarget(self, target: tuple[int, int]) -> bool:
+        """Decode the autopilot ``target`` (system, component) from now on; whether it is
+        another autopilot than the one decoded so far. That one starts afresh: its velocity
+        message type, battery id and which way up it sends vz are its own (a sign decided on
+        the last one is not carried over). Its clock is judged as a new clock of the last
+        one's (a reboot or a jump, so the pipeline moves to it); the counters go on."""
+        other = target != self.target
+        if other and self.target is not None:
             self._start_autopilot()
         self.target = target
+        return other
 
     @property
     def clock_s(self) -> float | None:
