@@ -20,7 +20,7 @@ from estimator.mavlink.link import open_link
 from estimator.physics.battery import PackModel
 from estimator.physics.effects import Mass, Wind, predict_power_w
 from estimator.sim.files import tlog_records, write_tlog
-from estimator.sim.link import SimPlayer
+from estimator.sim.link import FIRMWARE_VERSION, SimPlayer
 from estimator.sim.plans import load_plan
 from estimator.sim.run import DEFAULT_RATES_HZ, SimConfig, SimRun
 from estimator.sim.simulator import simulate
@@ -229,7 +229,10 @@ async def test_live_playback_over_udp_answers_rate_requests() -> None:
                     stream = codec.request_data_stream_encode(
                         1, 1, mavlink.MAV_DATA_STREAM_POSITION, 2, 1
                     )
-                    for msg in (interval, stream):
+                    version = codec.command_long_encode(
+                        1, 1, mavlink.MAV_CMD_REQUEST_AUTOPILOT_CAPABILITIES, 0, 1, 0, 0, 0, 0, 0, 0
+                    )
+                    for msg in (interval, stream, version):
                         await loop.sock_sendto(client, msg.pack(codec), sim_addr)
         await task
     finally:
@@ -238,7 +241,8 @@ async def test_live_playback_over_udp_answers_rate_requests() -> None:
     assert requested_at_ms is not None
     acks = [m for m in received if m.get_type() == "COMMAND_ACK"]
     assert [(a.command, a.result) for a in acks] == [
-        (mavlink.MAV_CMD_SET_MESSAGE_INTERVAL, mavlink.MAV_RESULT_ACCEPTED)
+        (mavlink.MAV_CMD_SET_MESSAGE_INTERVAL, mavlink.MAV_RESULT_ACCEPTED),
+        (mavlink.MAV_CMD_REQUEST_AUTOPILOT_CAPABILITIES, mavlink.MAV_RESULT_ACCEPTED),
     ]
     late = requested_at_ms + 2000
 
@@ -253,6 +257,9 @@ async def test_live_playback_over_udp_answers_rate_requests() -> None:
     assert rate_hz("LOCAL_POSITION_NED", after=True) == pytest.approx(2, rel=0.15)
     decoder = TelemetryDecoder()
     vel = [s for s in decoder.decode_all(received) if isinstance(s, VelocitySample)]
+    # the simulator's vz is read by the version it answers: positive down
+    assert decoder.vz_sense.firmware_version == FIRMWARE_VERSION
+    assert decoder.vz_sense.down_sign == 1
     tr = run.truth
     k = tr.at(np.array([s.time_s for s in vel]))
     assert np.abs(np.array([s.ve_mps for s in vel]) - tr.ve_mps[k]).max() < 0.3

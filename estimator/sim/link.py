@@ -10,7 +10,9 @@ Requests from the other side are answered while playing:
 - ``COMMAND_LONG`` ``MAV_CMD_SET_MESSAGE_INTERVAL`` (interval µs; 0 = default, −1 = off),
   acknowledged with ``COMMAND_ACK``;
 - ``COMMAND_LONG`` ``MAV_CMD_REQUEST_MESSAGE`` for HOME_POSITION: the run's home (the
-  take-off point), acknowledged.
+  take-off point), acknowledged;
+- ``COMMAND_LONG`` ``MAV_CMD_REQUEST_AUTOPILOT_CAPABILITIES``: AUTOPILOT_VERSION with
+  :data:`FIRMWARE_VERSION`, acknowledged.
 
 Rates are honoured by decimation of the simulated streams: a stream can be slowed down or
 switched off, not sped up beyond the rate it was simulated at (``SimConfig.rates_hz``).
@@ -41,6 +43,12 @@ STREAM_GROUPS: dict[int, tuple[str, ...]] = {
     mavlink.MAV_DATA_STREAM_EXTRA3: ("BATTERY_STATUS",),
 }
 _SYSTEM_ID, _COMPONENT_ID = 1, 1
+#: The ArduCopter release whose MAVLink conventions the simulator follows (major, minor, patch):
+#: GLOBAL_POSITION_INT.vz positive down, as every Copter since 3.6 sends it. Its HEARTBEAT
+#: names ArduPilot and a quadrotor, so a peer reads its vz by this version.
+FIRMWARE_VERSION = (4, 5, 0)
+#: AUTOPILOT_VERSION's release type of an official release (FIRMWARE_VERSION_TYPE_OFFICIAL).
+_OFFICIAL = 255
 
 
 class SimPlayer:
@@ -68,7 +76,8 @@ class SimPlayer:
     # -- requests -----------------------------------------------------------------------------
 
     def handle(self, msg: mavlink.MAVLink_message) -> None:
-        """Apply one received message (stream-rate requests; everything else is ignored)."""
+        """Apply one received message (the requests of the module docstring; everything else
+        is ignored)."""
         kind = msg.get_type()
         if kind == "REQUEST_DATA_STREAM" and self._for_us(msg):
             names = (
@@ -92,6 +101,45 @@ class SimPlayer:
             and int(msg.param1) == mavlink.MAVLINK_MSG_ID_HOME_POSITION
         ):
             self._send_home(msg)
+        elif (
+            kind == "COMMAND_LONG"
+            and self._for_us(msg)
+            and msg.command == mavlink.MAV_CMD_REQUEST_AUTOPILOT_CAPABILITIES
+        ):
+            self._send_version(msg)
+
+    def _ack(self, msg: mavlink.MAVLink_message) -> None:
+        """COMMAND_ACK (accepted) of the command ``msg`` to its sender."""
+        ack = self.link.mav.command_ack_encode(
+            msg.command,
+            mavlink.MAV_RESULT_ACCEPTED,
+            0,
+            0,
+            msg.get_srcSystem(),
+            msg.get_srcComponent(),
+        )
+        self._send(ack, None)
+
+    def _send_version(self, msg: mavlink.MAVLink_message) -> None:
+        """AUTOPILOT_VERSION (:data:`FIRMWARE_VERSION`, MAVLink 2) and the COMMAND_ACK of its
+        request."""
+        self.counts["version_requests"] += 1
+        major, minor, patch = FIRMWARE_VERSION
+        version = self.link.mav.autopilot_version_encode(
+            mavlink.MAV_PROTOCOL_CAPABILITY_MAVLINK2,
+            major << 24 | minor << 16 | patch << 8 | _OFFICIAL,
+            0,
+            0,
+            0,
+            [0] * 8,
+            [0] * 8,
+            [0] * 8,
+            0,
+            0,
+            0,
+        )
+        self._send(version, self._now_s)  # in the tlog too, as the home
+        self._ack(msg)
 
     def _send_home(self, msg: mavlink.MAVLink_message) -> None:
         """HOME_POSITION (the run's home, local origin) and the COMMAND_ACK of its request."""
@@ -111,15 +159,7 @@ class SimPlayer:
             0.0,
         )
         self._send(home, self._now_s)  # in the tlog too: a replay sees the home the peer saw
-        ack = mav.command_ack_encode(
-            mavlink.MAV_CMD_REQUEST_MESSAGE,
-            mavlink.MAV_RESULT_ACCEPTED,
-            0,
-            0,
-            msg.get_srcSystem(),
-            msg.get_srcComponent(),
-        )
-        self._send(ack, None)
+        self._ack(msg)
 
     def _for_us(self, msg: mavlink.MAVLink_message) -> bool:
         return msg.target_system in (0, _SYSTEM_ID) and msg.target_component in (0, _COMPONENT_ID)
