@@ -342,34 +342,33 @@ def _disagreement(distance2: float) -> float:
 
 def test_a_moving_report_widens_the_wind_sigma_by_its_lag_and_a_held_one_by_its_gap() -> None:
     """The autopilot's report lags the wind (a first-order lag: w − r = τ r'): while it moves at
-    0.5 m/s² the reported 1σ takes τ × 0.5 m/s more; while it holds a wind the estimate does
-    not share (ArduCopter's EKF in a hover), its gap, weighed by how likely the two disagree:
-    a quarter of the squared gap 2 m/s apart, within both their 1σ, seven tenths at 2 m/s each
-    way; neither once the report is stale; the estimate itself is unchanged."""
+    0.5 m/s² the reported 1σ takes τ × 0.5 m/s more (either way: one magnitude for both
+    components); while it holds a wind the estimate does not share (ArduCopter's EKF in a
+    hover), its gap, weighed by how likely the two disagree: a quarter of the squared gap
+    2 m/s apart, within both their 1σ, seven tenths at 2 m/s each way; neither once the
+    report is stale; the estimate itself is unchanged."""
     settings = OnlineSettings()
     reports = AutopilotWind(settings)
     x, p = np.array([1.0, 0.0, 0.0]), np.diag([0.04, 0.04, 0.001])
     var = 0.04 + settings.autopilot_wind_sigma_mps**2  # the innovation's, per component
     for k in range(5):  # still: 1 m/s from the north, reported at 2 Hz
         reports.take(WindSample(0.5 * k, -1.0, 0.0))
-    assert reports.lag_ne_mps(2.0) == (0.0, 0.0)
+    assert reports.lag_mps(2.0) == 0.0
     gap_n, gap_e = reports.gap_ne_mps(x, p, 2.0)  # 2 m/s apart: d² 3.85
     share = _disagreement(4.0 / var)
     assert share == pytest.approx(0.26, abs=0.01)
     assert (gap_n, gap_e) == pytest.approx((-2.0 * math.sqrt(share), 0.0))
     for k in range(1, 9):  # the report's east component grows at 0.5 m/s²
         reports.take(WindSample(2.0 + 0.5 * k, -1.0, 0.25 * k))
-    lag_n, lag_e = reports.lag_ne_mps(6.0)
-    assert lag_n == pytest.approx(0.0, abs=1e-12)
-    assert lag_e == pytest.approx(settings.autopilot_wind_lag_s * 0.5)
+    assert reports.lag_mps(6.0) == pytest.approx(settings.autopilot_wind_lag_s * 0.5)
     gap_n, gap_e = reports.gap_ne_mps(x, p, 6.0)  # 2 m/s each way: d² 7.7, beyond χ²₂ at 5 %
     share = _disagreement(8.0 / var)
     assert share == pytest.approx(0.70, abs=0.01)
     assert (gap_n, gap_e) == pytest.approx((-2.0 * math.sqrt(share), 2.0 * math.sqrt(share)))
-    assert reports.lag_ne_mps(6.0 + settings.autopilot_wind_max_age_s + 1.0) == (0.0, 0.0)
+    assert reports.lag_mps(6.0 + settings.autopilot_wind_max_age_s + 1.0) == 0.0
     assert reports.gap_ne_mps(x, p, 6.0 + settings.autopilot_wind_max_age_s + 1.0) == (0, 0)
     reports.restart()
-    assert reports.lag_ne_mps(6.0) == (0.0, 0.0)
+    assert reports.lag_mps(6.0) == 0.0
 
 
 def test_a_report_that_stalls_while_it_follows_a_change_keeps_its_lag_decaying() -> None:
@@ -383,19 +382,20 @@ def test_a_report_that_stalls_while_it_follows_a_change_keeps_its_lag_decaying()
         reports.take(WindSample(0.5 * k, 0.0, 0.0))
     for k in range(1, 9):  # east rises at 0.5 m/s² until 6 s
         reports.take(WindSample(2.0 + 0.5 * k, 0.0, 0.25 * k))
-    assert reports.lag_ne_mps(6.0)[1] == pytest.approx(tau_s * 0.5)
+    assert reports.lag_mps(6.0) == pytest.approx(tau_s * 0.5)
     for k in range(1, 7):  # then still until 9 s: its rate over 2 s is zero from 8 s on
         reports.take(WindSample(6.0 + 0.5 * k, 0.0, 2.0))
     # decaying from 7.5 s, the last report the rate of 0.5 m/s² still stood at
-    assert reports.lag_ne_mps(9.0) == pytest.approx((0.0, tau_s * 0.5 * math.exp(-1.5 / tau_s)))
-    assert reports.lag_ne_mps(9.5)[1] == pytest.approx(tau_s * 0.5 * math.exp(-2.0 / tau_s))
+    assert reports.lag_mps(9.0) == pytest.approx(tau_s * 0.5 * math.exp(-1.5 / tau_s))
+    assert reports.lag_mps(9.5) == pytest.approx(tau_s * 0.5 * math.exp(-2.0 / tau_s))
 
 
 def test_the_trackers_reported_wind_sigma_takes_in_the_reports_lag(tmp_path: Path) -> None:
     """Through the tracker: the same flight with a report that is still and with one that moves
-    at the end has the same estimate, and a wider wind 1σ with the moving one (east, the way
-    it moves; the north 1σ within 0.1 %: the moved report's gap to the estimate, weighed by
-    how likely they disagree, is all but east)."""
+    at the end has the same estimate, and a wider wind 1σ with the moving one: both
+    components by the report's lag (τ × 0.5 m/s, whichever way the wind went; the north 1σ
+    exactly so, within 0.1 %), the east, the way it moves, by its gap to the estimate too
+    (weighed by how likely they disagree; all but east)."""
     run = simulate(SimConfig(plan=ONE_LEG, seed=7, effects=(Wind(5.0, 90.0),)))
     samples = list(iter_samples(write_tlog(run, tmp_path / "flight.tlog", truth_csv=False)))
     still = OnlineEffects.from_vehicle(VEHICLE)
@@ -406,8 +406,12 @@ def test_the_trackers_reported_wind_sigma_takes_in_the_reports_lag(tmp_path: Pat
     moving.take_autopilot_wind(WindSample(end_s - 2.0, 0.0, -5.0))
     moving.take_autopilot_wind(WindSample(end_s, 0.0, -6.0))
     np.testing.assert_array_equal(moving._x, still._x)
-    assert moving.sigma["wind_e_mps"] > still.sigma["wind_e_mps"] + 4.0
-    assert moving.sigma["wind_n_mps"] == pytest.approx(still.sigma["wind_n_mps"], rel=1e-3)
+    lag_mps = OnlineSettings().autopilot_wind_lag_s * 0.5
+    assert moving.sigma["wind_n_mps"] == pytest.approx(
+        math.hypot(still.sigma["wind_n_mps"], lag_mps), rel=1e-3
+    )
+    gap_e_var = moving.sigma["wind_e_mps"] ** 2 - still.sigma["wind_e_mps"] ** 2 - lag_mps**2
+    assert gap_e_var > 0.2**2  # the moved report is further from the estimate
 
 
 def test_a_vehicle_file_states_its_slow_model_error_within_bounds(tmp_path: Path) -> None:

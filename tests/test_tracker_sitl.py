@@ -50,15 +50,14 @@ FITTED_ON = SCRIPT.FITTED_ON
 #: of outback_wind8 read as a mass; a wind
 #: change is beyond 3σ for the first steps after it, before the autopilot's WIND moves (once
 #: it moves, its lag and its gap from the estimate widen the reported 1σ:
-#: ``AutopilotWind.lag_ne_mps``, ``gap_ne_mps``).
+#: ``AutopilotWind.lag_mps``, to both components, and ``gap_ne_mps``).
 SHORT = {
     "lean2_clean_diag7": "mass 86 % within 2σ (median -0.040 kg at 1σ 0.035 kg)",
     "outback_wind8": "mass 5.3σ (+0.22 kg) at 18 s",
     "rtl_cross_wind7": "mass 77 % within 2σ (median -0.056 kg at 1σ 0.038 kg), 3.0σ (-0.08 kg) at "
     "150 s",
-    "wind_onset": "wind 4.0σ (5.4 m/s off) at 120 s",
-    "wind_stop": "wind 6.6σ (6.7 m/s off) at 120 s",
-    "wind_turn": "wind 6.3σ (8.0 m/s off) at 100 s",
+    "wind_stop": "wind 4.8σ (6.7 m/s off) at 120 s",
+    "wind_turn": "wind 3.9σ (8.0 m/s off) at 100 s",
 }
 SCENARIOS = [
     "clean_circles", "clean_legs", "clean_mission", "payload_release", "payload_takeoff",

@@ -17,11 +17,16 @@ steps in a row is a wind change the autopilot saw (:meth:`AutopilotWind.saw_a_ch
 The report lags the wind: the EKF follows a change with a time constant of ~10 s (ArduCopter
 SITL: 9 s after an onset, 15 s after a stop; docs/residuals.md). While it moves, the wind
 already differs from it by about the lag times its rate (a first-order lag r' = (w − r)/τ gives
-w − r = τ r'): :meth:`AutopilotWind.lag_ne_mps`. That gap closes at the lag's own pace,
+w − r = τ r'): :meth:`AutopilotWind.lag_mps`. That gap closes at the lag's own pace,
 e^(−t/τ), not faster: where the report stalls for a moment as it follows a change (ArduCopter
 SITL: 2 m/s into a 7 m/s gust, held still 3.5 s, then rising on), its rate over the last
 seconds falls to zero while the wind is still far, so the term is the larger of τ r' and
-its last value decayed by e^(−Δt/τ). And it can stop: in hover ArduCopter's EKF
+its last value decayed by e^(−Δt/τ), per component. The term is the magnitude of the two and
+widens both components alike: the EKF's components follow a change at their own paces
+(ArduCopter SITL, held5_turn_legs: a wind of 6 m/s turning from 330° to 060° during legs; the
+report's north moved 2.2 m/s in 10 s while its east held its old value, 8.5 m/s from the
+wind's, for 30 s), so the direction the report moves in does not say which way the wind
+moved. And it can stop: in hover ArduCopter's EKF
 holds its wind (an onset or a stop arrives only once the vehicle moves). Where the report and
 the tracker's wind disagree beyond both their 1σ, one of them is likely wrong, the more so
 the further apart they are: :meth:`AutopilotWind.gap_ne_mps`. The tracker adds both to the
@@ -83,15 +88,15 @@ class AutopilotWind:
         self._lag_ne_mps = self._lag_at(sample.time_s)
         self._lag_time_s = sample.time_s
 
-    def lag_ne_mps(self, time_s: float) -> tuple[float, float]:
-        """How far the wind may already be from the latest report (m/s, magnitudes north and
-        east): the report's rate over the last ``autopilot_wind_rate_span_s`` times the EKF's
-        time constant ``autopilot_wind_lag_s``, or the last such term decayed at the lag's own
-        pace when that is larger; zero without a fresh report from an autopilot that
-        estimates the wind."""
+    def lag_mps(self, time_s: float) -> float:
+        """How far the wind may already be from the latest report, in any direction (m/s):
+        per component, the report's rate over the last ``autopilot_wind_rate_span_s`` times
+        the EKF's time constant ``autopilot_wind_lag_s``, or the last such term decayed at the
+        lag's own pace when that is larger; the magnitude of the two (module docstring). Zero
+        without a fresh report from an autopilot that estimates the wind."""
         if not self.fresh(time_s):
-            return 0.0, 0.0
-        return self._lag_at(time_s)
+            return 0.0
+        return math.hypot(*self._lag_at(time_s))
 
     def _lag_at(self, time_s: float) -> tuple[float, float]:
         """The lag term at ``time_s`` (m/s, magnitudes): τ times the report's rate, or the last

@@ -269,7 +269,7 @@ class OnlineEffects:
         what the model's form leaves unknown (:class:`OnlineSettings` ``wind_form_sigma_mps``,
         ``mass_form_sigma_fraction`` of the mass difference), and for the wind what the
         autopilot's report says is on its way (its lag, and its gap from the estimate:
-        :meth:`AutopilotWind.lag_ne_mps`, :meth:`AutopilotWind.gap_ne_mps`). After a step
+        :meth:`AutopilotWind.lag_mps`, :meth:`AutopilotWind.gap_ne_mps`). After a step
         that did not settle the estimate (module docstring), the wind and mass variances are
         a changed state's (their initial ones) until the next step."""
         x, p, form = self._reported()
@@ -280,10 +280,10 @@ class OnlineEffects:
         wind_form_var = s.wind_form_sigma_mps**2
         mass_form_var = (s.mass_form_sigma_fraction * float(x[2])) ** 2 + c_m**2
         time_s = self._time_s or 0.0
-        lag_n, lag_e = self.autopilot.lag_ne_mps(time_s)
+        lag_var = self.autopilot.lag_mps(time_s) ** 2  # either way: both components
         gap_n, gap_e = self.autopilot.gap_ne_mps(x, p, time_s)
-        wind_n_var = wind_form_var + c_n**2 + lag_n**2 + gap_n**2
-        wind_e_var = wind_form_var + c_e**2 + lag_e**2 + gap_e**2
+        wind_n_var = wind_form_var + c_n**2 + lag_var + gap_n**2
+        wind_e_var = wind_form_var + c_e**2 + lag_var + gap_e**2
         return {
             "wind_n_mps": math.sqrt(max(float(p[0, 0]), 0.0) + wind_n_var),
             "wind_e_mps": math.sqrt(max(float(p[1, 1]), 0.0) + wind_e_var),

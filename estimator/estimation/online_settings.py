@@ -97,15 +97,17 @@ class OnlineSettings:
     autopilot_wind_change_chi2: float = 9.21
     autopilot_wind_change_steps: int = 3
     #: Added to the reported wind 1σ, not to the covariance: the report's lag behind the wind
-    #: (``AutopilotWind.lag_ne_mps``), the EKF's time constant (s; ArduCopter SITL's wind
-    #: reports follow an onset with 9 s, a stop with 15 s) and the span (s) the report's rate
-    #: is measured over; and its gap from the estimate, weighed by the probability that the
-    #: two disagree, even odds at this squared Mahalanobis distance with both their variances
-    #: (``AutopilotWind.gap_ne_mps``; 5.99 = χ²₂ at 5 %, the threshold of an all-or-nothing
-    #: gap before; its smooth form found on held10_payload_gust_legs, so held10 is development
-    #: for it). Set on the recordings of replay/sitl and replay/sitl_held. When the
-    #: report stalls as it follows a change, the lag term decays at e^(−Δt/τ) rather than
-    #: drop with its rate (found on held7_gust_fast_legs, so development for that rule).
+    #: (``AutopilotWind.lag_mps``, to both components: found on held5_turn_legs, so every
+    #: recording of replay/sitl_held up to held15 is development for it), the EKF's time
+    #: constant (s; ArduCopter SITL's wind reports follow an onset with 9 s, a stop with 15 s)
+    #: and the span (s) the report's rate is measured over; and its gap from the estimate,
+    #: weighed by the probability that the two disagree, even odds at this squared Mahalanobis
+    #: distance with both their variances (``AutopilotWind.gap_ne_mps``; 5.99 = χ²₂ at 5 %,
+    #: the threshold of an all-or-nothing gap before; its smooth form found on
+    #: held10_payload_gust_legs, so held10 is development for it). Set on the recordings of
+    #: replay/sitl and replay/sitl_held. When the report stalls as it follows a change, the
+    #: lag term decays at e^(−Δt/τ) rather than drop with its rate (found on
+    #: held7_gust_fast_legs, so development for that rule).
     autopilot_wind_lag_s: float = 10.0
     autopilot_wind_rate_span_s: float = 2.0
     autopilot_wind_gap_chi2: float = 5.99

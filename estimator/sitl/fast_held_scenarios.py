@@ -1,6 +1,6 @@
 """The held-out effect flights of ``replay/sitl_held`` flown on fast legs and through wind
-changes (``uav-energy sitl-record held7`` … ``held15``), and every held-out set by name
-(:data:`HELD_SETS`; the earlier ones are :mod:`estimator.sitl.held_scenarios`).
+changes (``uav-energy sitl-record held7`` … ``held15``; every set by name is
+:data:`estimator.sitl.change_held_scenarios.HELD_SETS`).
 
 Each set was recorded right after the commit that defined it froze the online tracker and the
 residual analysis; none of it was tuned on (docs/residuals.md, "Held-out SITL flights"): the
@@ -22,12 +22,6 @@ NED, m and m/s; durations s).
 from __future__ import annotations
 
 from estimator.sitl.held_scenarios import (
-    HELD_SCENARIOS,
-    HELD_SCENARIOS_2,
-    HELD_SCENARIOS_3,
-    HELD_SCENARIOS_4,
-    HELD_SCENARIOS_5,
-    HELD_SCENARIOS_6,
     up_and_down,
     vertical_scenario,
 )
@@ -530,23 +524,4 @@ HELD_SCENARIOS_15: dict[str, Scenario] = by_name(
         Takeoff(), Hover(10), *up_and_down(3, 3, 10) * 3, *up_and_down(7, 4, 30), *LEGS[1:6],
     ),
 )
-
-#: Every held-out set by the name ``uav-energy sitl-record`` records it under.
-HELD_SETS: dict[str, dict[str, Scenario]] = {
-    "held": HELD_SCENARIOS,
-    "held2": HELD_SCENARIOS_2,
-    "held3": HELD_SCENARIOS_3,
-    "held4": HELD_SCENARIOS_4,
-    "held5": HELD_SCENARIOS_5,
-    "held6": HELD_SCENARIOS_6,
-    "held7": HELD_SCENARIOS_7,
-    "held8": HELD_SCENARIOS_8,
-    "held9": HELD_SCENARIOS_9,
-    "held10": HELD_SCENARIOS_10,
-    "held11": HELD_SCENARIOS_11,
-    "held12": HELD_SCENARIOS_12,
-    "held13": HELD_SCENARIOS_13,
-    "held14": HELD_SCENARIOS_14,
-    "held15": HELD_SCENARIOS_15,
-}
 # fmt: on

@@ -1,0 +1,107 @@
+"""The held-out flights of ``replay/sitl_held`` through wind turns and reversals
+(``uav-energy sitl-record held16``), and every held-out set by name (:data:`HELD_SETS`; the
+earlier ones are :mod:`estimator.sitl.held_scenarios` and
+:mod:`estimator.sitl.fast_held_scenarios`).
+
+The sixteenth set was recorded right after the commit that defined it froze the online
+tracker with the autopilot report's lag term widening both wind components alike
+(:meth:`~estimator.estimation.autopilot_wind.AutopilotWind.lag_mps`); none of it was tuned on
+(docs/residuals.md, "Held-out SITL flights"). Steps as in :mod:`estimator.sitl.scenarios`
+(positions and velocities NED, m and m/s; durations s).
+"""
+
+from __future__ import annotations
+
+from estimator.sitl.fast_held_scenarios import (
+    FAST_LEGS,
+    HELD_SCENARIOS_7,
+    HELD_SCENARIOS_8,
+    HELD_SCENARIOS_9,
+    HELD_SCENARIOS_10,
+    HELD_SCENARIOS_11,
+    HELD_SCENARIOS_12,
+    HELD_SCENARIOS_13,
+    HELD_SCENARIOS_14,
+    HELD_SCENARIOS_15,
+)
+from estimator.sitl.held_scenarios import (
+    HELD_SCENARIOS,
+    HELD_SCENARIOS_2,
+    HELD_SCENARIOS_3,
+    HELD_SCENARIOS_4,
+    HELD_SCENARIOS_5,
+    HELD_SCENARIOS_6,
+    vertical_scenario,
+)
+from estimator.sitl.scenarios import CIRCLES, LEGS, Grip, Hover, Scenario, SetWind, Takeoff, by_name
+
+# fmt: off
+#: The sixteenth held-out set: winds that turn, reverse, set in and stop across the legs and
+#: circles flown, with and without the payload, and a clean flight.
+HELD_SCENARIOS_16: dict[str, Scenario] = by_name(
+    vertical_scenario(
+        "held16_turn_circles",
+        "wind 5 m/s from 200° turning to 290° mid-flight; circles, then legs",
+        SetWind(5, 200), Takeoff(), *CIRCLES, SetWind(5, 290), *CIRCLES[1:], *LEGS[1:6],
+    ),
+    vertical_scenario(
+        "held16_reversal_legs",
+        "wind 5 m/s from 010° reversing to 190° mid-flight; legs",
+        SetWind(5, 10), Takeoff(), *LEGS, SetWind(5, 190), *LEGS[1:],
+    ),
+    vertical_scenario(
+        "held16_turn_payload_legs",
+        "1 kg gripper payload from take-off; wind 6 m/s from 100° turning to 030° mid-flight; "
+        "legs",
+        SetWind(6, 100), Grip(True), Hover(3), Takeoff(), *LEGS, SetWind(6, 30), *LEGS[1:],
+    ),
+    vertical_scenario(
+        "held16_gust_40s_legs",
+        "wind 7 m/s from 240° for about 40 s of legs; legs",
+        Takeoff(), *LEGS[:6], SetWind(7, 240), *LEGS[6:8], SetWind(0), *LEGS[8:], *LEGS[1:5],
+    ),
+    vertical_scenario(
+        "held16_onset_cross_fast",
+        "wind 6 m/s from 270° switched on mid-flight; long legs at 8-9 m/s",
+        Takeoff(), *FAST_LEGS, SetWind(6, 270), *FAST_LEGS[1:],
+    ),
+    vertical_scenario(
+        "held16_stop_circles_payload",
+        "1 kg gripper payload from take-off; wind 5 m/s from 150° from take-off, stopped "
+        "during circles; then legs",
+        SetWind(5, 150), Grip(True), Hover(3), Takeoff(), *CIRCLES[:4], SetWind(0),
+        *CIRCLES[4:], *LEGS[1:6],
+    ),
+    vertical_scenario(
+        "held16_two_turns_legs",
+        "wind 4 m/s from 030° turning to 120°, then to 210°; legs",
+        SetWind(4, 30), Takeoff(), *LEGS, SetWind(4, 120), *LEGS[1:7], SetWind(4, 210),
+        *LEGS[7:], *LEGS[1:4],
+    ),
+    vertical_scenario(
+        "held16_clean_legs_circles",
+        "no effect; legs, then circles",
+        Takeoff(), *LEGS, *CIRCLES[1:],
+    ),
+)
+
+#: Every held-out set by the name ``uav-energy sitl-record`` records it under.
+HELD_SETS: dict[str, dict[str, Scenario]] = {
+    "held": HELD_SCENARIOS,
+    "held2": HELD_SCENARIOS_2,
+    "held3": HELD_SCENARIOS_3,
+    "held4": HELD_SCENARIOS_4,
+    "held5": HELD_SCENARIOS_5,
+    "held6": HELD_SCENARIOS_6,
+    "held7": HELD_SCENARIOS_7,
+    "held8": HELD_SCENARIOS_8,
+    "held9": HELD_SCENARIOS_9,
+    "held10": HELD_SCENARIOS_10,
+    "held11": HELD_SCENARIOS_11,
+    "held12": HELD_SCENARIOS_12,
+    "held13": HELD_SCENARIOS_13,
+    "held14": HELD_SCENARIOS_14,
+    "held15": HELD_SCENARIOS_15,
+    "held16": HELD_SCENARIOS_16,
+}
+# fmt: on
