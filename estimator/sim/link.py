@@ -108,11 +108,11 @@ class SimPlayer:
         ):
             self._send_version(msg)
 
-    def _ack(self, msg: mavlink.MAVLink_message) -> None:
-        """COMMAND_ACK (accepted) of the command ``msg`` to its sender."""
+    def _ack(self, msg: mavlink.MAVLink_message, result: int = mavlink.MAV_RESULT_ACCEPTED) -> None:
+        """COMMAND_ACK of the command ``msg`` (its ``result``, a MAV_RESULT) to its sender."""
         ack = self.link.mav.command_ack_encode(
             msg.command,
-            mavlink.MAV_RESULT_ACCEPTED,
+            result,
             0,
             0,
             msg.get_srcSystem(),
@@ -184,15 +184,7 @@ class SimPlayer:
             self._set_rate(name, hz)
             result = mavlink.MAV_RESULT_ACCEPTED
         self.counts["set_message_interval"] += 1
-        ack = self.link.mav.command_ack_encode(
-            mavlink.MAV_CMD_SET_MESSAGE_INTERVAL,
-            result,
-            0,
-            0,
-            msg.get_srcSystem(),
-            msg.get_srcComponent(),
-        )
-        self._send(ack, None)
+        self._ack(msg, result)
 
     async def _serve_requests(self) -> None:
         while True:
