@@ -16,6 +16,7 @@ from test_trust import autopilot_to, daemon_port
 from estimator.mavlink import autopilot_lock
 from estimator.mavlink.config import ServiceConfig
 from estimator.telemetry.decode import TelemetryDecoder
+from estimator.telemetry.firmware import flight_sw_version, version_numbers
 from estimator.telemetry.samples import VelocitySample
 from estimator.telemetry.vz_sense import DECIDING_PAIRS, VerticalSense
 
@@ -288,3 +289,12 @@ async def test_the_daemon_asks_an_arducopter_its_version_and_reads_its_vz_so(
     assert said == [
         "autopilot firmware 3.3.0 (its AUTOPILOT_VERSION): GLOBAL_POSITION_INT.vz read positive up"
     ]
+
+
+def test_flight_sw_version_is_packed_as_ardupilot_fills_it_and_read_back() -> None:
+    """major << 24 | minor << 16 | patch << 8 | release type, as ArduPilot fills it (the live
+    SITL's 4.7.0 development build, type 0, reads 0x04070000); 0 is not a version."""
+    assert flight_sw_version((4, 7, 0), 0) == 0x04070000
+    assert flight_sw_version((3, 3, 1), 255) == 0x030301FF
+    assert version_numbers(flight_sw_version((3, 6, 12), 255)) == (3, 6, 12)
+    assert version_numbers(0) is None

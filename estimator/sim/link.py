@@ -33,6 +33,7 @@ from pymavlink.dialects.v20 import common as mavlink
 from estimator.mavlink.link import MavlinkLink
 from estimator.sim.files import TLOG_EPOCH_S
 from estimator.sim.run import SimRun
+from estimator.telemetry.firmware import flight_sw_version
 
 #: ArduPilot's REQUEST_DATA_STREAM groups, restricted to what the simulator sends.
 STREAM_GROUPS: dict[int, tuple[str, ...]] = {
@@ -47,8 +48,6 @@ _SYSTEM_ID, _COMPONENT_ID = 1, 1
 #: GLOBAL_POSITION_INT.vz positive down, as every Copter since 3.6 sends it. Its HEARTBEAT
 #: names ArduPilot and a quadrotor, so a peer reads its vz by this version.
 FIRMWARE_VERSION = (4, 5, 0)
-#: AUTOPILOT_VERSION's release type of an official release (FIRMWARE_VERSION_TYPE_OFFICIAL).
-_OFFICIAL = 255
 
 
 class SimPlayer:
@@ -124,10 +123,9 @@ class SimPlayer:
         """AUTOPILOT_VERSION (:data:`FIRMWARE_VERSION`, MAVLink 2) and the COMMAND_ACK of its
         request."""
         self.counts["version_requests"] += 1
-        major, minor, patch = FIRMWARE_VERSION
         version = self.link.mav.autopilot_version_encode(
             mavlink.MAV_PROTOCOL_CAPABILITY_MAVLINK2,
-            major << 24 | minor << 16 | patch << 8 | _OFFICIAL,
+            flight_sw_version(FIRMWARE_VERSION, mavlink.FIRMWARE_VERSION_TYPE_OFFICIAL),
             0,
             0,
             0,

@@ -30,6 +30,14 @@ def copter_vz_up(text: str) -> bool | None:
     return (int(match["major"]), int(match["minor"])) < COPTER_VZ_DOWN_SINCE
 
 
+def flight_sw_version(version: tuple[int, int, int], release_type: int) -> int:
+    """AUTOPILOT_VERSION's ``flight_sw_version`` of a (major, minor, patch) ``version`` and a
+    FIRMWARE_VERSION_TYPE ``release_type``, as ArduPilot and PX4 fill it (the inverse of
+    :func:`version_numbers`)."""
+    major, minor, patch = version
+    return major << 24 | minor << 16 | patch << 8 | release_type
+
+
 def version_numbers(flight_sw_version: int) -> tuple[int, int, int] | None:
     """(major, minor, patch) of AUTOPILOT_VERSION's ``flight_sw_version`` (major << 24 |
     minor << 16 | patch << 8 | release type, as ArduPilot and PX4 fill it); None for 0 (not
