@@ -88,6 +88,33 @@ def test_a_firmware_text_after_the_heights_verdict_keeps_or_takes_back_its_note(
         assert (sense.note is not None) is vz_up
 
 
+def test_after_a_reboot_the_heights_verdict_is_kept_and_judged_anew() -> None:
+    """The same firmware after its reboot keeps vz read positive up from its first pair on;
+    one reflashed to send it positive down is read so once the height has shown it."""
+    for vz_sent_mps, down_sign in ((1.0, -1), (-1.0, 1)):
+        sense = VerticalSense()
+        climb(sense, 1.0, DECIDING_PAIRS)
+        first_note = sense.note
+        sense.rebooted()
+        climb(sense, vz_sent_mps, DECIDING_PAIRS - 1)
+        assert (sense.down_sign, sense.decided_by, sense.note) == (-1, "height", first_note)
+        climb(sense, vz_sent_mps, 1, start_s=DECIDING_PAIRS)
+        assert (sense.down_sign, sense.decided_by) == (down_sign, "height")
+        assert (sense.note == first_note) is (down_sign < 0)
+        assert sense.note is not None
+        assert ("read positive down again" in sense.note) is (down_sign > 0)
+
+
+def test_a_firmwares_verdict_is_not_judged_by_the_height_after_a_reboot() -> None:
+    """A firmware text's sign stands over a reboot until the new firmware tells its own (its
+    boot text; the daemon asks its version after each reboot)."""
+    sense = VerticalSense()
+    sense.firmware(True)
+    sense.rebooted()
+    climb(sense, -1.0, 2 * DECIDING_PAIRS)  # the height says positive down
+    assert (sense.down_sign, sense.decided_by, sense.note) == (-1, "firmware", None)
+
+
 def first_seconds(records: list, seconds: float, vz_sign: int) -> list:
     """The (time, message) records' messages of its first ``seconds`` (autopilot clock) without
     LOCAL_POSITION_NED (GLOBAL_POSITION_INT is the velocity), vz sent times ``vz_sign``."""
@@ -122,6 +149,27 @@ async def test_a_daemon_that_missed_the_firmware_text_reads_the_climb_up(
         assert service.out.latest.climb_mps == pytest.approx(2.0, abs=0.3)
     said = [r.getMessage() for r in caplog.records if "read positive up" in r.getMessage()]
     assert said == [sense.note]
+
+
+async def test_a_daemon_reads_a_reflashed_copter_right_after_its_reboot(
+    flight: list,  # noqa: F811 (the fixture)
+    caplog: pytest.LogCaptureFixture,
+) -> None:
+    """Live over UDP: an old Copter without a firmware text climbs (vz read positive up), then
+    reboots into a firmware that sends vz positive down and answers no version request: its
+    new climb is published as a climb, and the daemon says each turn once."""
+    caplog.set_level(logging.WARNING, logger="uav_energy")
+    async with running(ServiceConfig(stale_after_s=600.0)) as (service, sender):
+        await play(sender, first_seconds(flight, 20.0, -1))
+        await wait_for(lambda: service.decoder.vz_sense.decided_by == "height")
+        await play(sender, first_seconds(flight, 10.0, 1))  # its clock back from 0
+        await wait_for(lambda: service.decoder.counts["reboots"] == 1)
+        await wait_for(lambda: (e := service.out.latest) is not None and 9.0 <= e.time_s <= 10.0)
+        assert service.decoder.vz_sense.down_sign == 1
+        assert service.out.latest.climb_mps == pytest.approx(2.0, abs=0.3)
+    said = [r.getMessage() for r in caplog.records if "GLOBAL_POSITION_INT.vz" in r.getMessage()]
+    assert len(said) == 2
+    assert "read positive up" in said[0] and "read positive down again" in said[1]
 
 
 async def test_another_autopilot_locked_after_the_first_falls_silent_has_its_own_vz_sign(
@@ -175,6 +223,30 @@ def test_another_autopilot_has_its_own_velocity_message_and_vz_sign(
     assert (decoder.vz_sense.down_sign, decoder.vz_sense.decided_by) == (1, None)
     at_8_s = min(velocities, key=lambda s: abs(s.time_s - 8.0))
     assert at_8_s.vd_mps == pytest.approx(-2.0, abs=0.3)  # climbing at 2 m/s
+
+
+@pytest.mark.parametrize("reflashed", [False, True])
+def test_a_rebooted_copter_is_read_right_from_its_first_climb_or_once_its_height_shows_it(
+    flight: list,  # noqa: F811 (the fixture)
+    reflashed: bool,
+) -> None:
+    """An old Copter without a firmware text (vz sent positive up) climbs, then reboots (its
+    clock back to 0) and takes off again: the same firmware has the new climb read as a climb
+    from its first samples; reflashed to a Copter that sends vz positive down (no text, no
+    version), its first samples at 0.5 m/s or more until the height's verdict are read the wrong
+    way, the rest as a climb (before, all of them as a descent)."""
+    decoder = TelemetryDecoder()
+    decoder.decode_all(first_seconds(flight, 10.0, -1))
+    assert decoder.vz_sense.down_sign == -1
+    again = first_seconds(flight, 12.0, 1 if reflashed else -1)
+    velocities = [s for s in decoder.decode_all(again) if isinstance(s, VelocitySample)]
+    assert decoder.counts["reboots"] == 1
+    sense = decoder.vz_sense
+    assert (sense.down_sign, sense.decided_by) == (1 if reflashed else -1, "height")
+    climbing = [s.vd_mps for s in velocities if s.time_s <= 11.0 and abs(s.vd_mps) >= 0.5]
+    read_down = [i for i, vd in enumerate(climbing) if vd > 0.0]  # the climb's samples
+    assert len(climbing) > 60
+    assert read_down == (list(range(DECIDING_PAIRS)) if reflashed else [])
 
 
 def test_only_an_ardupilot_autopilot_is_asked_its_height() -> None:

@@ -127,7 +127,7 @@ class Service:
         if config.return_autopilot != "auto":
             self._follow_rtl(config.return_autopilot)
         self._cells_checked = False  # a pack voltage of other cells looked at (once a run)
-        self._vz_noted = False
+        self._vz_note_said: str | None = None
         self._version_said: tuple[int, int, int] | None = None
         self.lock = AutopilotLock(target, (config.system_id, OWN_COMPONENT))
         self.internal_errors = 0
@@ -333,7 +333,8 @@ class Service:
 
     def _say_vertical_sense(self) -> None:
         """Once per autopilot: its firmware version when it tells it (and which way up its vz
-        is read), or that its height found vz sent positive up."""
+        is read); and each time its height turns the sign over (vz found sent positive up,
+        or after a reboot positive down again)."""
         decoder = self.decoder
         version = decoder.vz_sense.firmware_version
         if version is not None and version != self._version_said:
@@ -345,9 +346,10 @@ class Service:
                 *version,
                 up,
             )
-        if decoder.vz_sense.note is not None and not self._vz_noted:
-            self._vz_noted = True  # the telemetry's vz found sent positive up: said once
-            log.warning("%s", decoder.vz_sense.note)
+        note = decoder.vz_sense.note
+        if note is not None and note != self._vz_note_said:
+            self._vz_note_said = note  # the height turned the sign over: said once
+            log.warning("%s", note)
 
     def _note_autopilot(self, messages: list[mavlink.MAVLink_message]) -> None:
         """Which autopilot stack the locked sender is, from its HEARTBEAT among ``messages``
@@ -362,7 +364,7 @@ class Service:
         locked = self.lock.locked
         assert locked is not None and self.link is not None
         if self.decoder.retarget(locked):
-            self._vz_noted = False  # another autopilot's vz is judged and said anew
+            self._vz_note_said = None  # another autopilot's vz is judged and said anew
             self._version_said = None
         self.link.answer_only(self.lock.peer)
         self._request_streams(now_s)

@@ -37,8 +37,8 @@ Messages (parsed from bytes by :mod:`estimator.telemetry.frames`) become
 - a Copter older than 3.6, named by its firmware STATUSTEXT ("APM:Copter V3.3 (…)") or its
   AUTOPILOT_VERSION, has its GLOBAL_POSITION_INT.vz taken as it was sent, positive up
   (:mod:`estimator.telemetry.firmware`), from then on; without either, from when the messages'
-  own height has shown it (:mod:`estimator.telemetry.vz_sense`; an autopilot whose HEARTBEAT
-  names another stack than ArduPilot, never);
+  own height has shown it (:mod:`estimator.telemetry.vz_sense`; judged anew after a reboot; an
+  autopilot whose HEARTBEAT names another stack than ArduPilot, never);
 - ArduPilot's gripper texts (STATUSTEXT "Gripper load released"/"grabbed", "Gripper
   Released"/"Grabbed" from a mission; :data:`GRIPPER_TEXT`) become a :class:`GripperSample`;
 - only the selected autopilot is decoded (default: the first autopilot HEARTBEAT);
@@ -280,6 +280,7 @@ class TelemetryDecoder:
             self._battery_status_frames, self._battery_status_s = 0, -math.inf
             if verdict is ClockVerdict.REBOOT:
                 self._armed = self._on_ground = None
+                self.vz_sense.rebooted()
         self._note_velocity(out or [])
         return out
 

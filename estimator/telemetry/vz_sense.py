@@ -14,6 +14,12 @@ it), decides whenever it comes, over the height's verdict. Only
 ArduPilot ever sent vz positive up: an autopilot whose HEARTBEAT names another stack is read
 as MAVLink defines it, and its height is not asked (a forged stream cannot turn its climbs
 over).
+
+After a reboot (:meth:`VerticalSense.rebooted`) the height's verdict is kept but judged anew
+on the new boot's pairs: the same firmware is read right from its first climb, and one
+reflashed to the other convention, that neither tells its version nor was heard at boot, is
+turned over once the height shows it. A firmware's own verdict stands until the new firmware
+tells its own (its boot text, or its AUTOPILOT_VERSION: the daemon asks after each reboot).
 """
 
 from __future__ import annotations
@@ -43,19 +49,21 @@ class VerticalSense:
         #: What decided the sign: "firmware", "autopilot" (not ArduPilot), "height", or None
         #: (not yet: MAVLink's).
         self.decided_by: str | None = None
-        #: When the height found vz sent positive up: a sentence saying so, else None.
+        #: When the height turned the sign over (found vz sent positive up, or after a reboot
+        #: positive down again): a sentence saying so, else None.
         self.note: str | None = None
         #: (major, minor, patch) of the autopilot's AUTOPILOT_VERSION; None before one.
         self.firmware_version: tuple[int, int, int] | None = None
         self._copter = False  # the HEARTBEAT says ArduCopter
         self._last: tuple[float, float, float] | None = None
         self._agree = self._disagree = 0
+        self._rejudge = False  # a height verdict from before a reboot, judged anew
 
     def firmware(self, vz_up: bool) -> None:
         """The firmware (its text, :func:`copter_vz_up`, or its version) says whether vz is
         sent positive up; saying otherwise than the height did takes back the height's note."""
         self.down_sign = -1 if vz_up else 1
-        self.decided_by = "firmware"
+        self.decided_by, self._rejudge = "firmware", False
         if not vz_up:
             self.note = None
 
@@ -77,9 +85,16 @@ class VerticalSense:
         if self._copter:
             self.firmware(copter_version_vz_up(version))
 
+    def rebooted(self) -> None:
+        """The autopilot rebooted (its clock was confirmed behind the old one): a height
+        verdict keeps its sign and is judged anew from the new boot's pairs."""
+        if self.decided_by == "height":
+            self._rejudge, self._last = True, None
+            self._agree = self._disagree = 0
+
     def observe(self, time_s: float, vz_sent_mps: float, alt_m: float) -> None:
         """One message: its time (s since boot), vz as sent (m/s) and height over home (m)."""
-        if self.decided_by is not None:
+        if self.decided_by is not None and not self._rejudge:
             return
         last, self._last = self._last, (time_s, vz_sent_mps, alt_m)
         if last is None:
@@ -99,12 +114,27 @@ class VerticalSense:
         if judged < DECIDING_PAIRS:
             return
         if self._agree >= DECIDING_SHARE * judged:
-            self.decided_by = "height"
+            self._decide(1, judged)
         elif self._disagree >= DECIDING_SHARE * judged:
-            self.down_sign, self.decided_by = -1, "height"
+            self._decide(-1, judged)
+
+    def _decide(self, down_sign: int, judged: int) -> None:
+        """The height's verdict on ``judged`` pairs: vz times ``down_sign`` is positive down."""
+        turned = down_sign != self.down_sign
+        self.down_sign, self.decided_by, self._rejudge = down_sign, "height", False
+        if not turned:
+            return
+        if down_sign < 0:
             self.note = (
                 f"GLOBAL_POSITION_INT.vz disagrees in sign with the altitude rate on "
                 f"{self._disagree} of the first {judged} climbing or descending samples: read "
                 "positive up from then on, as a Copter before 3.6 sends it (the telemetry named "
                 "no firmware)"
+            )
+        else:
+            self.note = (
+                f"after the autopilot's reboot GLOBAL_POSITION_INT.vz agrees in sign with the "
+                f"altitude rate on {self._agree} of the first {judged} climbing or descending "
+                "samples: read positive down again from then on, as MAVLink defines it (new "
+                "firmware that named no version)"
             )
