@@ -390,9 +390,9 @@ def test_the_autopilots_wind_estimate_is_a_channel(tmp_path: Path) -> None:
 def test_an_implausible_autopilot_wind_is_a_counted_skip() -> None:
     from pymavlink.dialects.v20 import ardupilotmega
 
+    from estimator.telemetry.clock import ClockSettings
     from estimator.telemetry.decode import TelemetryDecoder
     from estimator.telemetry.frames import FrameParser
-    from estimator.telemetry.plausibility import ClockSettings
     from estimator.telemetry.samples import WindSample
 
     apm = ardupilotmega.MAVLink(None, srcSystem=1, srcComponent=1)

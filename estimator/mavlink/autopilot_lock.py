@@ -48,8 +48,8 @@ from typing import Any
 from pymavlink.dialects.v20 import common as mavlink
 
 from estimator.mavlink.sender_evidence import SenderEvidence, frame_stamp_s
+from estimator.telemetry.clock import AutopilotClock, ClockSettings, ClockVerdict
 from estimator.telemetry.decode import is_autopilot, message_source
-from estimator.telemetry.plausibility import AutopilotClock, ClockSettings, ClockVerdict
 
 log = logging.getLogger("uav_energy.autopilot")
 

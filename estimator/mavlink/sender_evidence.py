@@ -3,7 +3,7 @@ attitude and battery readings that agree with each other over time.
 
 :class:`SenderEvidence` takes a sender's messages one by one. A stamped frame counts as
 evidence when its stamp agrees with one running clock (the decoder's
-:class:`~estimator.telemetry.plausibility.AutopilotClock`: a stray stamp is skipped, a new
+:class:`~estimator.telemetry.clock.AutopilotClock`: a stray stamp is skipped, a new
 clock confirmed by its own frames starts the count again) and its values agree with the
 sender's previous ones:
 
@@ -27,7 +27,7 @@ from collections import Counter
 
 from pymavlink.dialects.v20 import common as mavlink
 
-from estimator.telemetry.plausibility import AutopilotClock, ClockSettings, ClockVerdict
+from estimator.telemetry.clock import AutopilotClock, ClockSettings, ClockVerdict
 
 #: Stamped frames that agree with one clock before a sender is believed, and the autopilot
 #: clock (s) they must span.

@@ -4,7 +4,7 @@ Messages (parsed from bytes by :mod:`estimator.telemetry.frames`) become
 :mod:`estimator.telemetry.samples` samples:
 
 - time is the autopilot's ``time_boot_ms``, judged by an
-  :class:`~estimator.telemetry.plausibility.AutopilotClock` (a stamp far from the clock is skipped
+  :class:`~estimator.telemetry.clock.AutopilotClock` (a stamp far from the clock is skipped
   until several frames confirm a reboot or a gap); messages without a stamp (SYS_STATUS,
   BATTERY_STATUS, HEARTBEAT) take the latest believed autopilot time, so a replay and a live
   run of the same byte stream give the same samples;
@@ -58,13 +58,11 @@ from collections.abc import Iterable
 
 from pymavlink.dialects.v20 import common as mavlink
 
+from estimator.telemetry.clock import ClockFilter, ClockSettings, ClockVerdict
 from estimator.telemetry.firmware import copter_vz_up
 from estimator.telemetry.frames import frame_payload, frame_source
 from estimator.telemetry.plausibility import (
     MAX_WIND_MPS,
-    ClockFilter,
-    ClockSettings,
-    ClockVerdict,
     InputLimits,
     VelocityJumps,
     battery_problem,

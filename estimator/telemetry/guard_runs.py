@@ -25,7 +25,8 @@ from estimator.telemetry.sample_columns import KINDS, OTHER, SampleColumns
 from estimator.telemetry.samples import BatterySample, VelocitySample, WindSample
 
 if TYPE_CHECKING:
-    from estimator.telemetry.plausibility import ClockSettings, InputLimits
+    from estimator.telemetry.clock import ClockSettings
+    from estimator.telemetry.plausibility import InputLimits
 
 #: Relative margin by which a numpy norm must be within its limit to be decided here.
 NORM_MARGIN = 1e-9
