@@ -131,6 +131,26 @@ def test_corrupt_records_are_counted_and_skipped(tmp_path: Path) -> None:
     assert samples[-1] == list(iter_samples(IRIS_AUGUST))[-1]  # reading resumed after damage
 
 
+def test_a_tlog_converted_to_crlf_line_endings_is_read_whole_and_says_so(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """A text-mode transfer put a CR before every LF byte (a public SITL tlog read 15 s of its
+    80 s flight so, and 781 bad frames): read with it undone, the samples are the original's
+    (the CR LF pairs the log held itself too), and the replay warns once."""
+    original = IRIS_AUGUST.read_bytes()
+    assert original.count(b"\n") > 100 and original.count(b"\r\n") > 0
+    converted = tmp_path / "crlf.tlog"
+    converted.write_bytes(original.replace(b"\n", b"\r\n"))
+    stream = iter_samples(converted)
+    assert list(stream) == list(iter_samples(IRIS_AUGUST))
+    assert stream.bad_frames == 0 and stream.problems()[0][0] == "repaired file"
+    assert iter_samples(IRIS_AUGUST).problems() == []
+    assert cli_main(["replay", str(converted)]) == 0
+    said = [line for line in capsys.readouterr().err.splitlines() if "CRLF" in line]
+    pairs = original.count(b"\n")
+    assert len(said) == 1 and f"follows a CR ({pairs} of them)" in said[0]
+
+
 def test_mavlink2_frames_are_read(tmp_path: Path) -> None:
     path = write_tlog(tmp_path / "v2.tlog", flight_frames(10, mavlink1=False))
     assert path.read_bytes()[8] == 0xFD

@@ -212,18 +212,23 @@ def detect_format(path: str | Path) -> str:
         return "ulog"
     if head.startswith(_DATAFLASH_MAGIC):
         return "dataflash"
-    if (
-        len(head) > 8
-        and head[8] in _MAVLINK_STX
-        and int.from_bytes(head[:8], "big") < _TLOG_MAX_TIME_US
-    ):
-        return "tlog"
+    if any(_tlog_head(h) for h in (head, head.replace(b"\r\n", b"\n"))):
+        return "tlog"  # the second: converted to CRLF as text (the reader undoes it)
     first_line = head.split(b"\n", 1)[0].decode("utf-8", "replace")
     if _module("cmu-csv").looks_like_cmu_header(first_line):
         return "cmu-csv"
     raise UserError(
         f"{path} is not a recognised log (expected a MAVLink tlog, a CMU CSV, "
         "a DataFlash .bin or a PX4 .ulg)"
+    )
+
+
+def _tlog_head(head: bytes) -> bool:
+    """Whether ``head`` starts as a tlog: a plausible receive stamp, then a frame start."""
+    return (
+        len(head) > 8
+        and head[8] in _MAVLINK_STX
+        and int.from_bytes(head[:8], "big") < _TLOG_MAX_TIME_US
     )
 
 

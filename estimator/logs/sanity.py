@@ -47,6 +47,7 @@ _VELOCITY_FIELDS = attrgetter("time_s", "vd_mps", "alt_m")
 _VOLTAGE = attrgetter("voltage_v")
 #: The causes a warning is about (what :class:`RunWarnings` counts).
 VERTICAL_VELOCITY, PACK_VOLTAGE = "vertical velocity", "pack voltage"
+REPAIRED_FILE = "repaired file"
 
 
 def vertical_velocity_problem(
@@ -160,6 +161,8 @@ class SanityRecorder:
         #: The reader's word on a vertical velocity it found sent the wrong way up and read
         #: right from then on (:mod:`estimator.telemetry.vz_sense`), else None.
         self.vertical_note: str | None = None
+        #: The reader's word on damage to the file it undid before reading, else None.
+        self.repair_note: str | None = None
 
     def observe(self, sample: Sample) -> None:
         if isinstance(sample, VelocitySample):
@@ -200,7 +203,7 @@ class SanityRecorder:
     ) -> list[tuple[str, str]]:
         """The checks' (cause, warning) over what was observed (voltage only when ``cells``
         is known); no pair of velocity samples spans a reboot."""
-        out = []
+        out = [] if self.repair_note is None else [(REPAIRED_FILE, self.repair_note)]
         pairs = self.judged_pairs()
         if self.vertical_note is not None:  # the samples before the reader knew are wrong
             out.append((VERTICAL_VELOCITY, self.vertical_note))

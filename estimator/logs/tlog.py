@@ -9,7 +9,8 @@ Speed: the frame header is read here and frames the decoder would not use (by me
 once it knows the autopilot by source, see :meth:`TelemetryDecoder.discards`) are skipped
 without being parsed. A record without a frame start is corrupt: it is counted and the
 reader re-synchronises on the next plausible record. A file that ends inside a record is read
-up to the damage and flagged ``truncated``.
+up to the damage and flagged ``truncated``. A file converted to CRLF line endings as text is
+read with the conversion undone, and says so (:func:`_crlf_undone`).
 """
 
 from __future__ import annotations
@@ -38,6 +39,8 @@ _SMART_BATTERY_INFO = 370
 #: The battery and velocity message types, as named in ``SampleStream.missing``.
 BATTERY_TYPES = ("BATTERY_STATUS", "SYS_STATUS")
 VELOCITY_TYPES = ("GLOBAL_POSITION_INT", "LOCAL_POSITION_NED")
+#: LF bytes, each after a CR, that show a log converted to CRLF line endings as text.
+CRLF_MIN_PAIRS = 16
 #: A resync candidate's stamp must lie within this distance (µs) of the last good stamp.
 _RESYNC_WINDOW_US = 3600 * 1_000_000
 
@@ -49,14 +52,33 @@ def iter_samples(path: Path, limits: InputLimits | None = None) -> SampleStream:
         data = path.read_bytes()
     except OSError as exc:
         raise UserError(f"cannot read {path}: {exc.strerror}") from None
+    data, repair_note = _crlf_undone(data)
     if len(data) <= STAMP_BYTES or data[STAMP_BYTES] not in (_STX_V1, _STX_V2):
         raise UserError(f"{path} is not a MAVLink telemetry log (no frame after the first stamp)")
     stream = SampleStream(path, "tlog", iter(()))
+    stream.sanity.repair_note = repair_note
     stream.start_unix_s = _stamp_us(data, 0) / 1e6
     stream.battery_types = BATTERY_TYPES
     stream.velocity_types = VELOCITY_TYPES
     stream._it = _records(data, stream, TelemetryDecoder(limits=limits))
     return stream
+
+
+def _crlf_undone(data: bytes) -> tuple[bytes, str | None]:
+    """``data`` with a text-mode line-ending conversion undone, and a sentence saying so; else
+    ``data`` and None. A transfer or checkout that took the binary log for text put a CR
+    (0x0D) before every LF (0x0A): with at least :data:`CRLF_MIN_PAIRS` LF bytes, all of them
+    after a CR (by chance, one in 256 each), each CR LF is turned back into the LF it was (a
+    CR LF of the log itself became CR CR LF, and comes back too)."""
+    pairs = data.count(b"\r\n")
+    if pairs < CRLF_MIN_PAIRS or pairs != data.count(b"\n"):
+        return data, None
+    note = (
+        f"every LF byte of the file follows a CR ({pairs} of them): it was converted to CRLF "
+        "line endings as text (a text-mode transfer or checkout); read with the conversion "
+        "undone, fetch it as binary"
+    )
+    return data.replace(b"\r\n", b"\n"), note
 
 
 def frame_length(data: bytes | memoryview, start: int) -> tuple[int, int] | None:
