@@ -15,6 +15,7 @@ import pytest
 from fixtures.mutation import KINDS, judge, mutate, seed_files, time_limit, write_cmu_csv
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
+from tlog_builder import flight_frames, write_tlog
 
 from estimator.analysis.fleet_flight import UNEXPECTED, failure_reason
 from estimator.cli import main
@@ -232,6 +233,18 @@ def test_a_cell_count_that_rejects_every_voltage_says_so(
     )
     assert found is not None and "is `cells` right?" in err
     assert (float(found[1]), float(found[2])) == (22.8, 25.0)
+
+
+def test_a_reversed_current_sensor_says_so_not_that_the_voltage_lacks(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """Every reading of a pack whose current sensor is wired the wrong way round (−11.2 A,
+    as on a public ArduSub log) is refused: the sentence names the current, not a voltage."""
+    log = write_tlog(tmp_path / "reversed.tlog", flight_frames(20, current_ca=-1120))
+    code, err = _run(["replay", str(log)], capsys)
+    assert code == 2 and "\n" not in err
+    assert "every battery current (-11.2 to -11.2 A) is outside what the vehicle draws" in err
+    assert err.endswith("is the current sensor reversed?")
 
 
 @pytest.mark.parametrize(

@@ -35,7 +35,7 @@ from estimator.analysis.residuals import analyze
 from estimator.analysis.theory_fit import fit_theory
 from estimator.errors import UserError
 from estimator.estimation.pipeline import Pipeline
-from estimator.logs import iter_samples, load_flights, voltage_window_problem
+from estimator.logs import battery_window_problem, iter_samples, load_flights
 from estimator.physics.battery import PackModel
 from estimator.physics.vehicle import Vehicle
 from estimator.telemetry.samples import BatterySample
@@ -132,7 +132,7 @@ def replay_columns(path: Path, job: FleetJob) -> dict[str, Any]:
         stream, vehicle, path.stem, samples=with_batteries(stream, batteries), pipeline=pipeline
     )
     if not flight.estimates:
-        problem = voltage_window_problem(stream, vehicle.battery.cells, vehicle.input_limits())
+        problem = battery_window_problem(stream, vehicle.battery.cells, vehicle.input_limits())
         raise UserError(problem or "no estimates: the log has no battery telemetry")
     summary = summarize([flight])
     resistance_ohm = _last_finite(e.resistance_ohm for e in flight.estimates)

@@ -63,9 +63,9 @@ from estimator.estimation.return_home import MissionSample
 from estimator.logs import (
     FORMATS,
     SampleStream,
+    battery_window_problem,
     iter_samples,
     suffixed_where_shared,
-    voltage_window_problem,
 )
 from estimator.logs.mission_files import MissionFile, load_mission
 from estimator.logs.sanity import RunWarnings
@@ -299,7 +299,7 @@ def _replay_one(
         flight = replay_stream(stream, vehicle, name, settings, samples, on_sample, pipeline)
         if not flight.estimates:
             limits = vehicle.input_limits()
-            problem = voltage_window_problem(stream, vehicle.battery.cells, limits)
+            problem = battery_window_problem(stream, vehicle.battery.cells, limits)
             if problem is not None:
                 raise UserError(f"{path}: {problem}")
         elif summarize([flight]).airborne_s == 0:

@@ -36,7 +36,7 @@ from estimator.file_checks import regular_file
 from estimator.logs.coverage import Coverage
 from estimator.logs.sanity import SanityRecorder
 from estimator.physics.effects import wind_from_deg
-from estimator.telemetry.plausibility import InputLimits, SampleGuard
+from estimator.telemetry.plausibility import InputLimits, SampleGuard, battery_problem
 from estimator.telemetry.sample_columns import SampleColumns
 from estimator.telemetry.samples import (
     ArmedSample,
@@ -369,26 +369,49 @@ def flights_from_stream(
     return flights
 
 
-def voltage_window_problem(stream: SampleStream, cells: int, limits: InputLimits) -> str | None:
+def battery_window_problem(stream: SampleStream, cells: int, limits: InputLimits) -> str | None:
     """Why a log read through ``limits`` (a pack of ``cells``) gave no battery reading, when
-    the reason is that every voltage in it lies outside the pack's window (the vehicle file's
-    ``cells`` is likely wrong); None otherwise. Reads the log again, believing any voltage a
-    multirotor may have."""
-    if not stream.checks["voltage_implausible"]:
+    the reason is that every reading in it lies outside the vehicle's window: every voltage
+    outside the pack's (the vehicle file's ``cells`` is likely wrong), every current outside
+    what the vehicle draws, or every consumed charge below zero (below zero: a current sensor
+    wired or calibrated the wrong way round), else how many were refused for what; None when a
+    reading passes. Reads the log again, believing any finite current and consumed charge
+    (:meth:`InputLimits.any_current`)."""
+    checks = stream.checks
+    refused = ("voltage_implausible", "current_implausible", "consumed_implausible")
+    if not any(checks[reason] for reason in refused):
         return None
-    voltages = [
-        s.voltage_v
-        for s in iter_samples(stream.path, stream.format)
+    readings = [
+        s
+        for s in iter_samples(stream.path, stream.format, InputLimits.any_current())
         if isinstance(s, BatterySample)
     ]
-    inside = [v for v in voltages if limits.min_voltage_v < v <= limits.max_voltage_v]
-    if not voltages or inside:
+    if not readings or any(battery_problem(s, limits) is None for s in readings):
         return None
-    return (
-        f"every battery voltage ({min(voltages):.1f}–{max(voltages):.1f} V) is outside the "
-        f"window of a {cells}-cell pack ({limits.min_voltage_v:.1f}–"
-        f"{limits.max_voltage_v:.1f} V): is `cells` right?"
-    )
+    voltages = [s.voltage_v for s in readings]
+    if not any(limits.min_voltage_v < v <= limits.max_voltage_v for v in voltages):
+        return (
+            f"every battery voltage ({min(voltages):.1f}–{max(voltages):.1f} V) is outside the "
+            f"window of a {cells}-cell pack ({limits.min_voltage_v:.1f}–"
+            f"{limits.max_voltage_v:.1f} V): is `cells` right?"
+        )
+    currents = [s.current_a for s in readings if s.current_a is not None]
+    if currents and all(battery_problem(s, limits) == "current_implausible" for s in readings):
+        low_a, high_a = min(currents), max(currents)
+        question = "is the current sensor reversed?" if high_a < 0 else "is its scale right?"
+        return (
+            f"every battery current ({low_a:.1f} to {high_a:.1f} A) is outside what the vehicle "
+            f"draws ({limits.min_current_a:.1f} A, a charge, to {limits.max_current_a:.0f} A "
+            f"and {limits.max_power_w:.0f} W): {question}"
+        )
+    consumed = [s.consumed_mah for s in readings if s.consumed_mah is not None]
+    if consumed and max(consumed) < 0:
+        return (
+            f"every consumed charge ({min(consumed):.0f} to {max(consumed):.0f} mAh) is below "
+            "zero: is the current sensor reversed?"
+        )
+    counts = ", ".join(f"{checks[r]} for its {r.split('_')[0]}" for r in refused if checks[r])
+    return f"every battery reading was refused as beyond the vehicle's limits ({counts})"
 
 
 def _align(samples: list[Sample], flight_id: str, max_age_s: float) -> FlightSeries | None:

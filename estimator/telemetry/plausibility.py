@@ -69,7 +69,8 @@ class InputLimits:
     quadrotors fly about 160 m/s), |vertical speed| ≤ 100 m/s, |height over home| ≤ 20 km,
     pack voltage in (0, 150] V, current in [−20, 1000] A (a small negative current is a sensor
     offset), electrical power V·I ≤ 200 kW, consumed charge in [0, 10⁶] mAh. :meth:`for_pack`
-    narrows voltage, current, power and speed to one vehicle.
+    narrows voltage, current, power and speed to one vehicle; :meth:`any_current` opens
+    current, power and consumed charge to any finite value (to say why a log's were refused).
     """
 
     max_speed_mps: float = 200.0
@@ -80,7 +81,19 @@ class InputLimits:
     min_current_a: float = -20.0
     max_current_a: float = 1000.0
     max_power_w: float = 200_000.0
+    min_consumed_mah: float = 0.0
     max_consumed_mah: float = 1e6
+
+    @classmethod
+    def any_current(cls) -> InputLimits:
+        """The default limits with any finite current, power and consumed charge believed."""
+        return cls(
+            min_current_a=-math.inf,
+            max_current_a=math.inf,
+            max_power_w=math.inf,
+            min_consumed_mah=-math.inf,
+            max_consumed_mah=math.inf,
+        )
 
     @classmethod
     def for_pack(
@@ -152,7 +165,9 @@ def battery_problem(sample: BatterySample, limits: InputLimits) -> str | None:
     ):
         return "current_implausible"
     q = sample.consumed_mah
-    if q is not None and not (math.isfinite(q) and 0.0 <= q <= limits.max_consumed_mah):
+    if q is not None and not (
+        math.isfinite(q) and limits.min_consumed_mah <= q <= limits.max_consumed_mah
+    ):
         return "consumed_implausible"
     return None
 
