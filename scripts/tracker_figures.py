@@ -4,7 +4,8 @@ scripts that print them give them:
 - ``tracker-sitl*``: ``python scripts/tracker_sitl.py [RECORDINGS] [--slow-error-fraction
   F]`` (the online tracker on the ArduCopter SITL recordings of ``replay/sitl``, against their
   wind and payload; ``tracker-sitl-held*``: on the held-out flights of ``replay/sitl_held``,
-  with a flight's worst mass step and the unloaded flights' mass);
+  with a flight's worst mass step and the unloaded flights' mass; ``*-blind``: how many of
+  the steps beyond 3σ nothing the tracker read could have told from the truth);
 - ``tracker-cmu``, ``tracker-cmu-shows``: ``python scripts/tracker_cmu.py`` (the online
   tracker on the CMU M100 flights against their payload and anemometer);
 - ``tracked-wind-sitl``: ``python scripts/tracked_wind_sitl.py`` (the wind the pipeline uses
@@ -48,6 +49,7 @@ def sitl_generators(tracker_sitl: ModuleType) -> dict[str, Callable[[], str]]:
     return {
         "tracker-sitl": lambda: str(tracker_sitl.report(sitl_tracker_runs(tracker_sitl))),
         "tracker-sitl-shows": lambda: str(tracker_sitl.shows(sitl_tracker_runs(tracker_sitl))),
+        "tracker-sitl-blind": lambda: str(tracker_sitl.blind(sitl_tracker_runs(tracker_sitl))),
         "tracker-sitl-slow-2pct": lambda: str(
             tracker_sitl.slow_error_share(
                 sitl_tracker_runs(tracker_sitl, slow_error_fraction=TRACKER_SITL_SLOW_ERROR)
@@ -64,6 +66,7 @@ def held_generators(tracker_sitl: ModuleType, held: Path) -> dict[str, Callable[
 
     return {
         "tracker-sitl-held": lambda: str(tracker_sitl.report(runs())),
+        "tracker-sitl-held-blind": lambda: str(tracker_sitl.blind(runs())),
         "tracker-sitl-held-wind-worst": lambda: str(tracker_sitl.worst_wind(runs())),
         "tracker-sitl-held-mass-step": lambda: str(
             tracker_sitl.mass_step(runs(), TRACKER_MASS_STEP)

@@ -178,6 +178,26 @@ def test_the_doc_blocks_are_what_the_script_prints(flights: Flights) -> None:
     writes them)."""
     assert _block("tracker-sitl") == SCRIPT.report(flights), "run `make figures`"
     assert _block("tracker-sitl-shows") == SCRIPT.shows(flights), "run `make figures`"
+    assert _block("tracker-sitl-blind") == SCRIPT.blind(flights), "run `make figures`"
+
+
+def test_a_step_beyond_3_sigma_is_blind_only_while_neither_the_readings_nor_the_report_told() -> (
+    None
+):
+    """Six steps, one truth change after the third; the mass beyond 3σ on the first two
+    (the readings 1σ and 1.5σ apart: ½(1 + 2.25) = 1.6 nats), the wind on the last three
+    (0.5σ each: 0.4 nats by the fifth step; the report 3 m/s off, then 1 m/s)."""
+    truth = np.array([[0.0, 0.0, 0.0]] * 3 + [[5.0, 0.0, 0.0]] * 3)
+    estimate = truth.copy()
+    estimate[:2, 2] = 0.5
+    estimate[3:, 0] = 0.0
+    sigma = np.full((6, 3), 0.1)
+    sigma[:, :2] = 1.0
+    told = np.array([[1.0, 0.5], [1.5, 0.5], [0.2, 0.5], [0.5, 3.0], [0.5, 3.0], [0.5, 1.0]])
+    run = TrackerRun("synthetic", np.arange(6.0), estimate, sigma, truth, np.ones(6, bool), 0, told)
+    assert SCRIPT.blind_steps(run).tolist() == [True, True, False, True, True, False]
+    told[1, 0] = 2.0  # ½(1 + 4) = 2.5 nats by the second step
+    assert SCRIPT.blind_steps(run).tolist() == [True, False, False, True, True, False]
 
 
 def test_a_malformed_truth_or_no_recording_is_one_line_and_exit_2(

@@ -27,6 +27,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from estimator.estimation.online_effects import OnlineEffects
 from estimator.estimation.pipeline import Pipeline
 from estimator.logs import FlightSeries
 from estimator.logs.cmu import flight_samples
@@ -51,8 +52,9 @@ class Truth:
 @dataclass(frozen=True)
 class TrackerRun:
     """One flight's tracker steps, one row per step: time (s), estimate [w_n, w_e, δm], its
-    1σ and the truth then (n × 3 each), and whether the pipeline predicted with the tracked
-    effects after the step (``applied``, n)."""
+    1σ and the truth then (n × 3 each), whether the pipeline predicted with the tracked
+    effects after the step (``applied``, n), and what could have told the truth from the
+    estimate there (``told``, n × 2, see :func:`track_samples`)."""
 
     name: str
     time_s: np.ndarray
@@ -63,6 +65,10 @@ class TrackerRun:
     #: Steps left out: the truth changed between the previous step and this one, while the
     #: readings it took were queued (a payload released, a wind switched).
     across_changes: int = 0
+    #: Per step: the model's mean power over the step's readings at the truth less at the
+    #: estimate, in units of the step's noise 1σ; and the autopilot's latest wind report's
+    #: distance from the true wind (m/s; NaN without one).
+    told: np.ndarray | None = None
 
     def z(self) -> np.ndarray:
         """|error|/σ per step: wind north, wind east, mass (n × 3)."""
@@ -153,9 +159,37 @@ def track_samples(
                 sigma["mass_kg"],
                 *truth,
                 applied,
+                *_told(tracker, truth),
             )
         )
-    table = np.array(rows, dtype=float).reshape(-1, 11)
+    table = np.array(rows, dtype=float).reshape(-1, 13)
     return TrackerRun(
-        name, table[:, 0], table[:, 1:4], table[:, 4:7], table[:, 7:10], table[:, 10] > 0, across
+        name,
+        table[:, 0],
+        table[:, 1:4],
+        table[:, 4:7],
+        table[:, 7:10],
+        table[:, 10] > 0,
+        across,
+        table[:, 11:13],
     )
+
+
+def _told(tracker: OnlineEffects, truth: Sequence[float]) -> tuple[float, float]:
+    """What could have told ``truth`` [w_n, w_e, δm] from the tracker's estimate after its
+    step: the model's mean power over the step's readings at the truth (the estimate's model
+    error kept) less at the estimate, over the step's noise 1σ; and the autopilot's latest
+    wind report's distance from the true wind (m/s). NaN where there is no truth or report."""
+    step, state = tracker.last_step, tracker.state
+    if step is None or not all(math.isfinite(v) for v in truth):
+        return math.nan, math.nan
+    at_truth = state.copy()
+    at_truth[:3] = truth
+    estimate_w, truth_w = tracker.powers_w(np.vstack([state, at_truth]), step.rows).mean(axis=1)
+    report = tracker.autopilot.report
+    off_mps = (
+        math.nan
+        if report is None
+        else math.hypot(report.wind_n_mps - truth[0], report.wind_e_mps - truth[1])
+    )
+    return float(truth_w - estimate_w) / math.sqrt(step.noise_var_w2), off_mps

@@ -223,6 +223,9 @@ class OnlineEffects:
         #: readings before the step: with the estimate then, and with the vehicle file's wind
         #: and mass.
         self.last_step_w = (math.nan, math.nan, math.nan)
+        #: The last step's readings (their flight states, mean power and its noise), None
+        #: before one: what :meth:`powers_w` predicts them at (an analysis's probe).
+        self.last_step: StepData | None = None
         #: Times the covariance was restarted after losing positive definiteness (bad data).
         self.resets = 0
         self.autopilot = AutopilotWind(s)
@@ -248,6 +251,11 @@ class OnlineEffects:
         if self._rival is None:
             return self._x, self._p, self._form
         return mixture(Hypothesis(self._x, self._p, self._form, self._loglik), self._rival)
+
+    @property
+    def state(self) -> np.ndarray:
+        """The reported state [w_n, w_e, δm(, b)] (a copy): m/s NED, kg, W."""
+        return np.array(self._reported()[0], dtype=float)
 
     @property
     def wind(self) -> Wind:
@@ -346,7 +354,7 @@ class OnlineEffects:
 
     # -- filter --------------------------------------------------------------------------------
 
-    def _powers_w(self, points: np.ndarray, rows: np.ndarray) -> np.ndarray:
+    def powers_w(self, points: np.ndarray, rows: np.ndarray) -> np.ndarray:
         """Model power (W) at each flight state of ``rows`` (k × 9, the FlightState fields)
         for each hypothesis [w_n, w_e, δm] or [w_n, w_e, δm, b] of ``points`` (m rows): an
         m × k array, from one prediction, plus the hypothesis' model error b. The wind is
@@ -449,6 +457,7 @@ class OnlineEffects:
         )
         decay = np.array([1.0, 1.0, 1.0, kept_b][:n])
         step = step_data(kept, s, self.mass_kg, self.extra_noise_var_w2, self._x[:2], self._hover_w)
+        self.last_step = step
         reopen = step.moving and self._hovering
         self._hovering = not step.moving
         main = self._prior(Hypothesis(self._x, self._p, self._form, self._loglik), decay, q, reopen)
@@ -534,7 +543,7 @@ class OnlineEffects:
             prior = Hypothesis(prior.x, np.diag(self._initial_var), prior.form, prior.loglik)
             drawn_p, sigmas = self._draw(prior.x, prior.p, step.moving)
         points = sigmas if extra is None else np.vstack([sigmas, extra])
-        powers_w = self._powers_w(points, step.rows).mean(axis=1)
+        powers_w = self.powers_w(points, step.rows).mean(axis=1)
         n = len(sigmas)
         extra_w = powers_w[n:].tolist()
         try:
