@@ -224,22 +224,22 @@ def blind(flights: list[tuple[RecordingTruth, TrackerRun]]) -> str:
     """How many of the steps beyond 3σ were blind (:func:`blind_steps`), and the flights that
     miss the aim only at blind steps."""
     runs_ = [r for _, r in flights]
-    beyond = sum(int(np.sum(r.z().max(axis=1) > 3.0)) for r in runs_)
+    beyond = {r.name: int(np.sum(r.z().max(axis=1) > 3.0)) for r in runs_}
     blind_counts = {r.name: int(np.sum(blind_steps(r))) for r in runs_}
     missing = [r for r in runs_ if not meets_aim([r])]
     only_blind = [
         r.name
         for r in missing
-        if min(r.within(2.0)) >= 0.90
-        and blind_counts[r.name] == int(np.sum(r.z().max(axis=1) > 3.0))
+        if min(r.within(2.0)) >= 0.90 and blind_counts[r.name] == beyond[r.name]
     ]
     return (
-        f"of the {beyond} steps beyond 3σ, on {len(missing)} of the {len(runs_)} flights, "
+        f"of the {sum(beyond.values())} steps beyond 3σ, on "
+        f"{sum(n > 0 for n in beyond.values())} of the {len(runs_)} flights, "
         f"{sum(blind_counts.values())} were blind: since the truth last changed the readings "
         f"held less than {BLIND_NATS:g} nats of evidence for it over the estimate, and for "
-        f"the wind the autopilot's report was {REPORT_OFF_MPS:g} m/s or more off it. "
-        f"{len(only_blind)} of those {len(missing)} flights miss the aim only at blind steps"
-        f"{(' (' + ', '.join(only_blind) + ')') if only_blind else ''}"
+        f"the wind the autopilot's report was {REPORT_OFF_MPS:g} m/s or more off it. Of the "
+        f"{len(missing)} flights that miss the aim, {len(only_blind)} miss it only at blind "
+        f"steps{(' (' + ', '.join(only_blind) + ')') if only_blind else ''}"
     )
 
 
