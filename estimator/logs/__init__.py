@@ -386,7 +386,8 @@ def battery_window_problem(stream: SampleStream, cells: int, limits: InputLimits
         for s in iter_samples(stream.path, stream.format, InputLimits.any_current())
         if isinstance(s, BatterySample)
     ]
-    if not readings or any(battery_problem(s, limits) is None for s in readings):
+    problems = [battery_problem(s, limits) for s in readings]
+    if not readings or None in problems:
         return None
     voltages = [s.voltage_v for s in readings]
     if not any(limits.min_voltage_v < v <= limits.max_voltage_v for v in voltages):
@@ -396,7 +397,7 @@ def battery_window_problem(stream: SampleStream, cells: int, limits: InputLimits
             f"{limits.max_voltage_v:.1f} V): is `cells` right?"
         )
     currents = [s.current_a for s in readings if s.current_a is not None]
-    if currents and all(battery_problem(s, limits) == "current_implausible" for s in readings):
+    if currents and all(problem == "current_implausible" for problem in problems):
         low_a, high_a = min(currents), max(currents)
         question = "is the current sensor reversed?" if high_a < 0 else "is its scale right?"
         return (
