@@ -16,6 +16,8 @@ from pathlib import Path
 import pytest
 from fixtures.dataflash_writer import DataFlashWriter
 from fixtures.flight import write_bin, write_ulg
+from fixtures.held_voltage import held_voltage_flight, write_vehicle
+from fixtures.held_voltage import write_tlog as write_held_tlog
 from pymavlink.dialects.v20 import common as mavlink
 from script_loader import load_script
 
@@ -482,3 +484,18 @@ def test_a_broken_mission_file_is_a_one_line_error(
     code, out, err = _replay_cli(capsys, str(IRIS_LOG), "--mission", str(broken))
     assert code == 2 and out == ""
     assert len(err.strip().splitlines()) == 1 and "broken.plan" in err
+
+
+def test_replay_says_what_the_daemon_says_of_a_voltage_that_does_not_follow_the_pack(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """One warning each, as the daemon logs them: a SITL battery that holds 12.6 V at any
+    load, and a voltage that follows the load but not the charge drawn."""
+    sitl = REPO / "replay" / "sitl" / "clean_legs" / "flight.tlog"
+    code, _, err = _replay_cli(capsys, str(sitl), "--vehicle", str(SITL_VEHICLE))
+    assert code == 0 and err.count("does not follow the load") == 1, err
+    held = write_held_tlog(held_voltage_flight(150.0), tmp_path / "held.tlog")
+    vehicle = write_vehicle(tmp_path / "own_curve.toml")
+    code, _, err = _replay_cli(capsys, str(held), "--vehicle", str(vehicle))
+    assert code == 0 and err.count("does not follow the charge drawn") == 1, err
+    assert "does not follow the load" not in err

@@ -19,6 +19,7 @@ from typing import Any
 
 import numpy as np
 import pytest
+from fixtures.held_voltage import held_voltage_flight, own_curve_vehicle
 from pymavlink.dialects.v20 import common as mavlink
 
 from estimator.cli import main as cli_main
@@ -602,3 +603,20 @@ def test_battery_status_replaces_sys_status_after_three_and_falls_back_when_it_s
     assert sources(4_000, False) == []  # 1.2 s without: still BATTERY_STATUS's turn
     assert sources(6_000, False) == [22.0]  # 3.2 s without: SYS_STATUS again
     assert decoder.counts["battery_status_stopped"] == 1
+
+
+async def test_a_pack_voltage_that_holds_as_charge_is_drawn_is_said_once(
+    caplog: pytest.LogCaptureFixture,
+) -> None:
+    """A vehicle with the pack's own curve, its pack's voltage held at rest less I·R over
+    UDP (the charge drawn never shows): the daemon says once that the capacity is not learnt
+    and the energy is counted against the label, and publishes no capacity after."""
+    caplog.set_level(logging.INFO, logger="uav_energy.service")
+    messages = [m for _, m in held_voltage_flight(150.0)]
+    async with running(ServiceConfig(stale_after_s=30.0), own_curve_vehicle()) as (service, sender):
+        await play(sender, messages)
+        await wait_for(lambda: service.pipeline.packs.refuted, timeout_s=20)
+        await wait_for(lambda: "does not follow the charge drawn" in caplog.text)
+        latest = service.out.latest
+        assert latest is not None and math.isnan(latest.capacity_ah)
+    assert caplog.text.count("does not follow the charge drawn") == 1

@@ -304,6 +304,10 @@ def _replay_one(
                 raise UserError(f"{path}: {problem}")
         elif summarize([flight]).airborne_s == 0:
             note(no_airborne_reason(flight, stream, vehicle.name), "no airborne time")
+        voltage = pipeline.energy.voltage
+        if voltage is not None and voltage.load.unresponsive:
+            note(voltage.load.describe(), "warning")
+        note(pipeline.packs.refuted_note(), "warning")
         note(pack.remember(), "warning")
         note(pack.unnamed())
         for cause, warning in stream.problems(vehicle.battery.cells):

@@ -310,16 +310,22 @@ class EnergyFilter:
         consumed_ah = (sample.consumed_mah or 0.0) / 1000.0
         self._soc_ref = min(soc + consumed_ah / pack.spec.capacity_ah, 1.0)
         energy_wh = float(pack.usable_energy_wh(soc))
-        slope_wh = float(pack.energy_wh(min(soc + 0.01, 1.0)) - pack.energy_wh(max(soc - 0.01, 0)))
-        slope_wh /= min(soc + 0.01, 1.0) - max(soc - 0.01, 0.0)
-        sigma_soc = (s.rest_voltage_sigma_v_per_cell * cells) / max(_ocv_slope_v(pack, soc), 0.05)
-        self._offset_sigma_wh = math.hypot(
-            min(sigma_soc, 0.5) * slope_wh, s.capacity_sigma_fraction * energy_wh
-        )
+        self._offset_sigma_wh = self._start_sigma_wh(soc, s.capacity_sigma_fraction)
         self._kf = LinearKalman([energy_wh, 1.0], [[0.0, 0.0], [0.0, s.bias_prior_sigma**2]])
         self._initial_wh = energy_wh
         self._time_s = sample.time_s
         self.voltage = ResistanceFilter(pack, s)
+
+    def _start_sigma_wh(self, soc: float, capacity_sigma_fraction: float) -> float:
+        """1σ (Wh) of the energy at a start of charge ``soc`` read from the resting voltage
+        against the label: the curve's slope there, and the label's error (a fraction)."""
+        s, pack = self.settings, self.pack
+        high, low = min(soc + 0.01, 1.0), max(soc - 0.01, 0.0)
+        slope_wh = float(pack.energy_wh(high) - pack.energy_wh(low)) / (high - low)
+        rest_sigma_v = s.rest_voltage_sigma_v_per_cell * pack.spec.cells
+        sigma_soc = rest_sigma_v / max(_ocv_slope_v(pack, soc), 0.05)
+        energy_wh = float(pack.usable_energy_wh(soc))
+        return math.hypot(min(sigma_soc, 0.5) * slope_wh, capacity_sigma_fraction * energy_wh)
 
     def snapshot(self) -> dict[str, Any]:
         """Everything needed to continue after a daemon restart within the same autopilot
@@ -479,6 +485,26 @@ class EnergyFilter:
         kf.P[0][1] = kf.P[1][0] = 0.0
         self._offset_sigma_wh = 0.0
 
+    def count_against_label(self, drawn_ah: float, capacity_sigma_fraction: float) -> None:
+        """The pack filter was refuted (:attr:`PackFilter.refuted`): from now on the energy is
+        the label's, as before :meth:`anchor`: the charge at the start less ``drawn_ah`` (Ah,
+        since the counter read 0, or since the start without one) over the label, with the
+        start's 1σ (resting voltage, and the label known to ``capacity_sigma_fraction``, the
+        pack filter's prior: it learnt nothing) and the counted charge's."""
+        kf = self._require()
+        self.anchored = False
+        self.real_pack = self.pack
+        self._reserve_wh = float(self.pack.energy_wh(self.pack.spec.reserve_fraction))
+        soc = min(max(self._soc_ref - drawn_ah / self.pack.spec.capacity_ah, 0.0), 1.0)
+        used_wh = float(self.pack.energy_wh(self._soc_ref) - self.pack.energy_wh(soc))
+        kf.x[0] = float(self.pack.usable_energy_wh(soc))
+        kf.P[0][0] = self._counted_sigma_wh(used_wh) ** 2
+        kf.P[0][1] = kf.P[1][0] = 0.0
+        self._initial_wh = float(self.pack.usable_energy_wh(self._soc_ref))
+        self._offset_sigma_wh = self._start_sigma_wh(
+            min(self._soc_ref, 1.0), capacity_sigma_fraction
+        )
+
     def update_charge(self, consumed_mah: float) -> None:
         """Fold in the autopilot's consumed charge (mAh) as the energy it leaves (Wh)."""
         kf = self._require()
@@ -490,8 +516,11 @@ class EnergyFilter:
         soc_now = self._soc_ref - consumed_mah / 1000.0 / pack.spec.capacity_ah
         energy_wh = float(pack.usable_energy_wh(soc_now))
         used_wh = float(pack.energy_wh(self._soc_ref) - pack.energy_wh(soc_now))
-        sigma_wh = self.settings.charge_sigma_fraction * abs(used_wh) + 0.2
-        kf.update(energy_wh, (1.0, 0.0), sigma_wh**2)
+        kf.update(energy_wh, (1.0, 0.0), self._counted_sigma_wh(used_wh) ** 2)
+
+    def _counted_sigma_wh(self, used_wh: float) -> float:
+        """1σ (Wh) of the energy left as the counted charge says, ``used_wh`` (Wh) used."""
+        return self.settings.charge_sigma_fraction * abs(used_wh) + 0.2
 
     # -- endurance --------------------------------------------------------------------------
 

@@ -16,7 +16,8 @@ of the readings under it (:attr:`PackFilter.log_likelihood`; the starts share on
 reading noise, so none gains weight by a noise it learnt alone), tempered
 (:data:`LIKELIHOOD_POWER`). The estimate is the mixture's mean and variance, so its σ holds
 the spread between the starts while they disagree; once one holds :data:`COLLAPSE_WEIGHT`
-of the weight the others are dropped.
+of the weight the others are dropped, and so is a start refuted on its own
+(:attr:`PackFilter.refuted`) while another is not.
 """
 
 from __future__ import annotations
@@ -74,6 +75,12 @@ class PackBank:
         self.weights = np.ones(1)
 
     @property
+    def refuted(self) -> bool:
+        """Every start is refuted (:attr:`PackFilter.refuted`): the voltage does not follow
+        the charge drawn as any pack's does. A refuted start among others is dropped."""
+        return all(f.refuted for f in self.filters)
+
+    @property
     def best(self) -> PackFilter:
         """The start that holds the most weight."""
         return self.filters[int(np.argmax(self.weights))]
@@ -101,6 +108,8 @@ class PackBank:
                 ]
         for f in self.filters:
             f.take(time_s, voltage_v, current_a, consumed_mah)
+        if any(f.refuted for f in self.filters) and not self.refuted:
+            self.filters = [f for f in self.filters if not f.refuted]
         if len(self.filters) == 1 and math.isfinite(self.filters[0].log_likelihood):
             self.weights = np.ones(1)  # one start holds all the weight
             return

@@ -8,7 +8,9 @@ held over its last 50 ms) goes, with the consumed charge then, into
   with the current measured, else the model's (bias × model power / V);
 - the pack filter (:mod:`estimator.estimation.pack_bank`), when the reading has a current: the
   fusion's energy then rests on the pack's (:meth:`EnergyFilter.anchor`). A voltage that does
-  not follow the load teaches it nothing: no pack is learnt.
+  not follow the load teaches it nothing: no pack is learnt. Nor does one that does not
+  follow the charge drawn as any pack's does (:attr:`PackBank.refuted`): the energy is
+  counted against the label from then on (:meth:`EnergyFilter.count_against_label`).
 
 The first reading of a start goes to the pack filter too, so the first estimate rests on the
 pack as every later one does. Units: V, A, mAh, s (sample clock).
@@ -18,7 +20,12 @@ from __future__ import annotations
 
 from estimator.estimation.fusion import EnergyFilter
 from estimator.estimation.pack_bank import PackBank
-from estimator.estimation.pack_state import PackEstimate, PackPrior, PackSettings
+from estimator.estimation.pack_state import (
+    PackEstimate,
+    PackPrior,
+    PackSettings,
+    capacity_range_ah,
+)
 from estimator.estimation.period_reading import period_end_reading
 from estimator.physics.battery import PackModel
 from estimator.telemetry.samples import BatterySample
@@ -35,8 +42,24 @@ class PackLearning:
         self.state: PackBank | None = None
         #: The pack filter's estimate after its last reading.
         self.estimate: PackEstimate | None = None
+        #: The pack filter was refuted (:attr:`PackBank.refuted`: the voltage does not follow
+        #: the charge drawn as any pack's does): the energy is counted against the label for
+        #: the rest of the flight.
+        self.refuted = False
         self._held: BatterySample | None = None  # the last reading before the open period
         self._resistance_time_s: float | None = None
+
+    def refuted_note(self) -> str | None:
+        """One sentence once the pack filter is refuted (None before)."""
+        if not self.refuted:
+            return None
+        label_ah = self.pack.spec.capacity_ah
+        low_ah, high_ah = capacity_range_ah(label_ah)
+        return (
+            "the pack voltage does not follow the charge drawn as a pack's does (its capacity "
+            f"would lie outside {low_ah:.1f}-{high_ah:.1f} Ah, for a label of {label_ah:.1f} "
+            "Ah): the capacity is not learnt; the energy left is counted against the label"
+        )
 
     def new_bank(self) -> PackBank:
         """A pack filter from the prior (or the label)."""
@@ -100,12 +123,20 @@ class PackLearning:
     ) -> None:
         """``reading``, when it has a current, into the pack filter (with the counter's value
         then); the fusion's energy then rests on the pack's."""
-        if not energy.voltage_follows_load:
+        if not energy.voltage_follows_load or self.refuted:
             self.state = self.estimate = None
             return
         if reading.current_a is not None:
             if self.state is None:
                 self.state = self.new_bank()
-            self.state.take(reading.time_s, reading.voltage_v, reading.current_a, consumed_mah)
-            self.estimate = self.state.estimate()
+            bank = self.state
+            bank.take(reading.time_s, reading.voltage_v, reading.current_a, consumed_mah)
+            if bank.refuted:
+                self.refuted, self.state, self.estimate = True, None, None
+                refuted = bank.best
+                drawn_ah = refuted.charge_ah if consumed_mah is None else consumed_mah / 1e3
+                q0, q_sigma = refuted.capacity_prior()
+                energy.count_against_label(drawn_ah, q_sigma / q0)
+                return
+            self.estimate = bank.estimate()
             energy.anchor(self.estimate)

@@ -51,6 +51,13 @@ _FIRST_UPDATE_ITERATIONS = 6
 _S_RANGE = (-0.1, 1.0)
 _Q_RANGE = (0.4, 3.0)
 _R_RANGE = (0.0, 2.0)
+#: Readings in a row whose update drove ``q`` to a bound of its range (a pack of 2.5 times
+#: its label, or a third of it) before the filter is refuted (:attr:`PackFilter.refuted`):
+#: the voltage does not follow the charge drawn as any pack's does. Clipped there, the
+#: estimate kept the small 1σ of a state the readings pin (a SITL battery of an older
+#: ArduCopter, whose voltage holds while about 1.5 Ah is drawn from a 2.2 Ah label: 5.5 ± 0.2 Ah,
+#: and an endurance of 347 ± 20 s; docs/pack.md).
+PINNED_READINGS = 10
 #: Half-width (of charge) over which the curve's slope is averaged: at least a fifth of a
 #: table segment, at most two segments.
 _MIN_SLOPE_HALF_WIDTH = 0.01
@@ -77,6 +84,12 @@ LEARNED_CAPACITY_SIGMA = 0.25
 #: Spread of one pack's resting curve about its chemistry's typical curve (V per cell):
 #: cells of one chemistry from different makers and ages differ by 10–30 mV at rest.
 TYPICAL_CURVE_SIGMA_V = 0.02
+
+
+def capacity_range_ah(label_ah: float) -> tuple[float, float]:
+    """The least and the most capacity (Ah) the filter may learn for a pack of label
+    ``label_ah`` (Ah): the bounds of ``q``."""
+    return label_ah / _Q_RANGE[1], label_ah / _Q_RANGE[0]
 
 
 def _dot(a: Sequence[float], b: Sequence[float]) -> float:
@@ -198,6 +211,11 @@ class PackFilter:
         self._counter_base: tuple[float, float] | None = None  # (charge_ah, counter Ah) then
         self.rejected = 0
         self.updates = 0
+        self._pinned = 0  # updates in a row that drove q to a bound of its range
+        #: The voltage does not follow the charge drawn as any pack's does (``q`` held at a
+        #: bound of its range for :data:`PINNED_READINGS` readings in a row): what the filter
+        #: says is not the pack's; it stays so.
+        self.refuted = False
         #: log p(readings so far | the filter's model), each reading from its prediction
         #: (a reading outside the gate counts at the gate's edge): what a bank of starts
         #: weighs its hypotheses by (:mod:`estimator.estimation.pack_bank`).
@@ -244,16 +262,22 @@ class PackFilter:
         cells = self.cells
         return s.resistance_prior_ohm_per_cell * cells, s.resistance_sigma_ohm_per_cell * cells
 
-    def start(self, voltage_v: float, current_a: float) -> None:
-        """Start from one reading (V, A): the prior, then an iterated update with it."""
-        s = self.settings
+    def capacity_prior(self) -> tuple[float, float]:
+        """``q`` (label over real capacity) the filter starts from and its 1σ: the prior's
+        (e.g. the pack's memory), else 1 ± the settings' fraction (None:
+        :data:`LEARNED_CAPACITY_SIGMA` against the pack's own curve, 0 against a typical
+        one)."""
         if self.prior is not None:
             q0 = self.label_ah / self.prior.capacity_ah
-            q_sigma = q0 * self.prior.capacity_sigma_ah / self.prior.capacity_ah
-        else:
-            learned = LEARNED_CAPACITY_SIGMA if self.own_curve else 0.0
-            q0 = 1.0
-            q_sigma = learned if s.capacity_sigma_fraction is None else s.capacity_sigma_fraction
+            return q0, q0 * self.prior.capacity_sigma_ah / self.prior.capacity_ah
+        fraction = self.settings.capacity_sigma_fraction
+        if fraction is None:
+            fraction = LEARNED_CAPACITY_SIGMA if self.own_curve else 0.0
+        return 1.0, fraction
+
+    def start(self, voltage_v: float, current_a: float) -> None:
+        """Start from one reading (V, A): the prior, then an iterated update with it."""
+        q0, q_sigma = self.capacity_prior()
         r0, r_sigma = self.resistance_prior()
         ocv_v = voltage_v + max(current_a, 0.0) * r0
         s0 = float(np.clip(self.pack.soc_from_ocv(ocv_v), 0.0, 1.0))
@@ -417,6 +441,9 @@ class PackFilter:
             # residual after the update, plus what the state's remaining uncertainty explains
             residual_v = innovation * (1.0 - _dot(h, gain))
             self._learn_noise(residual_v**2 + _quadratic(self.P, h))
+        pinned = not _Q_RANGE[0] < x[1] < _Q_RANGE[1]
+        self._pinned = self._pinned + 1 if pinned else 0
+        self.refuted |= self._pinned >= PINNED_READINGS
         x[0] = min(max(x[0], _S_RANGE[0]), _S_RANGE[1])
         x[1] = min(max(x[1], _Q_RANGE[0]), _Q_RANGE[1])
         x[2] = min(max(x[2], _R_RANGE[0]), _R_RANGE[1])

@@ -33,7 +33,8 @@ whose memory starts the pack filter and receives what it learns (every
 :data:`PACK_MEMORY_PERIOD_S` and at the end).
 One log line per event: autopilot found, streams requested, energy initialized (with a
 warning when the pack voltage does not fit the vehicle file's cell count), model-only mode,
-a pack voltage that does not follow the load (a warning),
+a pack voltage that does not follow the load (a warning), or not the charge drawn (a
+warning: the energy is counted against the label),
 reboot or clock jump, link silent (stale) / resumed, bad frames, floods and input skipped as
 implausible (at most one line per 10 s each), a pack voltage no reading of which is believed
 (the cell counts it fits against the vehicle file's; also as STATUSTEXT), a failed mission
@@ -137,6 +138,7 @@ class Service:
         self._streams_ok = False
         self._model_only_said: bool | None = None  # the estimating mode last logged
         self._dead_voltage_said = False  # a voltage that does not follow the load, logged
+        self._refuted_pack_said = False  # a voltage that does not follow the charge, logged
         self._throttled = ThrottledLog(log, COUNTER_LOG_S)
         self.mission: MissionDownload | None = None
         self._home_first = True  # ArduPilot's mission item 0 is home; PX4's is not
@@ -447,6 +449,10 @@ class Service:
         if voltage is not None and voltage.load.unresponsive and not self._dead_voltage_said:
             self._dead_voltage_said = True  # said once
             log.warning("%s", voltage.load.describe())
+        refuted = self.pipeline.packs.refuted_note()
+        if refuted is not None and not self._refuted_pack_said:
+            self._refuted_pack_said = True  # said once
+            log.warning("%s", refuted)
 
     def _follow_rtl(self, autopilot: str) -> None:
         """Return figures modelled on ``autopilot``'s RTL (said once per change)."""
