@@ -390,6 +390,27 @@ def test_a_report_that_stalls_while_it_follows_a_change_keeps_its_lag_decaying()
     assert reports.lag_mps(9.5) == pytest.approx(tau_s * 0.5 * math.exp(-2.0 / tau_s))
 
 
+def test_a_report_held_in_a_hover_keeps_its_lag_until_the_vehicle_moves() -> None:
+    """ArduCopter's EKF holds its wind in a hover: a report that rose at 0.5 m/s² as a hover
+    began, then held still, keeps its lag term of τ × 0.5 m/s for as long as the vehicle
+    hovers, and it decays at the lag's pace once the vehicle moves again."""
+    settings = OnlineSettings()
+    tau_s = settings.autopilot_wind_lag_s
+    reports = AutopilotWind(settings)
+    for k in range(5):
+        reports.take(WindSample(0.5 * k, 0.0, 0.0))
+    for k in range(1, 9):  # east rises at 0.5 m/s² until 6 s
+        reports.take(WindSample(2.0 + 0.5 * k, 0.0, 0.25 * k))
+    reports.hovering = True
+    for k in range(1, 41):  # held still through a 20 s hover
+        reports.take(WindSample(6.0 + 0.5 * k, 0.0, 2.0))
+    assert reports.lag_mps(26.0) == pytest.approx(tau_s * 0.5)
+    reports.hovering = False
+    for k in range(1, 5):
+        reports.take(WindSample(26.0 + 0.5 * k, 0.0, 2.0))
+    assert reports.lag_mps(28.0) == pytest.approx(tau_s * 0.5 * math.exp(-2.0 / tau_s))
+
+
 def test_the_trackers_reported_wind_sigma_takes_in_the_reports_lag(tmp_path: Path) -> None:
     """Through the tracker: the same flight with a report that is still and with one that moves
     at the end has the same estimate, and a wider wind 1σ with the moving one: both

@@ -153,26 +153,23 @@ ABOVE_FLOOR = {
     "held13_gust_hovers": "the wind episode not named (above): 4.29 floors",
     "held16_gust_40s_legs": "the wind episode not named (above): 2.56 floors",
 }
-#: Flights whose running mass or wind misses the tracker's aim, and why (times from take-off).
-#: The wind follows the autopilot's WIND, which lags a gust's start by ~30 s and holds after its
-#: end (in a hover ArduCopter's EKF holds its wind): the steps before it moves are beyond 3σ;
-#: once it moves, its lag (to both components) and gap widen the 1σ (the lag decaying at the
-#: EKF's own pace where the report stalls), and after a stop the old wind can stay until the
-#: report is χ²₂ 1 % apart for three steps. A release in a hover reads half way for the step
-#: that straddles it (the step after, beyond the gate, completes it; a landing descent's start
-#: did too, until a step the vertical gates mostly left out was left out whole), and that step
-#: and one the gate refused are reported with a changed state's 1σ, as are steps whose
-#: innovations lean towards a change (the CUSUM grown past half its threshold: a release the
-#: alarm takes two steps late, held10_release_after_stop, held2_release_low). The payloads read
-#: a few percent heavy lie within the reported 1σ (``OnlineSettings.mass_form_sigma_fraction``),
-#: and so, with the P(V) shape's error carried as a consider term
-#: (``estimation/form_error.py``), do most flights without a payload read 0.03 kg light when
-#: flown fast (held4_wind_strong_legs: 88 % within 2σ).
+#: Flights whose running mass or wind misses the tracker's aim, and why (times from take-off). The
+#: wind follows the autopilot's WIND, which lags a gust's start by ~30 s and holds after its end (in
+#: a hover ArduCopter's EKF holds its wind): the steps before it moves are beyond 3σ; once it moves,
+#: its lag (to both components) and gap widen the 1σ (the lag decaying at the EKF's own pace where
+#: the report stalls, and not while the vehicle hovers), and after a stop the old wind can stay
+#: until the report is χ²₂ 1 % apart for three steps. A release in a hover reads half way for the
+#: step that straddles it (the step after, beyond the gate, completes it; a landing descent's start
+#: did too, until a step the vertical gates mostly left out was left out whole), and that step and
+#: one the gate refused are reported with a changed state's 1σ, as are steps whose innovations lean
+#: towards a change (the CUSUM grown past half its threshold: a release the alarm takes two steps
+#: late, held10_release_after_stop, held2_release_low). The payloads read a few percent heavy lie
+#: within the reported 1σ (``OnlineSettings.mass_form_sigma_fraction``), and so, with the P(V)
+#: shape's error carried as a consider term (``estimation/form_error.py``), do most flights without
+#: a payload read 0.03 kg light when flown fast (held4_wind_strong_legs: 88 % within 2σ).
 TRACKER_SHORT = {
     "held10_turn_fast_legs": "wind 9.0σ (8.2 m/s off) at 160 s; mass 89 % within 2σ (median "
     "-0.040 kg at 1σ 0.029 kg)",
-    "held12_stop_in_hover": "wind 6.3σ (6.7 m/s off) at 234 s: stopped during a hover, unseen "
-    "there, and the autopilot's report holds the old wind while its lag term decays",
     "held13_release_fast_leg": "mass 4.2σ (-0.74 kg) at 197 s: the landing descent's start, "
     "partly in the step's readings past the vertical gates, read as a mass drop (an alarm and "
     "a duel)",
@@ -183,15 +180,16 @@ TRACKER_SHORT = {
     "where ArduCopter's EKF holds its wind and SITL's power does not show it; mass 6.4σ "
     "(+0.29 kg) at 246 s: once the vehicle moves, the change read in part as a mass step",
     "held2_wind_stop_vertical": "wind 5.4σ (6.8 m/s off) at 114 s",
-    "held3_gust_45s_legs": "wind 8.7σ (7.4 m/s off) at 188 s; mass 85 % within 2σ (median "
+    "held3_gust_45s_legs": "wind 8.6σ (7.4 m/s off) at 188 s; mass 85 % within 2σ (median "
     "-0.010 kg at 1σ 0.037 kg), 4.5σ (+0.16 kg) at 138 s",
-    "held3_gust_75s_vertical": "wind 3.7σ (7.0 m/s off) at 160 s",
+    "held3_gust_75s_vertical": "wind 3.5σ (7.0 m/s off) at 160 s",
     "held3_release_high": "mass 99 % within 3σ: 3.01σ (+0.17 kg) at 134 s, the step after the "
     "release's alarm step",
     "held4_wind_strong_legs": "mass 88 % within 2σ (median -0.028 kg at 1σ 0.023 kg), 3.1σ (+0.10 "
     "kg) at 18 s",
-    "held5_turn_legs": "wind 90 % within 2σ, 9.4σ (7.5 m/s off) at 144 s: the report's east held "
-    "its old value for 30 s after the turn, its lag term decayed",
+    "held5_turn_legs": "wind 90 % within 2σ, 6.1σ (7.5 m/s off) at 116 s: the two steps right "
+    "after the turn, before the report moved (its east then held its old value for 30 s, "
+    "through a hover where the lag term holds)",
     "held7_gust_fast_legs": "wind 3.8σ (7.1 m/s off) at 62 s",
     "held8_onset_fast_legs": "wind 3.6σ (7.4 m/s off) at 78 s",
     "held8_payload_gust_fast": "wind 3.7σ (6.1 m/s off) at 61 s",
@@ -199,7 +197,7 @@ TRACKER_SHORT = {
     "held8_two_gusts_legs": "wind 3.1σ (3.2 m/s off) at 234 s",
     "held9_gust_then_release": "mass 3.5σ (+0.17 kg) at 250 s",
     "held9_reversal_fast_legs": "wind 85 % within 2σ, 10.8σ (9.6 m/s off) at 178 s",
-    "held_gust_60s": "wind 85 % within 2σ, 5.0σ (8.1 m/s off) at 138 s; mass 4.2σ (+0.15 kg) at "
+    "held_gust_60s": "wind 91 % within 2σ, 5.0σ (8.1 m/s off) at 138 s; mass 4.2σ (+0.15 kg) at "
     "148 s",
 }
 

@@ -26,8 +26,12 @@ widens both components alike: the EKF's components follow a change at their own 
 (ArduCopter SITL, held5_turn_legs: a wind of 6 m/s turning from 330° to 060° during legs; the
 report's north moved 2.2 m/s in 10 s while its east held its old value, 8.5 m/s from the
 wind's, for 30 s), so the direction the report moves in does not say which way the wind
-moved. And it can stop: in hover ArduCopter's EKF
-holds its wind (an onset or a stop arrives only once the vehicle moves). Where the report and
+moved. And it can stop: in hover ArduCopter's EKF holds its wind (an onset or a stop
+arrives only once the vehicle moves), so while the vehicle hovers (the tracker's last step)
+the lag term holds as well instead of decaying: the gap it stands for closes only once the
+EKF follows again (ArduCopter SITL, held5_turn_legs: the wind turned 8 m/s away as a 24 s
+hover began; the report's east component held its old value through it while the term
+decayed, and the steps from 14 to 32 s after the turn were 3.0-9.4σ). Where the report and
 the tracker's wind disagree beyond both their 1σ, one of them is likely wrong, the more so
 the further apart they are: :meth:`AutopilotWind.gap_ne_mps`. The tracker adds both to the
 1σ it reports, not to its covariance (its estimate is unchanged).
@@ -67,6 +71,9 @@ class AutopilotWind:
         self._rate_ne_mps2 = (0.0, 0.0)
         #: The lag term (m/s, magnitudes) at the last report, and that report's time (s).
         self._lag_ne_mps, self._lag_time_s = (0.0, 0.0), 0.0
+        #: The vehicle hovers (the tracker's last step): the EKF holds its wind, so the lag
+        #: term holds too (:meth:`lag_mps`).
+        self.hovering = False
 
     def take(self, sample: WindSample) -> None:
         """Keep ``sample`` for the next steps (non-finite values are ignored)."""
@@ -102,7 +109,7 @@ class AutopilotWind:
         """The lag term at ``time_s`` (m/s, magnitudes): τ times the report's rate, or the last
         term decayed at the lag's own pace, whichever is larger."""
         lag_s = self.settings.autopilot_wind_lag_s
-        held = math.exp(-max(time_s - self._lag_time_s, 0.0) / lag_s)
+        held = 1.0 if self.hovering else math.exp(-max(time_s - self._lag_time_s, 0.0) / lag_s)
         return (
             max(abs(lag_s * self._rate_ne_mps2[0]), self._lag_ne_mps[0] * held),
             max(abs(lag_s * self._rate_ne_mps2[1]), self._lag_ne_mps[1] * held),
@@ -113,6 +120,7 @@ class AutopilotWind:
         self.report, self._active = None, False
         self._anchor, self._rate_ne_mps2 = None, (0.0, 0.0)
         self._lag_ne_mps, self._lag_time_s = (0.0, 0.0), 0.0
+        self.hovering = False
 
     def fresh(self, time_s: float) -> bool:
         """Whether there is a report at most ``autopilot_wind_max_age_s`` old at ``time_s`` from

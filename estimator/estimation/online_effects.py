@@ -459,7 +459,7 @@ class OnlineEffects:
         step = step_data(kept, s, self.mass_kg, self.extra_noise_var_w2, self._x[:2], self._hover_w)
         self.last_step = step
         reopen = step.moving and self._hovering
-        self._hovering = not step.moving
+        self._hovering = self.autopilot.hovering = not step.moving
         main = self._prior(Hypothesis(self._x, self._p, self._form, self._loglik), decay, q, reopen)
         wind_var = self.autopilot.variance(time_s, dt)
         if wind_var is not None:

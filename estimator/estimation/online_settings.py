@@ -107,7 +107,9 @@ class OnlineSettings:
     #: held10_payload_gust_legs, so held10 is development for it). Set on the recordings of
     #: replay/sitl and replay/sitl_held. When the report stalls as it follows a change, the
     #: lag term decays at e^(−Δt/τ) rather than drop with its rate (found on
-    #: held7_gust_fast_legs, so development for that rule).
+    #: held7_gust_fast_legs, so development for that rule), and not at all while the vehicle
+    #: hovers, where the EKF holds its wind (found on held5_turn_legs and looked at on every
+    #: recording up to held16, so development for that rule).
     autopilot_wind_lag_s: float = 10.0
     autopilot_wind_rate_span_s: float = 2.0
     autopilot_wind_gap_chi2: float = 5.99

@@ -1,12 +1,14 @@
 """The held-out flights of ``replay/sitl_held`` through wind turns and reversals
-(``uav-energy sitl-record held16``), and every held-out set by name (:data:`HELD_SETS`; the
+(``uav-energy sitl-record held16``) and through changes across hovers (``held17``), and every
+held-out set by name (:data:`HELD_SETS`; the
 earlier ones are :mod:`estimator.sitl.held_scenarios` and
 :mod:`estimator.sitl.fast_held_scenarios`).
 
 The sixteenth set was recorded right after the commit that defined it froze the online
 tracker with the autopilot report's lag term widening both wind components alike
 (:meth:`~estimator.estimation.autopilot_wind.AutopilotWind.lag_mps`); none of it was tuned on
-(docs/residuals.md, "Held-out SITL flights"). Steps as in :mod:`estimator.sitl.scenarios`
+(docs/residuals.md, "Held-out SITL flights"); the seventeenth after the commit that held
+the lag term while the vehicle hovers. Steps as in :mod:`estimator.sitl.scenarios`
 (positions and velocities NED, m and m/s; durations s).
 """
 
@@ -85,6 +87,59 @@ HELD_SCENARIOS_16: dict[str, Scenario] = by_name(
     ),
 )
 
+#: The seventeenth held-out set (recorded after the commit that defined it froze the online
+#: tracker with the report's lag term held while the vehicle hovers): wind changes just before
+#: or across hovers, on slow and fast legs, with and without the payload, and a clean flight
+#: with long hovers.
+HELD_SCENARIOS_17: dict[str, Scenario] = by_name(
+    vertical_scenario(
+        "held17_turn_before_hover",
+        "wind 6 m/s from 330° turning to 060° as a 30 s hover starts; legs",
+        SetWind(6, 330), Takeoff(), *LEGS[:3], SetWind(6, 60), Hover(30), *LEGS[4:],
+        *LEGS[1:5],
+    ),
+    vertical_scenario(
+        "held17_reversal_before_hover",
+        "wind 5 m/s from 090° reversing to 270° as a 25 s hover starts; legs",
+        SetWind(5, 90), Takeoff(), *LEGS[:6], SetWind(5, 270), Hover(25), *LEGS[6:],
+        *LEGS[1:5],
+    ),
+    vertical_scenario(
+        "held17_onset_before_hover",
+        "wind 6 m/s from 200° switched on 10 s before a 30 s hover; legs",
+        Takeoff(), *LEGS[:5], SetWind(6, 200), *LEGS[5:6], Hover(30), *LEGS[6:], *LEGS[1:5],
+    ),
+    vertical_scenario(
+        "held17_stop_before_hover",
+        "wind 7 m/s from 045° from take-off, stopped as a 30 s hover starts; legs, then circles",
+        SetWind(7, 45), Takeoff(), *LEGS[:6], SetWind(0), Hover(30), *CIRCLES[1:],
+    ),
+    vertical_scenario(
+        "held17_turn_hover_payload",
+        "1 kg gripper payload from take-off; wind 5 m/s from 160° turning to 250° as a 25 s "
+        "hover starts; legs",
+        SetWind(5, 160), Grip(True), Hover(3), Takeoff(), *LEGS[:3], SetWind(5, 250),
+        Hover(25), *LEGS[4:], *LEGS[1:4],
+    ),
+    vertical_scenario(
+        "held17_turn_fast_hover",
+        "wind 6 m/s from 300° turning to 030° as a 20 s hover starts; long legs at 8-9 m/s",
+        SetWind(6, 300), Takeoff(), *FAST_LEGS[:4], SetWind(6, 30), Hover(20), *FAST_LEGS[5:],
+        *FAST_LEGS[1:4],
+    ),
+    vertical_scenario(
+        "held17_gust_across_hover",
+        "wind 7 m/s from 120° for about 60 s of legs and a 20 s hover; legs",
+        Takeoff(), *LEGS[:2], SetWind(7, 120), *LEGS[2:3], Hover(20), *LEGS[4:6], SetWind(0),
+        *LEGS[6:], *LEGS[1:4],
+    ),
+    vertical_scenario(
+        "held17_clean_circles_hovers",
+        "no effect; circles, a 30 s hover, legs",
+        Takeoff(), *CIRCLES, Hover(30), *LEGS[1:6],
+    ),
+)
+
 #: Every held-out set by the name ``uav-energy sitl-record`` records it under.
 HELD_SETS: dict[str, dict[str, Scenario]] = {
     "held": HELD_SCENARIOS,
@@ -103,5 +158,6 @@ HELD_SETS: dict[str, dict[str, Scenario]] = {
     "held14": HELD_SCENARIOS_14,
     "held15": HELD_SCENARIOS_15,
     "held16": HELD_SCENARIOS_16,
+    "held17": HELD_SCENARIOS_17,
 }
 # fmt: on
