@@ -33,8 +33,8 @@ def register(subparsers: argparse._SubParsersAction[argparse.ArgumentParser]) ->
         nargs="*",
         metavar="SCENARIO",
         help="scenario names (the effects of replay/sitl, pack_* packs of replay/sitl_packs), "
-        "or all (every effect scenario), held / held2 … held15 (the held-out effect "
-        "flights), "
+        "or all (every effect scenario), held / held2 / ... (the held-out effect flights, "
+        "one name per set: docs/residuals.md), "
         "episodes (wind episodes to tune on), or packs / "
         "packs2 / ... / packs7 (the first to seventh set of pack_* scenarios)",
     )
