@@ -371,17 +371,23 @@ def test_a_moving_report_widens_the_wind_sigma_by_its_lag_and_a_held_one_by_its_
     assert reports.lag_mps(6.0) == 0.0
 
 
+def _rising_reports() -> tuple[AutopilotWind, float]:
+    """Reports of still air for 2 s, then of an east wind rising at 0.5 m/s² until 6 s (2 Hz);
+    and the EKF's time constant τ (s) of the default settings."""
+    settings = OnlineSettings()
+    reports = AutopilotWind(settings)
+    for k in range(5):
+        reports.take(WindSample(0.5 * k, 0.0, 0.0))
+    for k in range(1, 9):
+        reports.take(WindSample(2.0 + 0.5 * k, 0.0, 0.25 * k))
+    return reports, settings.autopilot_wind_lag_s
+
+
 def test_a_report_that_stalls_while_it_follows_a_change_keeps_its_lag_decaying() -> None:
     """The gap a first-order lag leaves closes as e^(−t/τ): a report that rises at 0.5 m/s²
     and then holds still for 3 s (the EKF stalling as it follows a gust) keeps a lag term that
     decays from τ × 0.5 m/s at that pace, not one that drops to zero with its rate."""
-    settings = OnlineSettings()
-    tau_s = settings.autopilot_wind_lag_s
-    reports = AutopilotWind(settings)
-    for k in range(5):
-        reports.take(WindSample(0.5 * k, 0.0, 0.0))
-    for k in range(1, 9):  # east rises at 0.5 m/s² until 6 s
-        reports.take(WindSample(2.0 + 0.5 * k, 0.0, 0.25 * k))
+    reports, tau_s = _rising_reports()
     assert reports.lag_mps(6.0) == pytest.approx(tau_s * 0.5)
     for k in range(1, 7):  # then still until 9 s: its rate over 2 s is zero from 8 s on
         reports.take(WindSample(6.0 + 0.5 * k, 0.0, 2.0))
@@ -394,13 +400,7 @@ def test_a_report_held_in_a_hover_keeps_its_lag_until_the_vehicle_moves() -> Non
     """ArduCopter's EKF holds its wind in a hover: a report that rose at 0.5 m/s² as a hover
     began, then held still, keeps its lag term of τ × 0.5 m/s for as long as the vehicle
     hovers, and it decays at the lag's pace once the vehicle moves again."""
-    settings = OnlineSettings()
-    tau_s = settings.autopilot_wind_lag_s
-    reports = AutopilotWind(settings)
-    for k in range(5):
-        reports.take(WindSample(0.5 * k, 0.0, 0.0))
-    for k in range(1, 9):  # east rises at 0.5 m/s² until 6 s
-        reports.take(WindSample(2.0 + 0.5 * k, 0.0, 0.25 * k))
+    reports, tau_s = _rising_reports()
     reports.hovering = True
     for k in range(1, 41):  # held still through a 20 s hover
         reports.take(WindSample(6.0 + 0.5 * k, 0.0, 2.0))

@@ -449,10 +449,9 @@ class Service:
         if voltage is not None and voltage.load.unresponsive and not self._dead_voltage_said:
             self._dead_voltage_said = True  # said once
             log.warning("%s", voltage.load.describe())
-        refuted = self.pipeline.packs.refuted_note()
-        if refuted is not None and not self._refuted_pack_said:
+        if self.pipeline.packs.refuted and not self._refuted_pack_said:
             self._refuted_pack_said = True  # said once
-            log.warning("%s", refuted)
+            log.warning("%s", self.pipeline.packs.refuted_note())
 
     def _follow_rtl(self, autopilot: str) -> None:
         """Return figures modelled on ``autopilot``'s RTL (said once per change)."""
