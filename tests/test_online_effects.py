@@ -16,7 +16,6 @@ from estimator.errors import UserError
 from estimator.estimation.airborne import TAKEOFF_SETTLE_S
 from estimator.estimation.autopilot_wind import AutopilotWind
 from estimator.estimation.hypotheses import Hypothesis
-from estimator.estimation.mass_history import MassHistory
 from estimator.estimation.online_effects import OnlineEffects
 from estimator.estimation.online_settings import OnlineSettings
 from estimator.estimation.track_runner import TrackPoint, track_samples
@@ -498,61 +497,17 @@ def test_a_report_that_stays_apart_at_chi2_1_percent_for_three_steps_is_a_change
     assert [watcher.saw_a_change(stale, p) for _ in range(3)] == [False, False, True]
 
 
-def model_power_w(
-    mass_kg: float, vn_mps: float = 0.0, wind_ne_mps: tuple[float, float] = (0.0, 0.0)
-) -> float:
-    """The vehicle's model power (W) flying north at ``vn_mps`` (0: hover), level and steady,
-    ``mass_kg`` heavier than its file, in the wind ``wind_ne_mps`` (NED, m/s)."""
-    state = FlightState(
-        np.zeros(1),
-        np.full(1, vn_mps),
-        *(np.zeros(1) for _ in range(5)),
-        voltage_v=np.full(1, np.nan),
-    )
-    effects = [Mass(mass_kg), wind_from_vector(*wind_ne_mps)]
-    return float(predict_power_w(VEHICLE.model, VEHICLE.mass_kg, state, effects)[0])
-
-
-def test_a_wind_change_the_autopilot_shows_late_takes_back_the_mass_learnt_against_it() -> None:
-    """A wind that sets in during a hover raises the power (on ArduCopter SITL through drag)
-    while the tracker holds the wind there and the autopilot's report still lags: it is read
-    as a mass step. On the leg after, the report shows a 6 m/s headwind and stays apart from
-    the estimate; on the third step apart (a change the autopilot saw) the mass goes back to
-    what it was 30 s before, and the wind the report and the power show is followed. Without
-    that the leg's power was read as 1.1 kg more, the wind stuck near 2 m/s."""
-    tracker = OnlineEffects.from_vehicle(VEHICLE)
-    headwind_ne_mps = (-6.0, 0.0)  # blowing south, met flying north
-    steps = (
-        [(0.0, model_power_w(0.0), (0.2, 0.0))] * 20  # a hover in calm air
-        + [(0.0, model_power_w(0.4), (0.2, 0.0))] * 6  # the gust's power; the report lags
-        + [(8.0, model_power_w(0.0, 8.0, headwind_ne_mps), headwind_ne_mps)] * 6  # a leg
-    )
-    for k, (vn_mps, power_w, report_ne_mps) in enumerate(steps):
-        time_s = 2.0 * (k + 1)
-        tracker.take_autopilot_wind(WindSample(time_s, *report_ne_mps))
-        tracker.update(time_s, vn_mps, 0.0, 0.0, 0.0, 0.0, power_w)
-        if k == 25:
-            assert tracker.mass_delta_kg > 0.3  # the gust read as mass
-    assert abs(tracker.mass_delta_kg) < 0.05
-    assert np.hypot(*(np.subtract(tracker.wind.vector_ne_mps(), headwind_ne_mps))) < 1.0
-
-
-def test_the_mass_history_gives_the_estimate_then_and_keeps_only_its_span() -> None:
-    history = MassHistory(30.0)
-    for k in range(40):  # a step every 2 s, the last at 78 s
-        history.add(2.0 * k, 0.01 * k, 1e-3)
-    assert history.at(78.0 - 30.0) == pytest.approx((0.24, 1e-3))  # the step at 48 s
-    assert history.at(47.0) is None  # older than the span: dropped
-    history.clear()
-    assert history.at(100.0) is None
-
-
 def test_the_step_after_an_alarm_whose_readings_straddled_the_change_completes_it() -> None:
     """A 2 kg payload picked up in hover in the middle of a step: that step's power is half
     way, the alarm's redo leaves the mass half way with the 1σ of a settled one, and the next
     step, beyond the gate of that estimate, is the rest of the change, not an outlier."""
     tracker = OnlineEffects.from_vehicle(VEHICLE)
-    before_w, after_w = model_power_w(0.0), model_power_w(2.0)
+
+    def hover_w(mass_kg: float) -> float:
+        state = FlightState(*(np.zeros(1) for _ in range(7)), voltage_v=np.full(1, np.nan))
+        return float(predict_power_w(VEHICLE.model, VEHICLE.mass_kg, state, [Mass(mass_kg)])[0])
+
+    before_w, after_w = hover_w(0.0), hover_w(2.0)
     for k in range(20):
         tracker.update(2.0 * k, 0.0, 0.0, 0.0, 0.0, 0.0, before_w)
     tracker.update(40.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.5 * (before_w + after_w))

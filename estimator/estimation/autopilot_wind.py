@@ -12,8 +12,7 @@ power on one leg, a lower airspeed and a heavier vehicle look alike), the report
 them. An autopilot that does not estimate the wind (ArduCopter without drag fusion or an
 airspeed sensor) reports exactly zero: reports count only once one above
 ``autopilot_wind_active_mps`` has come since boot. A report far from the estimate on several
-steps in a row is a wind change the autopilot saw (:meth:`AutopilotWind.saw_a_change`; the
-tracker then also takes back the mass it learnt since, :mod:`~estimator.estimation.mass_history`).
+steps in a row is a wind change the autopilot saw (:meth:`AutopilotWind.saw_a_change`).
 
 The report lags the wind: the EKF follows a change with a time constant of ~10 s (ArduCopter
 SITL: 9 s after an onset, 15 s after a stop; docs/residuals.md). While it moves, the wind

@@ -69,13 +69,3 @@ def mixture(a: Hypothesis, b: Hypothesis) -> tuple[np.ndarray, np.ndarray, np.nd
     d_a, d_b = a.x - x, b.x - x
     p = w_a * (a.p + np.outer(d_a, d_a)) + w_b * (b.p + np.outer(d_b, d_b))
     return x, p, w_a * a.form + w_b * b.form
-
-
-def with_mass(h: Hypothesis, mass_kg: float, var_kg2: float) -> Hypothesis:
-    """``h`` with its mass difference set to ``mass_kg`` (kg) at variance ``var_kg2`` (kg²),
-    its covariance with the other states cleared."""
-    x, p = h.x.copy(), h.p.copy()
-    x[2] = mass_kg
-    p[2, :] = p[:, 2] = 0.0
-    p[2, 2] = var_kg2
-    return h._replace(x=x, p=p)

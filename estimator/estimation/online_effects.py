@@ -115,9 +115,8 @@ import numpy as np
 from estimator.estimation.autopilot_wind import AutopilotWind, mahalanobis2
 from estimator.estimation.change_detector import ChangeDetector
 from estimator.estimation.form_error import carried
-from estimator.estimation.hypotheses import Hypothesis, duel, mixture, with_mass
+from estimator.estimation.hypotheses import Hypothesis, duel, mixture
 from estimator.estimation.kalman import MerweSigmaPoints
-from estimator.estimation.mass_history import MassHistory
 from estimator.estimation.online_settings import OnlineSettings
 from estimator.estimation.tracker_readings import (
     StepData,
@@ -139,7 +138,9 @@ from estimator.physics.effects import (
 from estimator.physics.kinematics import KinematicState
 from estimator.physics.model import PowerModel
 from estimator.physics.vehicle import Vehicle
-from estimator.telemetry.samples import WindSample
+from estimator.telemetry.samples import (
+    WindSample,
+)
 
 #: Variance (m²/s²) standing in for a held wind's in the sigma points (positive definite).
 _HELD_VARIANCE = 1e-9
@@ -228,7 +229,6 @@ class OnlineEffects:
         #: Times the covariance was restarted after losing positive definiteness (bad data).
         self.resets = 0
         self.autopilot = AutopilotWind(s)
-        self._masses = MassHistory(s.autopilot_wind_mass_back_s)  # for a change it saw
         #: Steps that took the autopilot's wind, and its reports beyond the gate (not taken).
         self.autopilot_wind_steps = 0
         self.autopilot_wind_rejected = 0
@@ -377,7 +377,6 @@ class OnlineEffects:
         wind reports count again once they are not zero)."""
         self._time_s = None
         self.autopilot.restart()
-        self._masses.clear()
 
     def take_autopilot_wind(self, sample: WindSample) -> None:
         """Keep the autopilot's latest wind estimate for the next steps."""
@@ -467,8 +466,6 @@ class OnlineEffects:
             if self.autopilot.saw_a_change(main.x, main.p):
                 self.changes += 1
                 main = main._replace(p=self._widened(main.p, wind=True))
-                before = self._masses.at(time_s - s.autopilot_wind_mass_back_s)
-                main = main if before is None else with_mass(main, *before)
             taken = self._with_autopilot_wind(main, wind_var)
             self.autopilot_wind_steps += taken is not None
             self.autopilot_wind_rejected += taken is None
@@ -510,7 +507,6 @@ class OnlineEffects:
         leaning = fed and self._detector.half_way()
         self._unsettled = self._rival is None and (self._changing or refused or leaning)
         self._x, self._p, self._form, self._loglik = main.x, main.p, main.form, main.loglik
-        self._masses.add(time_s, float(main.x[2]), float(main.p[2, 2]))
 
     def _change_goes_on(self, nu: float, changing: bool) -> bool:
         """Whether the step of normalised innovation ``nu`` starts a change (an alarm of the

@@ -96,12 +96,6 @@ class OnlineSettings:
     #: power alone, its sign turning with each leg, never raised an alarm.
     autopilot_wind_change_chi2: float = 9.21
     autopilot_wind_change_steps: int = 3
-    #: On such a change the mass goes back to what it was this long before (s): what was
-    #: learnt since, against the old wind, is dropped (:mod:`~estimator.estimation.mass_history`).
-    #: The report's test fires 7.8 / 11.8 / 30.6 s (10th / 50th / 90th percentile) after the
-    #: change it follows (94 alarms on the 181 ArduCopter SITL recordings of ``replay/sitl``
-    #: and ``replay/sitl_held``, development figures; docs/residuals.md).
-    autopilot_wind_mass_back_s: float = 30.0
     #: Added to the reported wind 1σ, not to the covariance: the report's lag behind the wind
     #: (``AutopilotWind.lag_mps``, to both components: found on held5_turn_legs, so every
     #: recording of replay/sitl_held up to held15 is development for it), the EKF's time

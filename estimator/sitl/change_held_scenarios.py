@@ -10,7 +10,8 @@ tracker with the autopilot report's lag term widening both wind components alike
 (:meth:`~estimator.estimation.autopilot_wind.AutopilotWind.lag_mps`); none of it was tuned on
 (docs/residuals.md, "Held-out SITL flights"); the seventeenth after the commit that held
 the lag term while the vehicle hovers; the eighteenth after the commit that took back the
-mass learnt against the old wind when the report shows a change. Steps as in
+mass learnt against the old wind when the report shows a change (3b44bad), a rule these
+flights refuted and that was reverted (docs/residuals.md). Steps as in
 :mod:`estimator.sitl.scenarios` (positions and velocities NED, m and m/s; durations s).
 """
 
