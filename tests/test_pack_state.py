@@ -319,3 +319,43 @@ def test_a_refuted_pack_leaves_the_energy_counted_against_the_label() -> None:
         [e.energy_remaining_sigma_wh for e in after]
     )
     assert np.abs(z).max() <= 3.0, np.abs(z).max()
+
+
+def test_a_refuted_pack_stays_refuted_in_a_daemon_restarted_from_its_state() -> None:
+    """The state file keeps the refutation: a pipeline resumed from a snapshot taken 20 s
+    after it learns no pack again and counts the energy against the label as the pipeline
+    that ran on does; before, it started a new pack filter, which anchored the energy again
+    until that one too was refuted. A forged flag is refused."""
+    messages = [m for _, m in held_voltage_flight(300.0)]
+    decoder, first = TelemetryDecoder(), Pipeline(own_curve_vehicle())
+    snapshot, restart_at, ends, learning = None, 0, [], None
+    for k, msg in enumerate(messages):
+        for sample in decoder.decode(msg):
+            estimate = first.process(sample)
+            if estimate is not None and first.pack_state is not None:
+                learning = first.snapshot()
+            if estimate is None or not first.packs.refuted:
+                continue
+            ends.append(estimate)
+            if snapshot is None and estimate.time_s - ends[0].time_s >= 20.0:
+                snapshot, restart_at = json.loads(json.dumps(first.snapshot())), k + 1
+    assert snapshot is not None and snapshot["pack_refuted"] is True
+    decoder, restarted = TelemetryDecoder(), Pipeline(own_curve_vehicle())
+    restarted.resume(snapshot)
+    after = [
+        e
+        for msg in messages[restart_at:]
+        for sample in decoder.decode(msg)
+        if (e := restarted.process(sample)) is not None
+    ]
+    assert after and restarted.packs.refuted and restarted.pack_state is None
+    assert all(math.isnan(e.capacity_ah) for e in after)
+    end, ran_on = after[-1], ends[-1]
+    assert end.time_s == ran_on.time_s
+    assert abs(end.energy_remaining_wh - ran_on.energy_remaining_wh) < 0.1 * (
+        ran_on.energy_remaining_sigma_wh
+    )
+    assert learning is not None  # forged: a refutation that is not a flag, or with a pack filter
+    for forged in ({**snapshot, "pack_refuted": "yes"}, {**learning, "pack_refuted": True}):
+        with pytest.raises(ValueError, match="pack"):
+            restarted.check_snapshot(forged)

@@ -65,11 +65,15 @@ class PackLearning:
         """A pack filter from the prior (or the label)."""
         return PackBank(self.pack, self.settings, self.prior)
 
-    def begin(self, sample: BatterySample, resumed: PackBank | None = None) -> None:
+    def begin(
+        self, sample: BatterySample, resumed: PackBank | None = None, refuted: bool = False
+    ) -> None:
         """The first reading after a start: held into the first period; with a pack filter
-        ``resumed`` from a snapshot, that filter continues from here."""
+        ``resumed`` from a snapshot, that filter continues from here; ``refuted``: the
+        snapshot's pack filter was refuted, so none is learnt for the rest of the flight."""
         self._held = sample
         self._resistance_time_s = sample.time_s
+        self.refuted |= refuted
         if resumed is not None:
             resumed.last_time_s = sample.time_s
             self.state, self.estimate = resumed, resumed.estimate()

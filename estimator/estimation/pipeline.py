@@ -315,7 +315,8 @@ class Pipeline:
         """What a restarted process needs to continue this flight
         (:func:`~estimator.estimation.pipeline_snapshot.take_snapshot`); None before the energy
         state starts."""
-        return take_snapshot(self.energy, self.power, self.endurance_valid, self.pack_state)
+        valid, refuted = self.endurance_valid, self.packs.refuted
+        return take_snapshot(self.energy, self.power, valid, self.pack_state, refuted)
 
     def resume(self, snapshot: Mapping[str, Any]) -> None:
         """Continue from ``snapshot`` (:meth:`snapshot` of the same autopilot boot, checked by
@@ -345,10 +346,10 @@ class Pipeline:
         counter then corrects it."""
         resume, self._resume = self._resume, None
         resumed = resume is not None and resume.energy.time_s <= sample.time_s
-        resumed_pack = None
+        resumed_pack, refuted = None, False
         if resumed:
             assert resume is not None
-            resumed_pack = resume.pack
+            resumed_pack, refuted = resume.pack, resume.pack_refuted
             self.energy, self.power.effects, self.endurance_valid = (
                 resume.energy,
                 resume.effects,
@@ -358,7 +359,7 @@ class Pipeline:
             self.power.file_sq_w2 = resume.file_sq_w2
             self.tracking.renew(self.power.effects)
             self._refresh_speeds()
-        self.packs.begin(sample, resumed_pack)
+        self.packs.begin(sample, resumed_pack, refuted)
         self._battery = sample
         self._time_s = sample.time_s
         now = PowerEvent(sample.time_s, self._state, self._armed, sample.voltage_v)

@@ -27,7 +27,8 @@ from estimator.telemetry.plausibility import MAX_POWER_PER_HOVER
 class Resume:
     """A parsed snapshot waiting for the first battery sample: the energy filter, the effects
     in use and their scores (W², tracked and the vehicle file's), whether the endurance was
-    valid, and the pack's filter (None: none was learnt)."""
+    valid, the pack's filter (None: none was learnt) and whether it was refuted (the energy
+    then counted against the label, and no pack learnt again)."""
 
     energy: EnergyFilter
     effects: tuple[Effect, ...]
@@ -35,14 +36,19 @@ class Resume:
     file_sq_w2: float
     endurance_valid: bool
     pack: PackBank | None
+    pack_refuted: bool
 
 
 def take_snapshot(
-    energy: EnergyFilter, power: FlightPower, endurance_valid: bool, pack: PackBank | None
+    energy: EnergyFilter,
+    power: FlightPower,
+    endurance_valid: bool,
+    pack: PackBank | None,
+    pack_refuted: bool,
 ) -> dict[str, Any] | None:
     """The energy and resistance filters with the energy anchor, the effects in use
-    (tracked wind and mass), their scores, whether endurance is valid and the pack's filter;
-    None before the energy state starts."""
+    (tracked wind and mass), their scores, whether endurance is valid, the pack's filter and
+    whether it was refuted; None before the energy state starts."""
     if not energy.initialized:
         return None
     return {
@@ -52,6 +58,7 @@ def take_snapshot(
         "file_sq_w2": power.file_sq_w2,
         "endurance_valid": endurance_valid,
         "pack": None if pack is None else pack.snapshot(),
+        "pack_refuted": pack_refuted,
     }
 
 
@@ -67,7 +74,8 @@ def parse_snapshot(
     (the energy and pack filters' ranges; the effects must keep the hover power,
     ``hover_power_w(effects)`` in W, finite and within
     :data:`~estimator.telemetry.plausibility.MAX_POWER_PER_HOVER` times the vehicle file's
-    ``file_hover_power_w``; the power scores finite, ≥ 0)."""
+    ``file_hover_power_w``; the power scores finite, ≥ 0; a refuted pack without a pack
+    filter; a snapshot without ``pack_refuted``, from before it was kept, has none)."""
     try:
         energy = new_energy()
         energy.restore(snapshot["energy"])
@@ -84,7 +92,11 @@ def parse_snapshot(
             raise ValueError(f"power scores {scores} are not finite and ≥ 0")
         if not isinstance(valid := snapshot["endurance_valid"], bool):
             raise ValueError(f"endurance_valid is {valid!r}")
-        return Resume(energy, effects, *scores, valid, pack)
+        if not isinstance(refuted := snapshot.get("pack_refuted", False), bool):
+            raise ValueError(f"pack_refuted is {refuted!r}")
+        if refuted and pack is not None:
+            raise ValueError("a refuted pack with a pack filter")
+        return Resume(energy, effects, *scores, valid, pack, refuted)
     except (
         KeyError,
         TypeError,
