@@ -234,8 +234,9 @@ TRACKER_SHORT = {
     "held18_onset_fast_payload": "wind 3.7σ (6.2 m/s off) at 62 s: the step the onset came in "
     "(blind)",
     "held18_reversal_mid_legs": "wind 87 % within 2σ, 5.5σ (10.1 m/s off) at 106 s: a north "
-    "wind reversed on an east-west leg, where the power does not tell the two apart, while the "
-    "report held its old value for 12 s",
+    "wind reversed as an east-west leg began, where the power hardly tells the two apart (the "
+    "first three steps blind); from 110 s the power's evidence for it passed 2 nats at about 1σ "
+    "a step, while the report held its old value for 12 s, and the tracker did not follow it",
     "held_gust_60s": "wind 91 % within 2σ, 5.0σ (8.1 m/s off) at 138 s; mass 4.2σ (+0.15 kg) at "
     "148 s",
 }

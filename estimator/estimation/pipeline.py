@@ -315,8 +315,7 @@ class Pipeline:
         """What a restarted process needs to continue this flight
         (:func:`~estimator.estimation.pipeline_snapshot.take_snapshot`); None before the energy
         state starts."""
-        valid, refuted = self.endurance_valid, self.packs.refuted
-        return take_snapshot(self.energy, self.power, valid, self.pack_state, refuted)
+        return take_snapshot(self.energy, self.power, self.endurance_valid, self.packs)
 
     def resume(self, snapshot: Mapping[str, Any]) -> None:
         """Continue from ``snapshot`` (:meth:`snapshot` of the same autopilot boot, checked by

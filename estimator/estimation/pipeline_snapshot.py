@@ -18,6 +18,7 @@ from estimator.errors import UserError
 from estimator.estimation.flight_power import FlightPower
 from estimator.estimation.fusion import EnergyFilter
 from estimator.estimation.pack_bank import PackBank
+from estimator.estimation.pack_learning import PackLearning
 from estimator.physics.effect_tables import effects_from_tables, effects_to_tables
 from estimator.physics.effects import Effect
 from estimator.telemetry.plausibility import MAX_POWER_PER_HOVER
@@ -40,11 +41,7 @@ class Resume:
 
 
 def take_snapshot(
-    energy: EnergyFilter,
-    power: FlightPower,
-    endurance_valid: bool,
-    pack: PackBank | None,
-    pack_refuted: bool,
+    energy: EnergyFilter, power: FlightPower, endurance_valid: bool, packs: PackLearning
 ) -> dict[str, Any] | None:
     """The energy and resistance filters with the energy anchor, the effects in use
     (tracked wind and mass), their scores, whether endurance is valid, the pack's filter and
@@ -57,8 +54,8 @@ def take_snapshot(
         "tracked_sq_w2": power.tracked_sq_w2,
         "file_sq_w2": power.file_sq_w2,
         "endurance_valid": endurance_valid,
-        "pack": None if pack is None else pack.snapshot(),
-        "pack_refuted": pack_refuted,
+        "pack": None if packs.state is None else packs.state.snapshot(),
+        "pack_refuted": packs.refuted,
     }
 
 
