@@ -332,8 +332,8 @@ def test_a_refuted_pack_stays_refuted_in_a_daemon_restarted_from_its_state() -> 
     for k, msg in enumerate(messages):
         for sample in decoder.decode(msg):
             estimate = first.process(sample)
-            if estimate is not None and first.pack_state is not None:
-                learning = first.snapshot()
+            if learning is None and estimate is not None and first.pack_state is not None:
+                learning = first.snapshot()  # a snapshot with a pack filter, for the forgery
             if estimate is None or not first.packs.refuted:
                 continue
             ends.append(estimate)
