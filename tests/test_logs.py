@@ -6,6 +6,7 @@ from __future__ import annotations
 import contextlib
 import math
 import struct
+import tempfile
 from pathlib import Path
 
 import numpy as np
@@ -149,6 +150,33 @@ def test_a_tlog_converted_to_crlf_line_endings_is_read_whole_and_says_so(
     said = [line for line in capsys.readouterr().err.splitlines() if "CRLF" in line]
     pairs = original.count(b"\n")
     assert len(said) == 1 and f"follows a CR ({pairs} of them)" in said[0]
+
+
+@pytest.mark.parametrize(
+    "log", ["data/arducopter_guided.bin", "data/corpus/roboto_px4_v1_12.ulg"], ids=["bin", "ulg"]
+)
+def test_a_binary_log_converted_to_crlf_line_endings_is_read_from_a_repaired_copy(
+    log: str, tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """DataFlash and ULog, whose libraries read a file by name or handle: a converted log read
+    cryptic errors or nothing at all before (pymavlink: "Unsupported format char"; pyulog: 0
+    samples, one bad frame, truncated). Read from a repaired copy, the samples are the
+    original's, the repair is said, and the copy is gone once the log is read."""
+    original = Path(__file__).parent / log
+    data = original.read_bytes()
+    pairs = data.count(b"\n")
+    assert pairs > 100
+    converted = tmp_path / f"crlf{original.suffix}"
+    converted.write_bytes(data.replace(b"\n", b"\r\n"))
+    copies = tmp_path / "tmp"
+    copies.mkdir()
+    monkeypatch.setattr(tempfile, "tempdir", str(copies))
+    stream = iter_samples(converted)
+    samples = list(stream)
+    assert samples == list(iter_samples(original)) and len(samples) > 50
+    assert [cause for cause, _ in stream.problems()] == ["repaired file"]
+    assert f"follows a CR ({pairs} of them)" in stream.warnings()[0]
+    assert iter_samples(original).problems() == [] and not any(copies.iterdir())
 
 
 def test_mavlink2_frames_are_read(tmp_path: Path) -> None:

@@ -103,6 +103,22 @@ def test_after_a_reboot_the_heights_verdict_is_kept_and_judged_anew() -> None:
         assert (sense.note == first_note) is (down_sign < 0)
         assert sense.note is not None
         assert ("read positive down again" in sense.note) is (down_sign > 0)
+        # each boot's verdict that turned the sign over is said, the reflashed one's too
+        assert sense.notes == ([first_note, sense.note] if down_sign > 0 else [first_note])
+
+
+def test_a_firmware_text_after_a_reboot_takes_back_only_its_own_boots_note() -> None:
+    """The first boot's climb was read the wrong way until the height's verdict: a firmware
+    text of the reflashed boot saying vz positive down takes back only what the height said
+    of that boot."""
+    sense = VerticalSense()
+    climb(sense, 1.0, DECIDING_PAIRS)
+    first_note = sense.note
+    sense.rebooted()
+    climb(sense, -1.0, DECIDING_PAIRS)
+    assert sense.note is not None and len(sense.notes) == 2
+    sense.firmware(False)
+    assert (sense.note, sense.notes) == (None, [first_note])
 
 
 def test_a_firmwares_verdict_is_not_judged_by_the_height_after_a_reboot() -> None:
@@ -243,6 +259,7 @@ def test_a_rebooted_copter_is_read_right_from_its_first_climb_or_once_its_height
     assert decoder.counts["reboots"] == 1
     sense = decoder.vz_sense
     assert (sense.down_sign, sense.decided_by) == (1 if reflashed else -1, "height")
+    assert len(sense.notes) == (2 if reflashed else 1)
     climbing = [s.vd_mps for s in velocities if s.time_s <= 11.0 and abs(s.vd_mps) >= 0.5]
     read_down = [i for i, vd in enumerate(climbing) if vd > 0.0]  # the climb's samples
     assert len(climbing) > 60

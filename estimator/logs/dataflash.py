@@ -53,6 +53,7 @@ from pymavlink.DFReader import DFReader_binary
 
 from estimator.errors import UserError
 from estimator.logs import SampleStream, dataflash_records
+from estimator.logs.line_endings import repaired_copy
 from estimator.telemetry.decode import gripper_released
 from estimator.telemetry.firmware import FIRMWARE_TEXT
 from estimator.telemetry.samples import (
@@ -101,7 +102,8 @@ def iter_samples(path: str | Path) -> SampleStream:
     """Samples of a DataFlash log in time order (see :class:`estimator.logs.SampleStream`)."""
     path = Path(path)
     stream = SampleStream(path, "dataflash", ())
-    decoder = _Decoder(_open(path), stream)
+    log, stream.sanity.repair_note = _open(path)
+    decoder = _Decoder(log, stream)
     stream.message_types = {name for name in _HANDLERS if decoder.count(name) > 0}
     stream.battery_types = BATTERY_TYPES
     stream.velocity_types = VELOCITY_TYPES
@@ -359,7 +361,9 @@ _HANDLERS = {
 }
 
 
-def _open(path: Path) -> _DataFlashIndex:
+def _open(path: Path) -> tuple[_DataFlashIndex, str | None]:
+    """The index of the log at ``path``, and a sentence on a repair made before reading it
+    (:mod:`estimator.logs.line_endings`), else None."""
     if path.is_dir():
         raise UserError(f"log {path} is a directory, not a file")
     if not path.exists():
@@ -367,14 +371,17 @@ def _open(path: Path) -> _DataFlashIndex:
     if path.stat().st_size == 0:
         raise UserError(f"log {path} is empty")
     try:
-        with _quiet_stderr(), _quiet_python_output():
-            log = _DataFlashIndex(str(path))
+        # the index maps the file it reads: a repaired copy's bytes outlive its removal
+        with repaired_copy(path) as (source, note), _quiet_stderr(), _quiet_python_output():
+            log = _DataFlashIndex(str(source))
+    except UserError:
+        raise
     except Exception as exc:  # pymavlink raises plain Exception on corrupt FMT records
         raise UserError(f"cannot read DataFlash log {path}: {exc}") from None
     if not any(log.counts[t] for t in log.formats if t != FMT_TYPE):
         log.close()
         raise UserError(f"{path} is not a DataFlash log (no records found)")
-    return log
+    return log, note
 
 
 @contextlib.contextmanager

@@ -158,9 +158,9 @@ class SanityRecorder:
     def __init__(self) -> None:
         self._velocity: list[list[tuple[float, float, float | None]]] = [[]]
         self._voltage_v: list[float] = []
-        #: The reader's word on a vertical velocity it found sent the wrong way up and read
-        #: right from then on (:mod:`estimator.telemetry.vz_sense`), else None.
-        self.vertical_note: str | None = None
+        #: The reader's words on a vertical velocity it found sent the wrong way up and read
+        #: right from then on, one for each time (:mod:`estimator.telemetry.vz_sense`).
+        self.vertical_notes: list[str] = []
         #: The reader's word on damage to the file it undid before reading, else None.
         self.repair_note: str | None = None
 
@@ -205,8 +205,8 @@ class SanityRecorder:
         is known); no pair of velocity samples spans a reboot."""
         out = [] if self.repair_note is None else [(REPAIRED_FILE, self.repair_note)]
         pairs = self.judged_pairs()
-        if self.vertical_note is not None:  # the samples before the reader knew are wrong
-            out.append((VERTICAL_VELOCITY, self.vertical_note))
+        if self.vertical_notes:  # the samples before the reader knew are wrong
+            out.extend((VERTICAL_VELOCITY, note) for note in self.vertical_notes)
         elif pairs is not None and (problem := _vertical_verdict(*pairs, source)) is not None:
             out.append((VERTICAL_VELOCITY, problem))
         if cells is not None and (problem := voltage_problem(self._voltage_v, cells)):

@@ -10,7 +10,7 @@ once it knows the autopilot by source, see :meth:`TelemetryDecoder.discards`) ar
 without being parsed. A record without a frame start is corrupt: it is counted and the
 reader re-synchronises on the next plausible record. A file that ends inside a record is read
 up to the damage and flagged ``truncated``. A file converted to CRLF line endings as text is
-read with the conversion undone, and says so (:func:`_crlf_undone`).
+read with the conversion undone, and says so (:mod:`estimator.logs.line_endings`).
 """
 
 from __future__ import annotations
@@ -23,6 +23,7 @@ from pymavlink.dialects.v20.common import MAVLink_message, mavlink_map
 
 from estimator.errors import UserError
 from estimator.logs import SampleStream
+from estimator.logs.line_endings import crlf_undone
 from estimator.telemetry.decode import USED_MESSAGE_IDS, TelemetryDecoder
 from estimator.telemetry.frames import FrameParser
 from estimator.telemetry.plausibility import InputLimits
@@ -39,8 +40,6 @@ _SMART_BATTERY_INFO = 370
 #: The battery and velocity message types, as named in ``SampleStream.missing``.
 BATTERY_TYPES = ("BATTERY_STATUS", "SYS_STATUS")
 VELOCITY_TYPES = ("GLOBAL_POSITION_INT", "LOCAL_POSITION_NED")
-#: LF bytes, each after a CR, that show a log converted to CRLF line endings as text.
-CRLF_MIN_PAIRS = 16
 #: A resync candidate's stamp must lie within this distance (µs) of the last good stamp.
 _RESYNC_WINDOW_US = 3600 * 1_000_000
 
@@ -52,7 +51,7 @@ def iter_samples(path: Path, limits: InputLimits | None = None) -> SampleStream:
         data = path.read_bytes()
     except OSError as exc:
         raise UserError(f"cannot read {path}: {exc.strerror}") from None
-    data, repair_note = _crlf_undone(data)
+    data, repair_note = crlf_undone(data)
     if len(data) <= STAMP_BYTES or data[STAMP_BYTES] not in (_STX_V1, _STX_V2):
         raise UserError(f"{path} is not a MAVLink telemetry log (no frame after the first stamp)")
     stream = SampleStream(path, "tlog", iter(()))
@@ -62,23 +61,6 @@ def iter_samples(path: Path, limits: InputLimits | None = None) -> SampleStream:
     stream.velocity_types = VELOCITY_TYPES
     stream._it = _records(data, stream, TelemetryDecoder(limits=limits))
     return stream
-
-
-def _crlf_undone(data: bytes) -> tuple[bytes, str | None]:
-    """``data`` with a text-mode line-ending conversion undone, and a sentence saying so; else
-    ``data`` and None. A transfer or checkout that took the binary log for text put a CR
-    (0x0D) before every LF (0x0A): with at least :data:`CRLF_MIN_PAIRS` LF bytes, all of them
-    after a CR (by chance, one in 256 each), each CR LF is turned back into the LF it was (a
-    CR LF of the log itself became CR CR LF, and comes back too)."""
-    pairs = data.count(b"\r\n")
-    if pairs < CRLF_MIN_PAIRS or pairs != data.count(b"\n"):
-        return data, None
-    note = (
-        f"every LF byte of the file follows a CR ({pairs} of them): it was converted to CRLF "
-        "line endings as text (a text-mode transfer or checkout); read with the conversion "
-        "undone, fetch it as binary"
-    )
-    return data.replace(b"\r\n", b"\n"), note
 
 
 def frame_length(data: bytes | memoryview, start: int) -> tuple[int, int] | None:
@@ -151,7 +133,7 @@ def _records(data: bytes, stream: SampleStream, decoder: TelemetryDecoder) -> It
         yield from decoder.decode(msg)
     yield from decoder.flush()
     stream.count_checks(decoder.counts)
-    stream.sanity.vertical_note = decoder.vz_sense.note
+    stream.sanity.vertical_notes = list(decoder.vz_sense.notes)
     if decoder.velocity_type is not None:
         stream.velocity_source = f"{decoder.velocity_type}.vz"
     stream.autopilot = decoder.target

@@ -42,6 +42,7 @@ from pyulog import ULog
 
 from estimator.errors import UserError
 from estimator.logs import SampleStream
+from estimator.logs.line_endings import repaired_copy
 from estimator.telemetry.sample_columns import CHECKED_FIELDS, SampleColumns
 from estimator.telemetry.samples import (
     ArmedSample,
@@ -136,8 +137,9 @@ def iter_samples(path: str | Path) -> SampleStream:
     """Samples of a ULog in time order (see :class:`estimator.logs.SampleStream`), decoded
     at once: the stream's ``columns`` hold them column-wise, for the value and time checks."""
     path = Path(path)
-    ulog, truncated = _load(path)
+    ulog, truncated, repair_note = _load(path)
     stream = SampleStream(path, "ulog", ())
+    stream.sanity.repair_note = repair_note
     stream.truncated = truncated
     stream.bad_frames = int(ulog.file_corruption)
     stream.firmware = firmware(ulog.msg_info_dict)
@@ -163,24 +165,27 @@ def firmware(info: dict[str, Any]) -> str | None:
     return f"{name} (commit {str(commit)[:8]})" if commit else None
 
 
-def _load(path: Path) -> tuple[ULog, bool]:
+def _load(path: Path) -> tuple[ULog, bool, str | None]:
+    """The log at ``path`` read by pyulog, whether it ends inside a message, and a sentence
+    on a repair made before reading it (:mod:`estimator.logs.line_endings`), else None."""
     if path.is_dir():
         raise UserError(f"{path} is a directory, not a log file")
-    try:
-        probe = _ReadProbe(path)
-    except FileNotFoundError:
-        raise UserError(f"{path} does not exist") from None
-    except OSError as exc:
-        raise UserError(f"cannot read {path}: {exc.strerror}") from None
-    try:
-        # pyulog reports corruption with print(); our counters report it instead
-        with contextlib.redirect_stdout(io.StringIO()):
-            ulog = ULog(probe.file, message_name_filter_list=list(TOPICS))
-    except Exception as exc:  # pyulog on a damaged file: ULogException, struct/index errors
-        raise UserError(f"{path} is not a readable PX4 ULog: {exc}") from None
-    finally:
-        probe.file.close()
-    return ulog, probe.last_read_short
+    with repaired_copy(path) as (source, note):
+        try:
+            probe = _ReadProbe(source)
+        except FileNotFoundError:
+            raise UserError(f"{path} does not exist") from None
+        except OSError as exc:
+            raise UserError(f"cannot read {path}: {exc.strerror}") from None
+        try:
+            # pyulog reports corruption with print(); our counters report it instead
+            with contextlib.redirect_stdout(io.StringIO()):
+                ulog = ULog(probe.file, message_name_filter_list=list(TOPICS))
+        except Exception as exc:  # pyulog on a damaged file: ULogException, struct/index errors
+            raise UserError(f"{path} is not a readable PX4 ULog: {exc}") from None
+        finally:
+            probe.file.close()
+    return ulog, probe.last_read_short, note
 
 
 def _dataset(ulog: ULog, topic: str) -> dict[str, Any] | None:

@@ -52,6 +52,10 @@ class VerticalSense:
         #: When the height turned the sign over (found vz sent positive up, or after a reboot
         #: positive down again): a sentence saying so, else None.
         self.note: str | None = None
+        #: Every such sentence of the stream, in order, but those a firmware or a HEARTBEAT of
+        #: the same boot took back (a reflashed autopilot's boots each have theirs).
+        self.notes: list[str] = []
+        self._boot_notes_from = 0  # the index in ``notes`` of the current boot's first
         #: (major, minor, patch) of the autopilot's AUTOPILOT_VERSION; None before one.
         self.firmware_version: tuple[int, int, int] | None = None
         self._copter = False  # the HEARTBEAT says ArduCopter
@@ -65,7 +69,7 @@ class VerticalSense:
         self.down_sign = -1 if vz_up else 1
         self.decided_by, self._rejudge = "firmware", False
         if not vz_up:
-            self.note = None
+            self._take_back()
 
     def heartbeat(self, ardupilot: bool, copter: bool) -> None:
         """The autopilot's HEARTBEAT: whether it names ArduPilot, and ArduCopter (a copter's
@@ -73,7 +77,8 @@ class VerticalSense:
         defines vz, whatever its height said."""
         self._copter = ardupilot and copter
         if not ardupilot and self.decided_by != "firmware":
-            self.down_sign, self.decided_by, self.note = 1, "autopilot", None
+            self.down_sign, self.decided_by = 1, "autopilot"
+            self._take_back()
 
     def version(self, flight_sw_version: int) -> None:
         """AUTOPILOT_VERSION's ``flight_sw_version``: kept, and for an ArduCopter (its last
@@ -88,6 +93,7 @@ class VerticalSense:
     def rebooted(self) -> None:
         """The autopilot rebooted (its clock was confirmed behind the old one): a height
         verdict keeps its sign and is judged anew from the new boot's pairs."""
+        self._boot_notes_from = len(self.notes)
         if self.decided_by == "height":
             self._rejudge, self._last = True, None
             self._agree = self._disagree = 0
@@ -138,3 +144,9 @@ class VerticalSense:
                 "samples: read positive down again from then on, as MAVLink defines it (new "
                 "firmware that named no version)"
             )
+        self.notes.append(self.note)
+
+    def _take_back(self) -> None:
+        """The height's word is wrong: no standing note, none of this boot's kept."""
+        self.note = None
+        del self.notes[self._boot_notes_from :]
