@@ -16,8 +16,9 @@ from tlog_builder import EPOCH_US, flight_frames, without_firmware_text, write_t
 
 from estimator.cli import main as cli_main
 from estimator.errors import UserError
-from estimator.logs import detect_format, iter_samples, load_flights
+from estimator.logs import detect_format, iter_samples, line_endings, load_flights
 from estimator.logs.cmu import REQUIRED_COLUMNS, rotate
+from estimator.logs.line_endings import CRLF_MIN_PAIRS
 from estimator.logs.sanity import flight_warnings
 from estimator.telemetry.decode import TelemetryDecoder
 from estimator.telemetry.frames import FrameParser
@@ -177,6 +178,30 @@ def test_a_binary_log_converted_to_crlf_line_endings_is_read_from_a_repaired_cop
     assert [cause for cause, _ in stream.problems()] == ["repaired file"]
     assert f"follows a CR ({pairs} of them)" in stream.warnings()[0]
     assert iter_samples(original).problems() == [] and not any(copies.iterdir())
+
+
+def test_a_conversion_is_undone_across_every_chunk_boundary_and_only_when_whole(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """The copy is written a chunk at a time: a CR LF split between two chunks comes back as
+    LF, a CR of the log itself before one too. A file whose LF bytes follow a CR only at its
+    start (the probe) is read as it is."""
+    rng = np.random.default_rng(7)
+    original = bytes(rng.choice([10, 13, 65], size=400).astype(np.uint8))
+    pairs = original.count(b"\n")
+    assert original.count(b"\r\n") > 0 and pairs >= 2 * CRLF_MIN_PAIRS
+    converted = tmp_path / "converted.bin"
+    converted.write_bytes(original.replace(b"\n", b"\r\n"))
+    for chunk_bytes in (97, 100, 101, 128):
+        monkeypatch.setattr(line_endings, "PROBE_BYTES", chunk_bytes)
+        with line_endings.repaired_copy(converted) as (copy, note):
+            assert copy != converted and copy.read_bytes() == original
+            assert note is not None and f"follows a CR ({pairs} of them)" in note
+    partly = tmp_path / "partly.bin"
+    partly.write_bytes(converted.read_bytes() + b"A\n")
+    monkeypatch.setattr(line_endings, "PROBE_BYTES", 100)
+    with line_endings.repaired_copy(partly) as (copy, note):
+        assert (copy, note) == (partly, None)
 
 
 def test_mavlink2_frames_are_read(tmp_path: Path) -> None:

@@ -8,8 +8,9 @@ become CR CR LF, and comes back too).
 
 The tlog reader undoes it in memory (:func:`crlf_undone`); the DataFlash and ULog readers,
 whose libraries read a file by its name or handle, read a repaired copy in a temporary
-directory (:func:`repaired_copy`). Only the first :data:`PROBE_BYTES` of a file are looked
-at to tell: a log that was not converted costs one short read.
+directory (:func:`repaired_copy`), written a chunk at a time. Only the first
+:data:`PROBE_BYTES` of a file are looked at to tell: a log that was not converted costs one
+short read.
 """
 
 from __future__ import annotations
@@ -38,30 +39,43 @@ def crlf_undone(data: bytes) -> tuple[bytes, str | None]:
 @contextlib.contextmanager
 def repaired_copy(path: Path) -> Iterator[tuple[Path, str | None]]:
     """(the file to read, a sentence on its repair): ``path`` and None for a log that was not
-    converted; else a copy with the conversion undone, in a temporary directory removed when
-    the context ends (a reader that maps the copy keeps its bytes until it closes it)."""
+    converted; else a copy with the conversion undone, written a chunk of
+    :data:`PROBE_BYTES` at a time, in a temporary directory removed when the context ends (a
+    reader that maps the copy keeps its bytes until it closes it)."""
     try:
         with path.open("rb") as f:
-            head = f.read(PROBE_BYTES)
+            converted = _converted(f.read(PROBE_BYTES))
     except OSError:
-        yield path, None  # the reader says what is wrong with it, in its own words
-        return
-    if not _converted(head):
-        yield path, None
-        return
-    try:
-        data = path.read_bytes()
-    except OSError as exc:
-        raise UserError(f"cannot read {path}: {exc.strerror}") from None
-    repaired, note = crlf_undone(data)
-    if note is None:  # converted at its start only: not a text-mode transfer
+        converted = False  # the reader says what is wrong with the file, in its own words
+    if not converted:
         yield path, None
         return
     with tempfile.TemporaryDirectory(prefix="uav-energy-", ignore_cleanup_errors=True) as tmp:
         copy = Path(tmp) / path.name
-        copy.write_bytes(repaired)
-        del data, repaired
-        yield copy, note
+        pairs = _undo_into(path, copy)
+        yield (path, None) if pairs is None else (copy, _note(pairs))
+
+
+def _undo_into(path: Path, copy: Path) -> int | None:
+    """Write ``path`` with every CR LF turned back into LF to ``copy``: the number of LF bytes,
+    or None when one does not follow a CR (then the file was not converted as a whole)."""
+    pairs = 0
+    try:
+        with path.open("rb") as source, copy.open("wb") as out:
+            carry = b""
+            while chunk := source.read(PROBE_BYTES):
+                chunk, carry = carry + chunk, b""
+                if chunk.endswith(b"\r"):  # its LF may open the next chunk
+                    chunk, carry = chunk[:-1], b"\r"
+                lf = chunk.count(b"\n")
+                if chunk.count(b"\r\n") != lf:
+                    return None
+                pairs += lf
+                out.write(chunk.replace(b"\r\n", b"\n"))
+            out.write(carry)
+    except OSError as exc:
+        raise UserError(f"cannot read {path} to undo its line endings: {exc.strerror}") from None
+    return pairs
 
 
 def _converted(data: bytes) -> bool:
