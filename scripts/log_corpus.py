@@ -75,7 +75,7 @@ def table_row(log: CorpusLog, outcome: Outcome | None) -> str:
     if outcome is None:
         cells = ["–", "–", "–", NOT_FETCHED]
     else:
-        firmware = outcome.firmware or log.firmware or "not stated"
+        firmware = outcome.firmware or "not stated"
         flew = "heights astray" if outcome.flew_s is None else f"{outcome.flew_s:.0f}"
         cells = [firmware, outcome.format, flew, outcome.text()]
     text = [name, source, cells[0], cells[1], log.kind, log.licence, cells[2], cells[3]]

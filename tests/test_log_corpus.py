@@ -134,6 +134,19 @@ def test_a_current_of_0_a_throughout_is_named_as_no_current_sensor(tmp_path: Pat
     )
 
 
+def test_a_tlog_committed_converted_to_crlf_is_read_repaired_and_names_its_firmware() -> None:
+    """A real flight whose repository holds its tlog converted to CRLF line endings: read with
+    the conversion undone (the table's row: airborne), said once, its firmware from its text.
+    The conversion left the log's own CR LF pairs alone (the file holds no CR CR LF): the 2
+    frames that held one lose their CR and stay bad (781 were bad before the repair)."""
+    data = (CORPUS / "lucagemma_copter33_crlf.tlog").read_bytes()
+    assert data.count(b"\r\n") == data.count(b"\n") > 1000 and b"\r\r\n" not in data
+    stream = iter_samples(CORPUS / "lucagemma_copter33_crlf.tlog")
+    list(stream)
+    assert [cause for cause, _ in stream.problems()] == ["repaired file"]
+    assert stream.bad_frames == 2 and stream.firmware == "APM:Copter V3.3 (d6053245)"
+
+
 def test_tlog_fixture_names_the_messages_it_has() -> None:
     stream = iter_samples(CORPUS / "adgfuzz_sitl_copter.tlog")
     list(stream)

@@ -415,6 +415,11 @@ def test_iris_vertical_velocity_is_read_up_and_without_the_firmware_text_said_on
     assert "read positive up from then on" in warning
     differ = [a.time_s for a, b in zip(named, unnamed, strict=True) if a != b]
     assert differ and named[-1].time_s - differ[-1] > 10.0  # the flight's last 18 s alike
+    # the firmware as the tlog states it (as a DataFlash log's MSG or a ULog's info says it)
+    assert (iter_samples(IRIS_MARCH).firmware, stream.firmware) == (None, None)  # not yet read
+    named_stream = iter_samples(IRIS_MARCH)
+    list(named_stream)
+    assert (named_stream.firmware, stream.firmware) == ("APM:Copter V3.3 (d3e14c1c)", None)
     modern = iter_samples(ARDUCOPTER_TLOG)
     list(modern)
     assert modern.warnings(cells=3) == []

@@ -44,7 +44,7 @@ TRACEBACK = "traceback"
 
 @dataclass(frozen=True)
 class CorpusLog:
-    """One manifest entry (see the module docstring); ``firmware`` when the log names none."""
+    """One manifest entry (see the module docstring)."""
 
     repo: str
     commit: str
@@ -54,7 +54,6 @@ class CorpusLog:
     licence: str
     kind: str
     fixture: str | None = None
-    firmware: str | None = None
 
     @property
     def cache_name(self) -> str:
@@ -108,7 +107,6 @@ def load_manifest(path: Path) -> list[CorpusLog]:
             licence=entry["licence"],
             kind=entry["kind"],
             fixture=entry.get("fixture"),
-            firmware=entry.get("firmware"),
         )
         for entry in doc["log"]
     ]

@@ -3,8 +3,11 @@
 Such a transfer puts a CR (0x0D) before every LF (0x0A) byte of the file. In a binary log
 LF bytes fall about one in 256, each after a CR by chance one time in 256: a file with at
 least :data:`CRLF_MIN_PAIRS` LF bytes, every one of them after a CR, was converted. Turning
-each CR LF back into LF gives the log back byte for byte (a CR LF of the log itself had
-become CR CR LF, and comes back too).
+each CR LF back into LF gives the log back byte for byte when the conversion put a CR before
+every LF (a CR LF of the log itself became CR CR LF, and comes back too). One that left the
+log's own CR LF pairs alone (as ``unix2dos`` and git's ``autocrlf`` do) cannot be told from
+them: their CR is lost, and the few frames or records that held one (one LF in 256 bytes,
+one of those after a CR by chance) stay damaged and are counted as such by the reader.
 
 The tlog reader undoes it in memory (:func:`crlf_undone`); the DataFlash and ULog readers,
 whose libraries read a file by its name or handle, read a repaired copy in a temporary

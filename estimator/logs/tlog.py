@@ -134,6 +134,7 @@ def _records(data: bytes, stream: SampleStream, decoder: TelemetryDecoder) -> It
     yield from decoder.flush()
     stream.count_checks(decoder.counts)
     stream.sanity.vertical_notes = list(decoder.vz_sense.notes)
+    stream.firmware = decoder.firmware_text
     if decoder.velocity_type is not None:
         stream.velocity_source = f"{decoder.velocity_type}.vz"
     stream.autopilot = decoder.target

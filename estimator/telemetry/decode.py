@@ -59,7 +59,7 @@ from collections.abc import Iterable
 from pymavlink.dialects.v20 import common as mavlink
 
 from estimator.telemetry.clock import ClockFilter, ClockSettings, ClockVerdict
-from estimator.telemetry.firmware import copter_vz_up
+from estimator.telemetry.firmware import FIRMWARE_TEXT, copter_vz_up
 from estimator.telemetry.frames import frame_payload, frame_source
 from estimator.telemetry.plausibility import (
     MAX_WIND_MPS,
@@ -192,6 +192,8 @@ class TelemetryDecoder:
         #: Which way up GLOBAL_POSITION_INT.vz is sent (its firmware text or version, else
         #: its height), and the firmware version.
         self.vz_sense = VerticalSense()
+        #: The first STATUSTEXT naming the firmware (``FIRMWARE_TEXT``), else None.
+        self.firmware_text: str | None = None
 
     def retarget(self, target: tuple[int, int]) -> bool:
         """Decode the autopilot ``target`` (system, component) from now on; whether it is
@@ -396,6 +398,8 @@ class TelemetryDecoder:
         return self._time.clocked(sample)
 
     def _statustext(self, msg: mavlink.MAVLink_message) -> list[Sample]:
+        if self.firmware_text is None and FIRMWARE_TEXT.match(str(msg.text)):
+            self.firmware_text = str(msg.text).strip()
         vz_up = copter_vz_up(str(msg.text))
         if vz_up is not None:
             self.vz_sense.firmware(vz_up)
