@@ -24,9 +24,10 @@ def flight_frames(
     speed_mps: float = 3.0,
     mavlink1: bool = True,
     vz_cmps: int = 0,
+    mav_type: int = mavlink.MAV_TYPE_QUADROTOR,
 ) -> list[tuple[int, bytes]]:
-    """(receive µs, frame) of a simple armed flight at 2 Hz: heartbeat, position (its vz
-    ``vz_cmps``, cm/s as sent), battery.
+    """(receive µs, frame) of a simple armed flight at 2 Hz: heartbeat (its frame ``mav_type``),
+    position (its vz ``vz_cmps``, cm/s as sent), battery.
 
     Also sends VFR_HUD, which the decoder does not use (it must be skipped).
     """
@@ -36,7 +37,7 @@ def flight_frames(
     while t_ms < seconds * 1000:
         msgs = [
             codec.heartbeat_encode(
-                mavlink.MAV_TYPE_QUADROTOR,
+                mav_type,
                 mavlink.MAV_AUTOPILOT_ARDUPILOTMEGA,
                 mavlink.MAV_MODE_FLAG_SAFETY_ARMED,
                 0,

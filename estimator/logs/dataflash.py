@@ -20,7 +20,8 @@ the record before it. What is used:
   (Copter ≤ 3.4) have ``CURR``: its ``Volt`` / ``Curr`` are integer centivolts / centiamps up
   to Copter 3.3 and float V / A in 3.4, ``CurrTot`` mAh;
 - firmware: the first ``MSG`` text naming it
-  (:data:`~estimator.telemetry.firmware.FIRMWARE_TEXT`), as ``firmware``;
+  (:data:`~estimator.telemetry.firmware.FIRMWARE_TEXT`), as ``firmware``, and the vehicle it
+  names when that is not a Copter (:func:`~estimator.telemetry.vehicle_kind.firmware_note`);
 - gripper actions: ``MSG`` texts "Gripper load released"/"grabbed" (as the tlog's STATUSTEXT,
   :func:`~estimator.telemetry.decode.gripper_released`);
 - armed state: ``ARM.ArmState``, or ``EV`` ids 10 (armed) / 11 (disarmed) in older logs.
@@ -63,6 +64,7 @@ from estimator.telemetry.samples import (
     Sample,
     VelocitySample,
 )
+from estimator.telemetry.vehicle_kind import firmware_note
 
 #: Velocity sources, most preferred first.
 VELOCITY_TYPES = ("XKF1", "NKF1", "EKF1", "GPS")
@@ -338,6 +340,7 @@ class _Decoder:
         text = str(msg.Message)
         if self._stream.firmware is None and FIRMWARE_TEXT.match(text):
             self._stream.firmware = text.strip()
+            self._stream.sanity.vehicle_note = firmware_note(text)
         released = gripper_released(text)
         return None if released is None else GripperSample(self._time_s, released)
 

@@ -11,7 +11,10 @@
 - pack voltage against the vehicle file's cell count: the 95th percentile of the logged pack
   voltage (the pack near rest) per cell must lie where a lithium cell can
   (:func:`estimator.telemetry.plausibility.pack_voltage_problem`); else the energy figures are wrong
-  (a 6-cell file on a 3-cell pack reads an empty pack: 0 Wh).
+  (a 6-cell file on a 3-cell pack reads an empty pack: 0 Wh);
+- the readers' own words on the file: a repair they undid before reading it
+  (:mod:`estimator.logs.line_endings`), and an autopilot that flies no multirotor
+  (:mod:`estimator.telemetry.vehicle_kind`).
 
 :class:`SanityRecorder` collects what the checks need from a stream of samples (replay);
 :func:`flight_warnings` runs them on :class:`~estimator.logs.FlightSeries` (fit, residuals).
@@ -47,7 +50,7 @@ _VELOCITY_FIELDS = attrgetter("time_s", "vd_mps", "alt_m")
 _VOLTAGE = attrgetter("voltage_v")
 #: The causes a warning is about (what :class:`RunWarnings` counts).
 VERTICAL_VELOCITY, PACK_VOLTAGE = "vertical velocity", "pack voltage"
-REPAIRED_FILE = "repaired file"
+REPAIRED_FILE, VEHICLE = "repaired file", "vehicle"
 
 
 def vertical_velocity_problem(
@@ -163,6 +166,9 @@ class SanityRecorder:
         self.vertical_notes: list[str] = []
         #: The reader's word on damage to the file it undid before reading, else None.
         self.repair_note: str | None = None
+        #: The reader's word on an autopilot that flies no multirotor
+        #: (:mod:`estimator.telemetry.vehicle_kind`), else None.
+        self.vehicle_note: str | None = None
 
     def observe(self, sample: Sample) -> None:
         if isinstance(sample, VelocitySample):
@@ -204,6 +210,8 @@ class SanityRecorder:
         """The checks' (cause, warning) over what was observed (voltage only when ``cells``
         is known); no pair of velocity samples spans a reboot."""
         out = [] if self.repair_note is None else [(REPAIRED_FILE, self.repair_note)]
+        if self.vehicle_note is not None:
+            out.append((VEHICLE, self.vehicle_note))
         pairs = self.judged_pairs()
         if self.vertical_notes:  # the samples before the reader knew are wrong
             out.extend((VERTICAL_VELOCITY, note) for note in self.vertical_notes)

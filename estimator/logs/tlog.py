@@ -28,6 +28,7 @@ from estimator.telemetry.decode import USED_MESSAGE_IDS, TelemetryDecoder
 from estimator.telemetry.frames import FrameParser
 from estimator.telemetry.plausibility import InputLimits
 from estimator.telemetry.samples import Sample
+from estimator.telemetry.vehicle_kind import frame_note
 
 STAMP_BYTES = 8
 _STX_V1, _STX_V2 = 0xFE, 0xFD
@@ -135,6 +136,7 @@ def _records(data: bytes, stream: SampleStream, decoder: TelemetryDecoder) -> It
     stream.count_checks(decoder.counts)
     stream.sanity.vertical_notes = list(decoder.vz_sense.notes)
     stream.firmware = decoder.firmware_text
+    stream.sanity.vehicle_note = frame_note(decoder.frame_type)
     if decoder.velocity_type is not None:
         stream.velocity_source = f"{decoder.velocity_type}.vz"
     stream.autopilot = decoder.target

@@ -13,7 +13,8 @@ boot) / 1e6:
   ``voltage_v`` (V), ``current_a`` (A, −1 = unknown), ``discharged_mah`` (mAh, negative =
   unknown), ``remaining`` (fraction 0–1, negative = unknown → percent); records with
   ``connected`` false or no usable voltage are skipped;
-- ``vehicle_status``: ``arming_state`` (2 = armed), as changes;
+- ``vehicle_status``: ``arming_state`` (2 = armed), as changes; ``system_type`` (MAV_TYPE)
+  for a vehicle that is not a multirotor (:mod:`estimator.telemetry.vehicle_kind`);
 - ``vehicle_land_detected``: ``landed``, PX4's landed detector (the one EXTENDED_SYS_STATE
   sends), as changes.
 
@@ -52,6 +53,7 @@ from estimator.telemetry.samples import (
     VelocitySample,
     of_columns,
 )
+from estimator.telemetry.vehicle_kind import frame_note
 
 #: The GPS topics, most preferred first (velocity when the local position has none).
 GPS_TOPICS = ("vehicle_gps_position", "sensor_gps")
@@ -143,6 +145,7 @@ def iter_samples(path: str | Path) -> SampleStream:
     stream.truncated = truncated
     stream.bad_frames = int(ulog.file_corruption)
     stream.firmware = firmware(ulog.msg_info_dict)
+    stream.sanity.vehicle_note = frame_note(_frame_type(ulog))
     stream.message_types = {d.name for d in ulog.data_list}
     stream.battery_types = ("battery_status",)
     stream.velocity_types = ("vehicle_local_position",)
@@ -186,6 +189,13 @@ def _load(path: Path) -> tuple[ULog, bool, str | None]:
         finally:
             probe.file.close()
     return ulog, probe.last_read_short, note
+
+
+def _frame_type(ulog: ULog) -> int | None:
+    """``vehicle_status.system_type`` (MAV_TYPE) at its last record, None if not logged."""
+    data = _dataset(ulog, "vehicle_status")
+    types = None if data is None else data.get("system_type")
+    return None if types is None or len(types) == 0 else int(types[-1])
 
 
 def _dataset(ulog: ULog, topic: str) -> dict[str, Any] | None:

@@ -62,7 +62,7 @@ from estimator.estimation.pipeline_settings import PipelineSettings
 from estimator.estimation.return_home import MissionEnergyFn, MissionSample
 from estimator.estimation.rtl_profiles import rtl_settings
 from estimator.logs.mission_files import MissionItem
-from estimator.mavlink.autopilot_lock import AutopilotLock
+from estimator.mavlink.autopilot_lock import AutopilotLock, Source
 from estimator.mavlink.config import ServiceConfig
 from estimator.mavlink.daemon_warnings import ThrottledLog, format_counts, warn_input_counts
 from estimator.mavlink.link import MavlinkLink, open_link
@@ -88,6 +88,7 @@ from estimator.telemetry.decode import (
 )
 from estimator.telemetry.plausibility import pack_voltage_problem
 from estimator.telemetry.samples import BatterySample, LandedSample
+from estimator.telemetry.vehicle_kind import frame_note
 
 log = logging.getLogger("uav_energy.service")
 
@@ -130,6 +131,7 @@ class Service:
         self._cells_checked = False  # a pack voltage of other cells looked at (once a run)
         self._vz_note_said: str | None = None
         self._version_said: tuple[int, int, int] | None = None
+        self._frame_said: Source | None = None  # the autopilot told it flies no multirotor
         self.lock = AutopilotLock(target, (config.system_id, OWN_COMPONENT))
         self.internal_errors = 0
         self.link: MavlinkLink | None = None
@@ -355,10 +357,14 @@ class Service:
 
     def _note_autopilot(self, messages: list[mavlink.MAVLink_message]) -> None:
         """Which autopilot stack the locked sender is, from its HEARTBEAT among ``messages``
-        (kept when there is none)."""
+        (kept when there is none); a frame that is no multirotor is said once an autopilot."""
         for msg in messages:
             if msg.get_type() == "HEARTBEAT" and message_source(msg) == self.lock.locked:
                 self._px4 = msg.autopilot == mavlink.MAV_AUTOPILOT_PX4
+                note = frame_note(int(msg.type))
+                if note is not None and self._frame_said != self.lock.locked:
+                    self._frame_said = self.lock.locked
+                    log.warning("%s", note)
 
     def _autopilot_changed(self, now_s: float) -> None:
         """The autopilot locked (or found at another address): answer only it, ask it for

@@ -81,6 +81,7 @@ from estimator.telemetry.samples import (
     VelocitySample,
     WindSample,
 )
+from estimator.telemetry.vehicle_kind import COPTER_TYPES
 from estimator.telemetry.vz_sense import VerticalSense
 
 UINT16_MAX = 65535
@@ -110,19 +111,6 @@ USED_MESSAGE_IDS = frozenset(
         mavlink.MAVLINK_MSG_ID_EXTENDED_SYS_STATE,
         mavlink.MAVLINK_MSG_ID_AUTOPILOT_VERSION,
         168,  # ArduPilot WIND (ardupilotmega dialect)
-    }
-)
-#: HEARTBEAT ``type`` of the frames ArduCopter flies (its ``autopilot`` ArduPilot).
-COPTER_TYPES = frozenset(
-    {
-        mavlink.MAV_TYPE_QUADROTOR,
-        mavlink.MAV_TYPE_COAXIAL,
-        mavlink.MAV_TYPE_HELICOPTER,
-        mavlink.MAV_TYPE_HEXAROTOR,
-        mavlink.MAV_TYPE_OCTOROTOR,
-        mavlink.MAV_TYPE_TRICOPTER,
-        mavlink.MAV_TYPE_DODECAROTOR,
-        mavlink.MAV_TYPE_DECAROTOR,
     }
 )
 #: ArduPilot's WIND message: id, payload layout (direction the wind comes from in degrees,
@@ -192,8 +180,10 @@ class TelemetryDecoder:
         #: Which way up GLOBAL_POSITION_INT.vz is sent (its firmware text or version, else
         #: its height), and the firmware version.
         self.vz_sense = VerticalSense()
-        #: The first STATUSTEXT naming the firmware (``FIRMWARE_TEXT``), else None.
+        #: The first STATUSTEXT naming the firmware (``FIRMWARE_TEXT``), else None; the
+        #: HEARTBEAT's ``type`` (MAV_TYPE), else None.
         self.firmware_text: str | None = None
+        self.frame_type: int | None = None
 
     def retarget(self, target: tuple[int, int]) -> bool:
         """Decode the autopilot ``target`` (system, component) from now on; whether it is
@@ -305,6 +295,7 @@ class TelemetryDecoder:
 
     def _heartbeat(self, msg: mavlink.MAVLink_message) -> list[Sample]:
         ardupilot = msg.autopilot == mavlink.MAV_AUTOPILOT_ARDUPILOTMEGA
+        self.frame_type = int(msg.type)
         self.vz_sense.heartbeat(ardupilot, msg.type in COPTER_TYPES)
         armed = bool(msg.base_mode & mavlink.MAV_MODE_FLAG_SAFETY_ARMED)
         clock_s = self._clock_s()

@@ -1,0 +1,55 @@
+"""Whether a log's or a link's autopilot flies a rotorcraft: the power model is a multirotor's.
+
+An autopilot says what it flies in its HEARTBEAT ``type`` (MAV_TYPE; a PX4 ULog's
+``vehicle_status.system_type`` holds the same number) and, for ArduPilot, in the firmware
+text it writes at boot ("ArduPlane V4.5.0", "APM:Copter V3.3"). The power model, the fusion's
+figures and the return home are a multirotor's: on a fixed wing, a VTOL, a rover or a
+submarine they describe another vehicle. The readers and the daemon say so in one sentence
+(:func:`frame_note`, :func:`firmware_note`); they do not refuse the log or the link.
+"""
+
+from __future__ import annotations
+
+from pymavlink.dialects.v20 import common as mavlink
+
+from estimator.telemetry.firmware import FIRMWARE_TEXT
+
+#: HEARTBEAT ``type`` of the frames ArduCopter flies (its ``autopilot`` ArduPilot): the
+#: rotorcraft the power model describes.
+COPTER_TYPES = frozenset(
+    {
+        mavlink.MAV_TYPE_QUADROTOR,
+        mavlink.MAV_TYPE_COAXIAL,
+        mavlink.MAV_TYPE_HELICOPTER,
+        mavlink.MAV_TYPE_HEXAROTOR,
+        mavlink.MAV_TYPE_OCTOROTOR,
+        mavlink.MAV_TYPE_TRICOPTER,
+        mavlink.MAV_TYPE_DODECAROTOR,
+        mavlink.MAV_TYPE_DECAROTOR,
+    }
+)
+
+
+def frame_note(mav_type: int | None) -> str | None:
+    """A sentence for an autopilot whose MAV_TYPE is not a rotorcraft's; None for a rotorcraft
+    or an unknown frame (none seen, or MAV_TYPE_GENERIC)."""
+    if mav_type is None or mav_type == mavlink.MAV_TYPE_GENERIC or mav_type in COPTER_TYPES:
+        return None
+    entry = mavlink.enums["MAV_TYPE"].get(mav_type)
+    return _not_a_multirotor(f"MAV_TYPE {mav_type}" if entry is None else entry.name)
+
+
+def firmware_note(text: str) -> str | None:
+    """A sentence for an ArduPilot firmware text that names another vehicle than Copter; None
+    for Copter or a text that names no firmware."""
+    match = FIRMWARE_TEXT.match(text)
+    if match is None or match["vehicle"] == "Copter":
+        return None
+    return _not_a_multirotor(f"Ardu{match['vehicle']} ({text.strip()})")
+
+
+def _not_a_multirotor(frame: str) -> str:
+    return (
+        f"the autopilot flies no multirotor ({frame}): the power model is a multirotor's, so "
+        "its power, energy and endurance figures do not describe this vehicle"
+    )
