@@ -7,12 +7,15 @@ import asyncio
 import copy
 import logging
 import math
+from pathlib import Path
 
 import pytest
 from pymavlink.dialects.v20 import common as mavlink
 from test_service import flight, play, running, wait_for  # noqa: F401 (flight: a fixture)
 from test_trust import autopilot_to, daemon_port
+from tlog_builder import EPOCH_US, write_tlog
 
+from estimator.logs import iter_samples
 from estimator.mavlink import autopilot_lock
 from estimator.mavlink.config import ServiceConfig
 from estimator.telemetry.decode import TelemetryDecoder
@@ -264,6 +267,24 @@ def test_a_rebooted_copter_is_read_right_from_its_first_climb_or_once_its_height
     read_down = [i for i, vd in enumerate(climbing) if vd > 0.0]  # the climb's samples
     assert len(climbing) > 60
     assert read_down == (list(range(DECIDING_PAIRS)) if reflashed else [])
+
+
+def test_a_replayed_tlog_says_each_boots_verdict_in_one_warning(
+    flight: list,  # noqa: F811 (the fixture)
+    tmp_path: Path,
+) -> None:
+    """The reflashed Copter above as a tlog: one vertical-velocity warning (said once a log, as
+    any cause) holding both verdicts in order, the first boot's read positive up, then the
+    reflashed one's positive down again."""
+    codec = mavlink.MAVLink(None, srcSystem=1, srcComponent=1)
+    boots = [*first_seconds(flight, 10.0, -1), *first_seconds(flight, 12.0, 1)]
+    frames = [(EPOCH_US + 10_000 * i, msg.pack(codec)) for i, msg in enumerate(boots)]
+    stream = iter_samples(write_tlog(tmp_path / "reflashed.tlog", frames))
+    list(stream)
+    [(cause, warning)] = stream.problems()
+    assert cause == "vertical velocity"
+    first, then = warning.split("; then ")
+    assert "read positive up from then on" in first and "read positive down again" in then
 
 
 def test_only_an_ardupilot_autopilot_is_asked_its_height() -> None:

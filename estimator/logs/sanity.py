@@ -213,8 +213,8 @@ class SanityRecorder:
         if self.vehicle_note is not None:
             out.append((VEHICLE, self.vehicle_note))
         pairs = self.judged_pairs()
-        if self.vertical_notes:  # the samples before the reader knew are wrong
-            out.extend((VERTICAL_VELOCITY, note) for note in self.vertical_notes)
+        if self.vertical_notes:  # the samples before the reader knew are wrong; one warning
+            out.append((VERTICAL_VELOCITY, "; then ".join(self.vertical_notes)))
         elif pairs is not None and (problem := _vertical_verdict(*pairs, source)) is not None:
             out.append((VERTICAL_VELOCITY, problem))
         if cells is not None and (problem := voltage_problem(self._voltage_v, cells)):
