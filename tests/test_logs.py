@@ -425,6 +425,26 @@ def test_iris_vertical_velocity_is_read_up_and_without_the_firmware_text_said_on
     assert modern.warnings(cells=3) == []
 
 
+def test_a_firmware_text_sent_before_the_first_heartbeat_counts(tmp_path: Path) -> None:
+    """An autopilot's boot text may come before its first HEARTBEAT (a public ArduSub tlog's
+    does): it is kept until the HEARTBEAT names its sender, and then counts as the firmware's
+    word (the name, and an old Copter's vz read positive up from the first sample)."""
+    codec = mavlink.MAVLink(None, srcSystem=1, srcComponent=1)
+    text = codec.statustext_encode(mavlink.MAV_SEVERITY_INFO, b"APM:Copter V3.3 (d3e14c1c)")
+    flight = flight_frames(10, vz_cmps=100)  # vz as sent: 1 m/s
+
+    def read(frames: list[tuple[int, bytes]], name: str) -> tuple[str | None, set[float]]:
+        stream = iter_samples(write_tlog(tmp_path / name, frames))
+        downs = {s.vd_mps for s in stream if isinstance(s, VelocitySample)}
+        return stream.firmware, downs
+
+    assert read([(EPOCH_US, text.pack(codec)), *flight], "early.tlog") == (
+        "APM:Copter V3.3 (d3e14c1c)",
+        {-1.0},
+    )
+    assert read(flight, "none.tlog") == (None, {1.0})
+
+
 def test_vehicle_file_for_another_cell_count_is_a_warning_not_a_silent_zero() -> None:
     stream = iter_samples(ARDUCOPTER_TLOG)
     list(stream)

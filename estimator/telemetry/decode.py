@@ -125,6 +125,8 @@ _VELOCITY_TYPES = {
     mavlink.MAVLINK_MSG_ID_GLOBAL_POSITION_INT: "GLOBAL_POSITION_INT",
     mavlink.MAVLINK_MSG_ID_LOCAL_POSITION_NED: "LOCAL_POSITION_NED",
 }
+#: STATUSTEXTs kept from before the first autopilot HEARTBEAT (an autopilot's boot texts).
+_EARLY_TEXTS = 16
 _NOT_AUTOPILOTS = frozenset(
     {
         mavlink.MAV_TYPE_GCS,
@@ -161,6 +163,7 @@ class TelemetryDecoder:
         self._time = ClockFilter(self.counts, clock)
         self._jumps = VelocityJumps(self.counts)
         self._start_autopilot()
+        self._early_texts: list[mavlink.MAVLink_message] = []
         #: The message type and pack voltage (V) of the latest battery reading skipped as
         #: ``voltage_implausible``; None before the first.
         self.implausible_voltage: tuple[str, float] | None = None
@@ -239,7 +242,11 @@ class TelemetryDecoder:
         if self.target is None:
             if kind == "HEARTBEAT" and is_autopilot(msg):
                 self.target = source
+                for text in (t for t in self._early_texts if message_source(t) == source):
+                    self._statustext(text)  # before any stamp: what it says of the firmware
             else:
+                if kind == "STATUSTEXT" and len(self._early_texts) < _EARLY_TEXTS:
+                    self._early_texts.append(msg)  # a firmware's boot text, before its HEARTBEAT
                 self.counts["before_autopilot"] += 1
                 return []
         if source != self.target:
