@@ -17,9 +17,20 @@ from tlog_builder import flight_frames, write_tlog
 from estimator.cli import main as cli_main
 from estimator.logs import iter_samples
 from estimator.mavlink.config import ServiceConfig
-from estimator.telemetry.vehicle_kind import firmware_note, frame_note
+from estimator.telemetry.vehicle_kind import (
+    COPTER_TYPES,
+    GENERIC_TYPE,
+    firmware_note,
+    frame_note,
+)
 
 NO_MULTIROTOR = "the autopilot flies no multirotor"
+
+
+def test_the_rotorcraft_types_are_mavlinks_numbers() -> None:
+    names = ("QUADROTOR", "COAXIAL", "HELICOPTER", "HEXAROTOR", "OCTOROTOR", "TRICOPTER")
+    named = {getattr(mavlink, f"MAV_TYPE_{n}") for n in (*names, "DODECAROTOR", "DECAROTOR")}
+    assert named == COPTER_TYPES and GENERIC_TYPE == mavlink.MAV_TYPE_GENERIC
 
 
 def test_a_rotorcraft_or_an_unknown_frame_is_not_remarked() -> None:

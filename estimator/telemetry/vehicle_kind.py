@@ -10,22 +10,23 @@ submarine they describe another vehicle. The readers and the daemon say so in on
 
 from __future__ import annotations
 
-from pymavlink.dialects.v20 import common as mavlink
-
 from estimator.telemetry.firmware import FIRMWARE_TEXT
 
+#: MAV_TYPE of a frame not told (MAV_TYPE_GENERIC).
+GENERIC_TYPE = 0
 #: HEARTBEAT ``type`` of the frames ArduCopter flies (its ``autopilot`` ArduPilot): the
-#: rotorcraft the power model describes.
+#: rotorcraft the power model describes. MAVLink's numbers (common.xml's MAV_TYPE), written
+#: out so that a ULog replay, which reads no MAVLink, does not import pymavlink for them.
 COPTER_TYPES = frozenset(
     {
-        mavlink.MAV_TYPE_QUADROTOR,
-        mavlink.MAV_TYPE_COAXIAL,
-        mavlink.MAV_TYPE_HELICOPTER,
-        mavlink.MAV_TYPE_HEXAROTOR,
-        mavlink.MAV_TYPE_OCTOROTOR,
-        mavlink.MAV_TYPE_TRICOPTER,
-        mavlink.MAV_TYPE_DODECAROTOR,
-        mavlink.MAV_TYPE_DECAROTOR,
+        2,  # QUADROTOR
+        3,  # COAXIAL
+        4,  # HELICOPTER
+        13,  # HEXAROTOR
+        14,  # OCTOROTOR
+        15,  # TRICOPTER
+        29,  # DODECAROTOR
+        35,  # DECAROTOR
     }
 )
 
@@ -33,8 +34,11 @@ COPTER_TYPES = frozenset(
 def frame_note(mav_type: int | None) -> str | None:
     """A sentence for an autopilot whose MAV_TYPE is not a rotorcraft's; None for a rotorcraft
     or an unknown frame (none seen, or MAV_TYPE_GENERIC)."""
-    if mav_type is None or mav_type == mavlink.MAV_TYPE_GENERIC or mav_type in COPTER_TYPES:
+    if mav_type is None or mav_type == GENERIC_TYPE or mav_type in COPTER_TYPES:
         return None
+    # named by pymavlink's dialect, imported only for a frame to name (module docstring)
+    from pymavlink.dialects.v20 import common as mavlink
+
     entry = mavlink.enums["MAV_TYPE"].get(mav_type)
     return _not_a_multirotor(f"MAV_TYPE {mav_type}" if entry is None else entry.name)
 
