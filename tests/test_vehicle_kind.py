@@ -41,9 +41,7 @@ def test_a_rotorcraft_or_an_unknown_frame_is_not_remarked() -> None:
     assert "(MAV_TYPE 250)" in str(frame_note(250))  # a number no dialect names
     assert firmware_note("APM:Copter V3.3 (d6053245)") is None
     assert firmware_note("Gripper load released") is None
-    assert "(ArduSub (ArduSub V4.1.0 (89639005)))" in str(
-        firmware_note("ArduSub V4.1.0 (89639005)")
-    )
+    assert "(ArduSub V4.1.0 (89639005)):" in str(firmware_note("ArduSub V4.1.0 (89639005)"))
 
 
 def test_a_fixed_wing_tlog_is_replayed_with_one_warning(
@@ -78,7 +76,7 @@ def test_a_dataflash_log_names_its_vehicle_in_its_firmware_text(tmp_path: Path) 
     rover = iter_samples(log_of("ArduRover V4.5.1 (1a2b3c4d)"))
     list(rover)
     [(cause, warning)] = rover.problems()
-    assert cause == "vehicle" and "(ArduRover (ArduRover V4.5.1 (1a2b3c4d)))" in warning
+    assert cause == "vehicle" and "(ArduRover V4.5.1 (1a2b3c4d)):" in warning
     copter = iter_samples(log_of("ArduCopter V4.5.1 (1a2b3c4d)"))
     list(copter)
     assert copter.problems() == [] and copter.firmware == "ArduCopter V4.5.1 (1a2b3c4d)"

@@ -244,6 +244,7 @@ class TelemetryDecoder:
                 self.target = source
                 for text in (t for t in self._early_texts if message_source(t) == source):
                     self._statustext(text)  # before any stamp: what it says of the firmware
+                self._early_texts.clear()
             else:
                 if kind == "STATUSTEXT" and len(self._early_texts) < _EARLY_TEXTS:
                     self._early_texts.append(msg)  # a firmware's boot text, before its HEARTBEAT

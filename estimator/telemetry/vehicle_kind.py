@@ -49,7 +49,7 @@ def firmware_note(text: str) -> str | None:
     match = FIRMWARE_TEXT.match(text)
     if match is None or match["vehicle"] == "Copter":
         return None
-    return _not_a_multirotor(f"Ardu{match['vehicle']} ({text.strip()})")
+    return _not_a_multirotor(text.strip())
 
 
 def _not_a_multirotor(frame: str) -> str:
