@@ -20,7 +20,7 @@ the record before it. What is used:
   (Copter ≤ 3.4) have ``CURR``: its ``Volt`` / ``Curr`` are integer centivolts / centiamps up
   to Copter 3.3 and float V / A in 3.4, ``CurrTot`` mAh;
 - firmware: the first ``MSG`` text naming it
-  (:data:`~estimator.telemetry.firmware.FIRMWARE_TEXT`), as ``firmware``, and the vehicle it
+  (:func:`~estimator.telemetry.firmware.firmware_named`), as ``firmware``, and the vehicle it
   names when that is not a Copter (:func:`~estimator.telemetry.vehicle_kind.firmware_note`);
 - gripper actions: ``MSG`` texts "Gripper load released"/"grabbed" (as the tlog's STATUSTEXT,
   :func:`~estimator.telemetry.decode.gripper_released`);
@@ -56,7 +56,7 @@ from estimator.errors import UserError
 from estimator.logs import SampleStream, dataflash_records
 from estimator.logs.line_endings import repaired_copy
 from estimator.telemetry.decode import gripper_released
-from estimator.telemetry.firmware import FIRMWARE_TEXT
+from estimator.telemetry.firmware import firmware_named
 from estimator.telemetry.samples import (
     ArmedSample,
     BatterySample,
@@ -338,8 +338,8 @@ class _Decoder:
 
     def _message(self, msg: Any) -> Sample | None:
         text = str(msg.Message)
-        if self._stream.firmware is None and FIRMWARE_TEXT.match(text):
-            self._stream.firmware = text.strip()
+        if self._stream.firmware is None and (named := firmware_named(text)) is not None:
+            self._stream.firmware = named
             self._stream.sanity.vehicle_note = firmware_note(text)
         released = gripper_released(text)
         return None if released is None else GripperSample(self._time_s, released)

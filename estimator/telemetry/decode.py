@@ -59,7 +59,7 @@ from collections.abc import Iterable
 from pymavlink.dialects.v20 import common as mavlink
 
 from estimator.telemetry.clock import ClockFilter, ClockSettings, ClockVerdict
-from estimator.telemetry.firmware import FIRMWARE_TEXT, copter_vz_up
+from estimator.telemetry.firmware import copter_vz_up, firmware_named
 from estimator.telemetry.frames import frame_payload, frame_source
 from estimator.telemetry.plausibility import (
     MAX_WIND_MPS,
@@ -183,7 +183,7 @@ class TelemetryDecoder:
         #: Which way up GLOBAL_POSITION_INT.vz is sent (its firmware text or version, else
         #: its height), and the firmware version.
         self.vz_sense = VerticalSense()
-        #: The first STATUSTEXT naming the firmware (``FIRMWARE_TEXT``), else None; the
+        #: The first STATUSTEXT naming the firmware (:func:`firmware_named`), else None; the
         #: HEARTBEAT's ``type`` (MAV_TYPE), else None.
         self.firmware_text: str | None = None
         self.frame_type: int | None = None
@@ -397,12 +397,12 @@ class TelemetryDecoder:
         return self._time.clocked(sample)
 
     def _statustext(self, msg: mavlink.MAVLink_message) -> list[Sample]:
-        if self.firmware_text is None and FIRMWARE_TEXT.match(str(msg.text)):
-            self.firmware_text = str(msg.text).strip()
-        vz_up = copter_vz_up(str(msg.text))
+        text = str(msg.text)
+        self.firmware_text = self.firmware_text or firmware_named(text)
+        vz_up = copter_vz_up(text)
         if vz_up is not None:
             self.vz_sense.firmware(vz_up)
-        released = gripper_released(str(msg.text))
+        released = gripper_released(text)
         clock_s = self._clock_s()
         if released is None or clock_s is None:
             return []

@@ -20,6 +20,12 @@ FIRMWARE_TEXT = re.compile(r"^(?:APM:|Ardu)(?P<vehicle>\w+) V?(?P<major>\d+)\.(?
 COPTER_VZ_DOWN_SINCE = (3, 6)
 
 
+def firmware_named(text: str) -> str | None:
+    """``text`` without its surrounding blanks when it names a firmware
+    (:data:`FIRMWARE_TEXT`), else None: a log's or a link's name for its autopilot."""
+    return text.strip() if FIRMWARE_TEXT.match(text) else None
+
+
 def copter_vz_up(text: str) -> bool | None:
     """Whether the Copter firmware that sent ``text`` sends GLOBAL_POSITION_INT.vz positive up
     (a version before :data:`COPTER_VZ_DOWN_SINCE`); None when ``text`` names no Copter
