@@ -196,9 +196,6 @@ TRACKER_SHORT = {
     "held13_release_fast_leg": "mass 4.2σ (-0.74 kg) at 197 s: the landing descent's start, "
     "partly in the step's readings past the vertical gates, read as a mass drop (an alarm and "
     "a duel)",
-    "held13_stop_then_release": "mass 3.6σ (+0.16 kg) at 330 s: the step after the release's "
-    "alarm step (reported at a changed state's 1σ) reads the power still settling, at the "
-    "settled 1σ",
     "held16_reversal_legs": "wind 6.0σ (8.3 m/s off) at 234 s: reversed at the end of a hover, "
     "where ArduCopter's EKF holds its wind and SITL's power does not show it; mass 6.4σ "
     "(+0.29 kg) at 246 s: once the vehicle moves, the change read in part as a mass step",
@@ -206,8 +203,6 @@ TRACKER_SHORT = {
     "held3_gust_45s_legs": "wind 8.6σ (7.4 m/s off) at 188 s; mass 85 % within 2σ (median "
     "-0.010 kg at 1σ 0.037 kg), 4.5σ (+0.16 kg) at 138 s",
     "held3_gust_75s_vertical": "wind 3.5σ (7.0 m/s off) at 160 s",
-    "held3_release_high": "mass 99 % within 3σ: 3.01σ (+0.17 kg) at 134 s, the step after the "
-    "release's alarm step",
     "held4_wind_strong_legs": "mass 88 % within 2σ (median -0.028 kg at 1σ 0.023 kg), 3.1σ (+0.10 "
     "kg) at 18 s",
     "held5_turn_legs": "wind 90 % within 2σ, 6.1σ (7.5 m/s off) at 116 s: the two steps right "
@@ -218,7 +213,6 @@ TRACKER_SHORT = {
     "held8_payload_gust_fast": "wind 3.7σ (6.1 m/s off) at 61 s",
     "held8_turn_legs": "wind 6.1σ (7.4 m/s off) at 234 s",
     "held8_two_gusts_legs": "wind 3.1σ (3.2 m/s off) at 234 s",
-    "held9_gust_then_release": "mass 3.5σ (+0.17 kg) at 250 s",
     "held9_reversal_fast_legs": "wind 85 % within 2σ, 10.8σ (9.6 m/s off) at 178 s",
     "held17_gust_across_hover": "mass 96 % within 2σ, 4.5σ (+0.26 kg) at 72 s: 8-14 s into "
     "the gust's onset on a leg, read in part as a mass step before the report moved",

@@ -57,11 +57,12 @@ change that came in the middle of the alarm's step left that step's readings str
 and the estimate half way with the 1σ of a settled one, and the step after is then the rest
 of the change, not an outlier (ArduCopter SITL: a release in hover read 0.5 kg with a 1σ of
 0.07 kg for a step, 7.8–8.2σ). A step that did not settle the estimate (its readings beyond
-the gate with no alarm, an alarm's redo outside a duel, or a CUSUM sum that grew past half
-way to its alarm) is reported with a changed state's wind and mass 1σ until the next step
-(:attr:`~OnlineEffects.sigma`): an outlier and the start of a change look alike for one step,
-an alarm's step may straddle the change, and innovations leaning one way say the estimate may
-be following a change at the random walk's pace (a release read half way, at a settled 1σ).
+the gate with no alarm, an alarm's redo outside a duel and the step after it, or a CUSUM sum
+that grew past half way to its alarm) is reported with a changed state's wind and mass 1σ
+until the next step (:attr:`~OnlineEffects.sigma`): an outlier and the start of a change look
+alike for one step, an alarm's step may straddle the change (the step after reads the rest of
+it), and innovations leaning one way say the estimate may be following a change at the random
+walk's pace (a release read half way, at a settled 1σ).
 In hover that state is the mass (a wind shows in hover only through translational lift, weakly,
 and is held there, below). In forward flight a payload step and a wind change both move the
 power, so both hypotheses run side by side (one with the mass widened, one with the wind) until
@@ -204,10 +205,8 @@ class OnlineEffects:
         self._rival: Hypothesis | None = None  # the other hypothesis after a change
         self._duel_steps = 0
         self._changing = False  # the last step raised a change alarm
-        #: The last step did not settle the estimate: its readings were beyond the gate (an
-        #: outlier or a change starting, which the next step tells apart), they raised a
-        #: change alarm (the redo rests on them alone, and they may straddle the change), or
-        #: a CUSUM sum grew past half way to an alarm. Its 1σ is then a changed state's.
+        #: The last step did not settle the estimate (beyond the gate, an alarm's step or the
+        #: one after, a CUSUM past half way: module docstring). Its 1σ is a changed state's.
         self._unsettled = False
         #: Measurement noise beyond the configured one, learnt from the innovations, W².
         self.extra_noise_var_w2 = 0.0
@@ -505,7 +504,7 @@ class OnlineEffects:
         elif main.nu is not None:
             self.updates += 1
         leaning = fed and self._detector.half_way()
-        self._unsettled = self._rival is None and (self._changing or refused or leaning)
+        self._unsettled = self._rival is None and (self._changing or changing or refused or leaning)
         self._x, self._p, self._form, self._loglik = main.x, main.p, main.form, main.loglik
 
     def _change_goes_on(self, nu: float, changing: bool) -> bool:

@@ -1,8 +1,8 @@
 """The held-out flights of ``replay/sitl_held`` through wind turns and reversals
-(``uav-energy sitl-record held16``), through changes across hovers (``held17``) and through
-changes the autopilot's report shows late, with releases near them (``held18``), and every
-held-out set by name (:data:`HELD_SETS`; the
-earlier ones are :mod:`estimator.sitl.held_scenarios` and
+(``uav-energy sitl-record held16``), through changes across hovers (``held17``), through
+changes the autopilot's report shows late, with releases near them (``held18``) and through
+changes in hovers, most of them payload releases (``held19``), and every held-out set by name
+(:data:`HELD_SETS`; the earlier ones are :mod:`estimator.sitl.held_scenarios` and
 :mod:`estimator.sitl.fast_held_scenarios`).
 
 The sixteenth set was recorded right after the commit that defined it froze the online
@@ -11,7 +11,8 @@ tracker with the autopilot report's lag term widening both wind components alike
 (docs/residuals.md, "Held-out SITL flights"); the seventeenth after the commit that held
 the lag term while the vehicle hovers; the eighteenth after the commit that took back the
 mass learnt against the old wind when the report shows a change (3b44bad), a rule these
-flights refuted and that was reverted (docs/residuals.md). Steps as in
+flights refuted and that was reverted (docs/residuals.md); the nineteenth after the commit
+that reports the step after an alarm's step with a changed state's 1σ as well. Steps as in
 :mod:`estimator.sitl.scenarios` (positions and velocities NED, m and m/s; durations s).
 """
 
@@ -38,7 +39,17 @@ from estimator.sitl.held_scenarios import (
     HELD_SCENARIOS_6,
     vertical_scenario,
 )
-from estimator.sitl.scenarios import CIRCLES, LEGS, Grip, Hover, Scenario, SetWind, Takeoff, by_name
+from estimator.sitl.scenarios import (
+    CIRCLES,
+    LEGS,
+    Grip,
+    Hover,
+    Leg,
+    Scenario,
+    SetWind,
+    Takeoff,
+    by_name,
+)
 
 # fmt: off
 #: The sixteenth held-out set: winds that turn, reverse, set in and stop across the legs and
@@ -199,6 +210,68 @@ HELD_SCENARIOS_18: dict[str, Scenario] = by_name(
     ),
 )
 
+#: The nineteenth held-out set: changes a hover's power shows and the step after their alarm
+#: reads: payload releases in short and long hovers, in wind, low and high, after legs, circles
+#: and fast legs, a release and an onset in one hover, a gust setting in during a hover, and a
+#: clean flight with hovers and a climb.
+HELD_SCENARIOS_19: dict[str, Scenario] = by_name(
+    vertical_scenario(
+        "held19_release_short_hover",
+        "1 kg gripper payload from take-off; legs, the payload released 3 s into a 10 s "
+        "hover; legs",
+        Grip(True), Hover(3), Takeoff(), *LEGS[:5], Hover(3), Grip(False), Hover(7), *LEGS[5:],
+        *LEGS[1:4],
+    ),
+    vertical_scenario(
+        "held19_release_circles_wind",
+        "1 kg gripper payload from take-off; wind 4 m/s from 310° from take-off; circles, the "
+        "payload released in a hover after them; legs",
+        SetWind(4, 310), Grip(True), Hover(3), Takeoff(), *CIRCLES[:-1], Hover(8), Grip(False),
+        Hover(12), *LEGS[1:6],
+    ),
+    vertical_scenario(
+        "held19_release_fast_hover",
+        "1 kg gripper payload from take-off; long legs at 8-9 m/s, the payload released in a "
+        "15 s hover; long legs",
+        Grip(True), Hover(3), Takeoff(), *FAST_LEGS[:6], Hover(5), Grip(False), Hover(10),
+        *FAST_LEGS[6:], *FAST_LEGS[1:4],
+    ),
+    vertical_scenario(
+        "held19_release_low_wind",
+        "1 kg gripper payload from take-off; wind 6 m/s from 060° from take-off; legs, a "
+        "descent at 2 m/s to 10 m, the payload released in a hover there, the climb back at "
+        "2 m/s; legs",
+        SetWind(6, 60), Grip(True), Hover(3), Takeoff(), *LEGS[:4], Leg(0, 0, 5, 2), Hover(6),
+        Grip(False), Hover(10), Leg(0, 0, 5, -2), *LEGS[4:], *LEGS[1:3],
+    ),
+    vertical_scenario(
+        "held19_gust_in_hover",
+        "wind 6 m/s from 170° for about 75 s, setting in 10 s into a 25 s hover; legs",
+        Takeoff(), *LEGS[:3], Hover(10), SetWind(6, 170), Hover(15), *LEGS[4:7], SetWind(0),
+        *LEGS[7:], *LEGS[1:4],
+    ),
+    vertical_scenario(
+        "held19_release_then_onset_hover",
+        "1 kg gripper payload from take-off; legs, the payload released 5 s into a 25 s hover "
+        "and wind 5 m/s from 250° switched on 10 s later; legs",
+        Grip(True), Hover(3), Takeoff(), *LEGS[:5], Hover(5), Grip(False), Hover(10),
+        SetWind(5, 250), Hover(10), *LEGS[5:], *LEGS[1:4],
+    ),
+    vertical_scenario(
+        "held19_release_high_fast",
+        "1 kg gripper payload from take-off; long legs, a climb at 6 m/s by 30 m, the payload "
+        "released in a hover at the top, the descent at 3 m/s; long legs",
+        Grip(True), Hover(3), Takeoff(), *FAST_LEGS[:4], Leg(0, 0, 5, -6), Hover(6),
+        Grip(False), Hover(10), Leg(0, 0, 10, 3), *FAST_LEGS[4:], *FAST_LEGS[1:4],
+    ),
+    vertical_scenario(
+        "held19_clean_hovers_climb",
+        "no effect; legs, a climb at 3 m/s by 15 m, a 15 s hover, the descent; legs",
+        Takeoff(), *LEGS[:5], Leg(0, 0, 5, -3), Hover(15), Leg(0, 0, 5, 3), *LEGS[5:],
+        *LEGS[1:4],
+    ),
+)
+
 #: Every held-out set by the name ``uav-energy sitl-record`` records it under.
 HELD_SETS: dict[str, dict[str, Scenario]] = {
     "held": HELD_SCENARIOS,
@@ -219,5 +292,6 @@ HELD_SETS: dict[str, dict[str, Scenario]] = {
     "held16": HELD_SCENARIOS_16,
     "held17": HELD_SCENARIOS_17,
     "held18": HELD_SCENARIOS_18,
+    "held19": HELD_SCENARIOS_19,
 }
 # fmt: on
