@@ -21,7 +21,7 @@ from estimator.analysis.mission_validation import (
 )
 from estimator.errors import UserError
 from estimator.logs.mission_files import load_mission
-from estimator.physics.lean_limit import DragLaw, along_track_limit_mps
+from estimator.physics.lean_limit import DragLaw, airspeed_reach_mps, along_track_limit_mps
 from estimator.physics.vehicle import default_vehicle, load_vehicle, vehicle_from_toml
 
 REPO = Path(__file__).resolve().parent.parent
@@ -50,6 +50,18 @@ def test_off_the_nose_the_vehicle_flies_faster_and_a_crosswind_costs_headway() -
     # a tailwind adds no airspeed limit of its own: the airspeed along the track is the same
     tail = along_track_limit_mps(SITL_DRAG, 10.2, (5.0, 0.0), 0.0, 0.0)
     assert tail == pytest.approx(straight, abs=1e-9)
+
+
+def test_the_reach_in_any_direction_is_at_45_degrees_off_the_nose_for_equal_axes() -> None:
+    """Quadratic drag alike on both axes: 45° off the nose meets 1/√2 of it, so the airspeed
+    at the same lean is 2^¼ times the straight one; momentum drag (linear, round) takes some
+    of that; without a drag law the reach is the straight limit."""
+    quadratic = DragLaw(17.209, 17.209, 0.0)
+    assert airspeed_reach_mps(quadratic, 10.2) == pytest.approx(10.2 * 2**0.25, rel=1e-4)
+    reach = airspeed_reach_mps(SITL_DRAG, 10.2)
+    assert 10.2 < reach < 10.2 * 2**0.25
+    assert reach == pytest.approx(along_track_limit_mps(SITL_DRAG, 10.2, (0, 0), 0, 45), rel=1e-3)
+    assert airspeed_reach_mps(None, 10.2) == 10.2
 
 
 def test_a_payload_lets_the_same_lean_balance_more_drag() -> None:

@@ -5,13 +5,14 @@ effect no candidate covers is reported with the channel that predicts it."""
 from __future__ import annotations
 
 import math
+from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
 import pytest
 
 from estimator.analysis.residual_attribution import MAX_KNN_TRAIN_ROWS, attribute
-from estimator.analysis.residual_candidates import candidates_for
+from estimator.analysis.residual_candidates import candidates_for, winds_within_reach
 from estimator.analysis.residual_fit import best_switch, best_window
 from estimator.analysis.residual_samples import (
     ResidualOptions,
@@ -491,3 +492,31 @@ def test_a_power_through_the_accelerations_filter_fits_a_sharp_transients_gain()
     filtered = float(np.dot(filtered_w, accel) / np.dot(accel, accel))
     assert raw > 1.2 * 20.0
     assert filtered == pytest.approx(20.0, rel=0.05)
+
+
+def test_a_wind_the_vehicle_could_not_have_flown_through_is_not_named(tmp_path: Path) -> None:
+    """A wind is judged by the airspeed it implies where it blows, not by its speed: one the
+    vehicle hovers in beyond its reach is out, one it flies downwind with is in; a vehicle
+    file whose reach is below the airspeeds flown names no wind at all."""
+    hover = FlightState(
+        time_s=np.arange(0.0, 100.0, 0.5),
+        vn_mps=np.where(np.arange(0.0, 100.0, 0.5) < 60.0, 0.0, 14.0),
+        ve_mps=np.zeros(200),
+        vd_mps=np.zeros(200),
+        an_mps2=np.zeros(200),
+        ae_mps2=np.zeros(200),
+        alt_m=np.full(200, 20.0),
+        voltage_v=np.full(200, 12.0),
+    )
+    # hovering (most of the time) in a north wind (from 0°): the airspeed is the wind's speed
+    assert not winds_within_reach([Wind(14.0, 0.0)], hover, 11.6)
+    assert winds_within_reach([Wind(5.0, 0.0)], hover, 11.6)
+    # from 60 s the vehicle flies north at 14 m/s, as a south wind (from 180°) blows
+    assert winds_within_reach([Wind(14.0, 180.0, at_s=60.0)], hover, 11.6)
+    assert not winds_within_reach([Wind(14.0, 180.0, until_s=60.0)], hover, 11.6)
+    wind = Wind(6.0, 60.0)
+    flights = flights_of(tmp_path, "mixed", 4, (wind,))
+    result = analyze(flights, replace(VEHICLE, max_airspeed_mps=2.0))
+    assert not any(isinstance(e, Wind) for e in result.effects)
+    winds = [c for c in result.table if c.label.startswith("wind")]
+    assert winds and not any(c.within_reach or c.qualifies for c in winds)

@@ -18,12 +18,14 @@ from estimator.physics.effects import (
     Avionics,
     Climb,
     Effect,
+    FlightState,
     Heave,
     Mass,
     ReportedWind,
     Turn,
     Voltage,
     Wind,
+    active,
     wind_from_vector,
     wind_vector_ne_mps,
 )
@@ -82,6 +84,26 @@ def _wind(x: FloatArray, at_s: float | None, until_s: float | None) -> Effect:
     """x = air-mass velocity over ground (north, east), m/s."""
     wind = wind_from_vector(float(x[0]), float(x[1]))
     return replace(wind, at_s=at_s, until_s=until_s)
+
+
+def winds_within_reach(effects: Sequence[Effect], state: FlightState, reach_mps: float) -> bool:
+    """Whether the vehicle could have flown its ground track through every steady wind of
+    ``effects``: over the samples each blows on, the airspeed it implies (ground velocity less
+    the wind's, m/s) at most ``reach_mps`` (the vehicle's fastest airspeed in any direction at
+    its file's mass, :func:`~estimator.physics.lean_limit.airspeed_reach_mps`) on at least half
+    of them. A multicopter at its lean limit flies through the air no faster: a stronger wind
+    would have carried it off the track it flew, so a fit that needs one is absorbing
+    something else (a payload draws power as a strong wind does in a hover)."""
+    for effect in effects:
+        if not isinstance(effect, Wind):
+            continue
+        wind_n, wind_e = effect.vector_ne_mps()
+        airspeed_mps = np.hypot(state.vn_mps - wind_n, state.ve_mps - wind_e)
+        on = np.broadcast_to(active(state.time_s, effect.at_s, effect.until_s), airspeed_mps.shape)
+        blown = airspeed_mps[on > 0]
+        if blown.size and float(np.median(blown)) > reach_mps:
+            return False
+    return True
 
 
 def _reported_wind(samples: Samples) -> Candidate | None:

@@ -42,7 +42,9 @@ already in
    and short enough that an effect seen only in turns or in accelerations still spans many
    blocks). A candidate qualifies when z > ``z_threshold`` (3: one-sided p ≈ 0.001, ≈ 1 %
    family-wise over the candidates) *and*
-   it cuts the held-out RMSE by at least ``min_gain_fraction``; the best qualifying one is
+   it cuts the held-out RMSE by at least ``min_gain_fraction`` *and*, for a wind, the vehicle
+   could fly through it (:func:`~estimator.analysis.residual_candidates.winds_within_reach`,
+   in most folds, where the vehicle file states its airspeed); the best qualifying one is
    added; selection stops when none qualifies. On clean data nothing qualifies.
 5. **Attribution**: the held-out residual left after selection is regressed on each channel
    alone with a k-nearest-neighbour regressor (sklearn, same folds; the mean per value for
@@ -65,7 +67,11 @@ import numpy as np
 from scipy.stats import rankdata
 
 from estimator.analysis.residual_attribution import ChannelScore, attribute
-from estimator.analysis.residual_candidates import Candidate, candidates_for
+from estimator.analysis.residual_candidates import (
+    Candidate,
+    candidates_for,
+    winds_within_reach,
+)
 from estimator.analysis.residual_fit import FitProblem, Term, fit_design
 from estimator.analysis.residual_samples import ResidualOptions, Samples, prepare
 from estimator.errors import UserError
@@ -77,6 +83,7 @@ from estimator.physics.effects import (
     ReportedWind,
     Wind,
 )
+from estimator.physics.lean_limit import airspeed_reach_mps
 from estimator.physics.model import FloatArray
 from estimator.physics.vehicle import Vehicle
 
@@ -92,6 +99,8 @@ class CandidateScore:
     z: float
     qualifies: bool
     params: dict[str, Any]
+    #: False when its wind is beyond the vehicle's reach in most folds (it cannot qualify).
+    within_reach: bool = True
 
 
 @dataclass
@@ -276,6 +285,7 @@ class ResidualResult:
                     "gain_pct": round(100.0 * c.gain_fraction, 2),
                     "z": round(c.z, 2),
                     "qualifies": c.qualifies,
+                    "within_reach": c.within_reach,
                     "params": _round_params(c.params),
                 }
                 for c in self.table
@@ -401,6 +411,11 @@ def analyze(
     before = FitProblem(vehicle, samples, everything).predict([])
     f_scale_w = _robust_scale_w(samples.power_w - before)
     remaining = candidates_for(vehicle, samples, opt.candidates)
+    reach_mps = (
+        math.inf
+        if vehicle.max_airspeed_mps is None
+        else airspeed_reach_mps(vehicle.drag, vehicle.max_airspeed_mps)
+    )
     chosen: list[Candidate] = []
     warm: list[FloatArray | None] = []
     current = before
@@ -418,9 +433,15 @@ def analyze(
             rmse = float(np.sqrt(np.mean((samples.power_w - predicted) ** 2)))
             gain = 1.0 - rmse / rmse_now if rmse_now > 0 else 0.0
             z = _block_gain_z(samples, samples.power_w - current, samples.power_w - predicted)
-            ok = z > opt.z_threshold and gain >= opt.min_gain_fraction
+            # a wind beyond the vehicle's reach in most folds is a fit absorbing another effect
+            reachable = 2 * sum(
+                winds_within_reach(terms[-1].effects(), samples.state, reach_mps) for terms in folds
+            ) > len(folds)
+            ok = reachable and z > opt.z_threshold and gain >= opt.min_gain_fraction
             median_params = folds[len(folds) // 2][-1].effects()[0].params
-            table.append(CandidateScore(step, cand.label, rmse, gain, z, ok, median_params))
+            table.append(
+                CandidateScore(step, cand.label, rmse, gain, z, ok, median_params, reachable)
+            )
             trials.append((rmse, z, ok, cand, predicted, folds))
         good = [t for t in trials if t[2]]
         if not good:

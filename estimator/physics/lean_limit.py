@@ -90,3 +90,23 @@ def along_track_limit_mps(
         middle = 0.5 * (low + high)
         low, high = (middle, high) if deceleration(middle) < limit_mps2 else (low, middle)
     return low - wind_along if low > wind_along else -math.inf
+
+
+def airspeed_reach_mps(law: DragLaw | None, straight_limit_mps: float) -> float:
+    """The fastest airspeed (m/s) at the lean limit in any direction off the nose: the
+    deceleration of ``straight_limit_mps`` straight ahead met by an airspeed at 0–90° off the
+    nose (1° steps; with equal quadratic coefficients the most is 2^¼ times the straight limit,
+    at 45°). Without a drag law, ``straight_limit_mps``."""
+    if law is None:
+        return straight_limit_mps
+    limit_mps2 = law.deceleration_mps2(straight_limit_mps, 0.0)
+    reach_mps = straight_limit_mps
+    for off_deg in range(91):
+        cos_off, sin_off = math.cos(math.radians(off_deg)), math.sin(math.radians(off_deg))
+        low, high = 0.0, 4.0 * straight_limit_mps
+        for _ in range(_BISECTION_STEPS):
+            middle = 0.5 * (low + high)
+            slower = law.deceleration_mps2(middle * cos_off, middle * sin_off) < limit_mps2
+            low, high = (middle, high) if slower else (low, middle)
+        reach_mps = max(reach_mps, low)
+    return reach_mps

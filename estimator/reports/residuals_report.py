@@ -254,9 +254,12 @@ def _markdown(result: ResidualResult, title: str, files: list[Path]) -> str:
     ]
     for row in s["selection"]:
         params = ", ".join(f"{k} = {v}" for k, v in row["params"].items())
+        verdict = "yes" if row["qualifies"] else "no"
+        if not row["within_reach"]:
+            verdict = "no: a wind beyond the vehicle's airspeed"
         lines.append(
             f"| {row['step']} | {row['candidate']} | {row['rmse_w']:.2f} | {row['gain_pct']:.2f} "
-            f"| {row['z']:.2f} | {'yes' if row['qualifies'] else 'no'} | {params} |"
+            f"| {row['z']:.2f} | {verdict} | {params} |"
         )
     lines += [
         "",

@@ -1,7 +1,8 @@
 """The held-out flights of ``replay/sitl_held`` through wind turns and reversals
 (``uav-energy sitl-record held16``), through changes across hovers (``held17``), through
-changes the autopilot's report shows late, with releases near them (``held18``) and through
-changes in hovers, most of them payload releases (``held19``), and every held-out set by name
+changes the autopilot's report shows late, with releases near them (``held18``), through
+changes in hovers, most of them payload releases (``held19``) and through short wind
+episodes, climbs and strong winds (``held20``); and every held-out set by name
 (:data:`HELD_SETS`; the earlier ones are :mod:`estimator.sitl.held_scenarios` and
 :mod:`estimator.sitl.fast_held_scenarios`).
 
@@ -12,8 +13,9 @@ tracker with the autopilot report's lag term widening both wind components alike
 the lag term while the vehicle hovers; the eighteenth after the commit that took back the
 mass learnt against the old wind when the report shows a change (3b44bad), a rule these
 flights refuted and that was reverted (docs/residuals.md); the nineteenth after the commit
-that reports the step after an alarm's step with a changed state's 1σ as well. Steps as in
-:mod:`estimator.sitl.scenarios` (positions and velocities NED, m and m/s; durations s).
+that reports the step after an alarm's step with a changed state's 1σ as well; the twentieth
+after the commit that kept the residual loop's winds within the vehicle's airspeed. Steps as
+in :mod:`estimator.sitl.scenarios` (positions and velocities NED, m and m/s; durations s).
 """
 
 from __future__ import annotations
@@ -272,6 +274,90 @@ HELD_SCENARIOS_19: dict[str, Scenario] = by_name(
     ),
 )
 
+#: The twentieth held-out set, for the residual loop with its winds bounded by the vehicle's
+#: airspeed: wind episodes of 40-85 s over legs, circles and climbs, winds that stop and set
+#: in among climbs, payloads released in wind after descents and climbs, winds near the
+#: vehicle's reach (9 m/s) with and without a payload, and a clean flight with tall climbs.
+HELD_SCENARIOS_20: dict[str, Scenario] = by_name(
+    vertical_scenario(
+        "held20_gust_75s_legs",
+        "wind 7 m/s from 200° for about 75 s of legs; legs",
+        Takeoff(), *LEGS[:4], SetWind(7, 200), *LEGS[4:8], Hover(10), SetWind(0), *LEGS[8:],
+        *LEGS[1:4],
+    ),
+    vertical_scenario(
+        "held20_gust_circles",
+        "wind 6 m/s from 100° for about 70 s of circles; circles, legs",
+        Takeoff(), *LEGS[:3], SetWind(6, 100), *CIRCLES[1:3], SetWind(0), *CIRCLES[3:],
+        *LEGS[1:4],
+    ),
+    vertical_scenario(
+        "held20_gust_climbs",
+        "wind 6 m/s from 330° for about 75 s: a climb at 4 m/s by 20 m, legs there, a descent "
+        "at 2 m/s; legs",
+        Takeoff(), *LEGS[:3], SetWind(6, 330), Leg(0, 0, 5, -4), *LEGS[4:7], Leg(0, 0, 10, 2),
+        SetWind(0), *LEGS[7:], *LEGS[1:4],
+    ),
+    vertical_scenario(
+        "held20_stop_climbing_legs",
+        "wind 5 m/s from 120° from take-off, stopped mid-flight; legs, a climbing and a "
+        "descending leg at 2 m/s; legs",
+        SetWind(5, 120), Takeoff(), *LEGS[:6], Leg(4, 0, 10, -2), Leg(-4, 0, 10, 2), SetWind(0),
+        *LEGS[6:], *LEGS[1:5],
+    ),
+    vertical_scenario(
+        "held20_release_low_wind7",
+        "1 kg gripper payload from take-off; wind 7 m/s from 030° from take-off; legs, a "
+        "descent at 2.5 m/s to 10 m, the payload released in a hover there, the climb back; "
+        "legs",
+        SetWind(7, 30), Grip(True), Hover(3), Takeoff(), *LEGS[:4], Leg(0, 0, 4, 2.5),
+        Hover(6), Grip(False), Hover(12), Leg(0, 0, 4, -2.5), *LEGS[4:], *LEGS[1:3],
+    ),
+    vertical_scenario(
+        "held20_payload_strong_wind",
+        "1 kg gripper payload from take-off; wind 9 m/s from 250° throughout; legs",
+        SetWind(9, 250), Grip(True), Hover(3), Takeoff(), *LEGS, *LEGS[1:5],
+    ),
+    vertical_scenario(
+        "held20_release_after_climb_wind",
+        "1 kg gripper payload from take-off; wind 5 m/s from 160° from take-off; legs, a climb "
+        "at 5 m/s by 40 m, the payload released in a hover at the top, the descent at 4 m/s; "
+        "legs",
+        SetWind(5, 160), Grip(True), Hover(3), Takeoff(), *LEGS[:4], Leg(0, 0, 8, -5),
+        Hover(6), Grip(False), Hover(10), Leg(0, 0, 10, 4), *LEGS[4:], *LEGS[1:3],
+    ),
+    vertical_scenario(
+        "held20_payload_gust_legs",
+        "1 kg gripper payload from take-off; wind 6 m/s from 020° for about 75 s of legs; legs",
+        Grip(True), Hover(3), Takeoff(), *LEGS[:4], SetWind(6, 20), *LEGS[4:8], Hover(10),
+        SetWind(0), *LEGS[8:], *LEGS[1:4],
+    ),
+    vertical_scenario(
+        "held20_clean_tall_stairs",
+        "no effect; a climb at 7 m/s by 35 m, legs, a climb at 1 m/s by 10 m, a descent at "
+        "5 m/s by 30 m, legs, a descent at 2 m/s by 15 m",
+        Takeoff(), Hover(10), Leg(0, 0, 5, -7), *LEGS[1:4], Leg(0, 0, 10, -1), Hover(5),
+        Leg(0, 0, 6, 5), *LEGS[4:8], Leg(0, 0, 7.5, 2), *LEGS[8:],
+    ),
+    vertical_scenario(
+        "held20_strong_wind_hovers",
+        "wind 9 m/s from 160° throughout; legs and 20 s hovers",
+        SetWind(9, 160), Takeoff(), *LEGS[:4], Hover(20), *LEGS[4:8], Hover(20), *LEGS[8:],
+    ),
+    vertical_scenario(
+        "held20_onset_in_climb",
+        "wind 6 m/s from 280° switched on during a climb at 3 m/s by 24 m; legs",
+        Takeoff(), *LEGS[:5], Leg(0, 0, 4, -3), SetWind(6, 280), Leg(0, 0, 4, -3), *LEGS[5:],
+        *LEGS[1:5],
+    ),
+    vertical_scenario(
+        "held20_gust_40s_hover_legs",
+        "wind 7 m/s from 060° for about 40 s: a 10 s hover and legs; legs",
+        Takeoff(), *LEGS[:5], SetWind(7, 60), Hover(10), *LEGS[5:7], SetWind(0), *LEGS[7:],
+        *LEGS[1:4],
+    ),
+)
+
 #: Every held-out set by the name ``uav-energy sitl-record`` records it under.
 HELD_SETS: dict[str, dict[str, Scenario]] = {
     "held": HELD_SCENARIOS,
@@ -293,5 +379,6 @@ HELD_SETS: dict[str, dict[str, Scenario]] = {
     "held17": HELD_SCENARIOS_17,
     "held18": HELD_SCENARIOS_18,
     "held19": HELD_SCENARIOS_19,
+    "held20": HELD_SCENARIOS_20,
 }
 # fmt: on
