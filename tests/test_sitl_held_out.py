@@ -161,6 +161,20 @@ NOT_RIGHT = {
     "at z 2.3; the windowed wind (2.8 m/s from 94°, until 166 s; truth 6 m/s from 170°, "
     "129-204 s) loses 63 %, and so does the autopilot's wind × 0.82 (54 %), which holds its "
     "old value through the hover the gust set in during",
+    "held20_gust_40s_hover_legs": "a 40 s episode setting in during a 10 s hover: the windowed "
+    "wind (6.5 m/s from 65°, from 153 s; truth 7 m/s from 60°, 149-199 s) loses 150 %, the "
+    "autopilot's wind × 0.93 gains 48 % at z 0.45 (its report lags the onset and holds after "
+    f"the end) ({SHORT_EPISODE})",
+    "held20_gust_75s_legs": "the window search does not find the gust: from the all-flight "
+    "wind (1.3 m/s from 8°) and the two halves' (the gust, 129-205 s, sits across the middle) "
+    "it settles on 1.7 m/s from 5° until 267 s (truth 7 m/s from 200°), which loses 28 %; the "
+    "autopilot's wind × 0.80 gains 39 % at z 1.25",
+    "held20_gust_circles": "the windowed wind is right (5.7 m/s from 98°, 121-187 s; truth "
+    "6 m/s from 100°, 119-186 s) but gains 21 % at z 1.96, the autopilot's wind × 0.88 42 % at "
+    "z 0.24: short of z 3",
+    "held20_gust_climbs": "a 75 s episode over a climb, legs and a descent: no candidate gains "
+    "more than 11 % at z above 1.9 (a wind change 4.7 m/s from 323° until 184 s, 8 %); the "
+    "autopilot's wind × 0.82 gains 28 % at z 1.61",
 }
 #: Flights whose held-out RMSE after ends above 2.5 noise floors, and why.
 ABOVE_FLOOR = {
@@ -184,6 +198,9 @@ ABOVE_FLOOR = {
     "held17_gust_across_hover": "the wind episode not named (above): 4.75 floors",
     "held17_reversal_before_hover": "the reversal placed 26 s late (above): 2.83 floors",
     "held18_gust_hover_to_legs": "the wind episode not named (above): 2.65 floors",
+    "held20_gust_40s_hover_legs": "the wind episode not named (above): 3.86 floors",
+    "held20_gust_75s_legs": "the wind episode not named (above): 2.96 floors",
+    "held20_gust_circles": "the wind episode not named (above): 3.00 floors",
 }
 #: Flights whose running mass or wind misses the tracker's aim, and why (times from take-off). The
 #: wind follows the autopilot's WIND, which lags a gust's start by ~30 s and holds after its end (in
@@ -242,6 +259,20 @@ TRACKER_SHORT = {
     "a step, while the report held its old value for 12 s, and the tracker did not follow it",
     "held_gust_60s": "wind 91 % within 2σ, 5.0σ (8.1 m/s off) at 138 s; mass 4.2σ (+0.15 kg) at "
     "148 s",
+    "held20_gust_40s_hover_legs": "wind 3.7σ (7.4 m/s off) at 104-106 s: the onset came in a "
+    "10 s hover, its first steps blind; 3.1σ at 154 s, the step after its end",
+    "held20_gust_75s_legs": "wind 89 % within 2σ, 4.7σ at 84 s (the onset's step, blind) and "
+    "5.3σ (5.9 m/s off) at 190 s: after the gust's end at 158 s the estimate kept its wind, "
+    "and its 1σ shrank back within 30 s while the autopilot's report held the old wind",
+    "held20_payload_strong_wind": "mass 89 % within 2σ, at most 2.9σ (+0.16 to +0.29 kg in the "
+    "first 36 s): from take-off in a 9 m/s wind, the hover's extra power goes to the mass while "
+    "the wind estimate rises with the autopilot's report (its 1σ 30 m/s): at zero wind a "
+    "hover's power has no slope in the wind, so the linearised filter couples them not at all",
+    "held20_release_low_wind7": "mass 84 % within 2σ, at most 2.2σ: +0.11 to +0.22 kg in the "
+    "take-off hover in a 7 m/s wind (as held20_payload_strong_wind), +0.09 kg after the release "
+    "at 1σ 0.045 kg with the wind 1.3 m/s short",
+    "held20_strong_wind_hovers": "mass 88 % within 2σ, 4.8σ (+0.15 kg, no payload) at 18-20 s: "
+    "the take-off hover in a 9 m/s wind (as held20_payload_strong_wind)",
 }
 
 
