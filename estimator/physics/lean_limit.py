@@ -22,6 +22,7 @@ clockwise from north.
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 from dataclasses import dataclass
 
 #: Sea-level air density (kg/m³), as EKF3 scales its drag coefficients.
@@ -86,10 +87,19 @@ def along_track_limit_mps(
     if deceleration(low) >= limit_mps2:
         return -math.inf
     high = low + 2.0 * straight_limit_mps + 2.0 * math.hypot(*wind_ne_mps)
+    low = _fastest_mps(deceleration, limit_mps2, low, high)
+    return low - wind_along if low > wind_along else -math.inf
+
+
+def _fastest_mps(
+    deceleration: Callable[[float], float], limit_mps2: float, low: float, high: float
+) -> float:
+    """The speed (m/s) between ``low`` (below the limit) and ``high`` (above it) at which
+    ``deceleration`` (m/s², growing with the speed) meets ``limit_mps2``, by bisection."""
     for _ in range(_BISECTION_STEPS):
         middle = 0.5 * (low + high)
         low, high = (middle, high) if deceleration(middle) < limit_mps2 else (low, middle)
-    return low - wind_along if low > wind_along else -math.inf
+    return low
 
 
 def airspeed_reach_mps(law: DragLaw | None, straight_limit_mps: float) -> float:
@@ -100,13 +110,14 @@ def airspeed_reach_mps(law: DragLaw | None, straight_limit_mps: float) -> float:
     if law is None:
         return straight_limit_mps
     limit_mps2 = law.deceleration_mps2(straight_limit_mps, 0.0)
-    reach_mps = straight_limit_mps
-    for off_deg in range(91):
+    drag = law
+
+    def off_the_nose(off_deg: int) -> Callable[[float], float]:
         cos_off, sin_off = math.cos(math.radians(off_deg)), math.sin(math.radians(off_deg))
-        low, high = 0.0, 4.0 * straight_limit_mps
-        for _ in range(_BISECTION_STEPS):
-            middle = 0.5 * (low + high)
-            slower = law.deceleration_mps2(middle * cos_off, middle * sin_off) < limit_mps2
-            low, high = (middle, high) if slower else (low, middle)
-        reach_mps = max(reach_mps, low)
-    return reach_mps
+        return lambda air_mps: drag.deceleration_mps2(air_mps * cos_off, air_mps * sin_off)
+
+    high_mps = 4.0 * straight_limit_mps
+    return max(
+        straight_limit_mps,
+        *(_fastest_mps(off_the_nose(d), limit_mps2, 0.0, high_mps) for d in range(91)),
+    )

@@ -275,7 +275,7 @@ HELD_SCENARIOS_19: dict[str, Scenario] = by_name(
 )
 
 #: The twentieth held-out set, for the residual loop with its winds bounded by the vehicle's
-#: airspeed: wind episodes of 40-85 s over legs, circles and climbs, winds that stop and set
+#: airspeed: wind episodes of 40-75 s over legs, circles and climbs, winds that stop and set
 #: in among climbs, payloads released in wind after descents and climbs, winds near the
 #: vehicle's reach (9 m/s) with and without a payload, and a clean flight with tall climbs.
 HELD_SCENARIOS_20: dict[str, Scenario] = by_name(
