@@ -94,6 +94,11 @@ class MerweSigmaPoints:
         u = np.linalg.cholesky(self._scale * np.asarray(p, dtype=float).T).T
         return np.vstack([x, x + u, x - u])
 
+    def variance(self, z_sigmas: np.ndarray) -> float:
+        """The variance of a scalar predicted at each sigma point (``z_sigmas``, 2n + 1)."""
+        dz = z_sigmas - float(self.wm @ z_sigmas)
+        return float(self.wc @ (dz * dz))
+
     def update(
         self,
         x: np.ndarray,
@@ -109,7 +114,7 @@ class MerweSigmaPoints:
         an innovation variance that is not positive."""
         z_mean = float(self.wm @ z_sigmas)
         dz = z_sigmas - z_mean
-        s_var = float(self.wc @ (dz * dz)) + r_var
+        s_var = self.variance(z_sigmas) + r_var
         if not s_var > 0.0:
             raise np.linalg.LinAlgError("innovation variance is not positive")
         gain = ((sigmas - x).T @ (self.wc * dz)) / s_var

@@ -89,17 +89,10 @@ conditional on the wind held: when the vehicle then moves while the wind is not 
 flight, which sees the wind, settles both. :meth:`~OnlineEffects.identified_effects` says
 which parts are known well enough to apply (the wind along the track flown, the mass).
 
-The covariance says how far the readings have pinned the state *within the model*. The 1σ the
-tracker reports (``sigma``: the daemon's return figures, the scoring against a truth) adds what
-the model's form leaves unknown however long it runs: its mass law reads a payload a few
-percent off, its P(V) shape reads as a wind of half a metre per second (``OnlineSettings``
-``mass_form_sigma_fraction``, ``wind_form_sigma_mps``), and its P(V) shape's error, which
-grows with the airspeed, is shared by the readings and so read as a wind and a mass the
-readings pin ever tighter (a consider term, :mod:`~estimator.estimation.form_error`). On
-ArduCopter SITL's stock quad, without them, a 1 kg payload was read 0.03–0.05 kg heavy at
-σ 0.02, a still-air flight found 0.8–1.0 m/s of wind at σ 0.4, and flights without a payload
-flown fast in wind were read 0.02–0.06 kg light at σ 0.01. Which parts are identified, and
-applied, still follows the covariance alone.
+The covariance says how far the readings have pinned the state *within the model*; the 1σ
+the tracker reports (``sigma``) adds what the model's form, the autopilot's report and a wind
+held in hover leave unknown (:mod:`~estimator.estimation.reported_sigma`). Which parts are
+identified, and applied, still follows the covariance alone.
 
 The autopilot's own wind estimate is a second channel
 (:mod:`estimator.estimation.autopilot_wind`); without its reports the tracker is the
@@ -119,6 +112,7 @@ from estimator.estimation.form_error import carried
 from estimator.estimation.hypotheses import Hypothesis, duel, mixture
 from estimator.estimation.kalman import MerweSigmaPoints
 from estimator.estimation.online_settings import OnlineSettings
+from estimator.estimation.reported_sigma import held_wind_mass_var_kg2, reported_variances
 from estimator.estimation.tracker_readings import (
     StepData,
     TrackerReading,
@@ -208,6 +202,9 @@ class OnlineEffects:
         #: The last step did not settle the estimate (beyond the gate, an alarm's step or the
         #: one after, a CUSUM past half way: module docstring). Its 1σ is a changed state's.
         self._unsettled = False
+        #: The mass's variance (kg²) from the wind held in the last step, a hover's
+        #: (:mod:`~estimator.estimation.reported_sigma`); zero after a step in forward flight.
+        self._held_wind_mass_var_kg2 = 0.0
         #: Measurement noise beyond the configured one, learnt from the innovations, W².
         self.extra_noise_var_w2 = 0.0
         self._hover_w = model.hover_power_w
@@ -273,29 +270,27 @@ class OnlineEffects:
     @property
     def sigma(self) -> dict[str, float]:
         """1σ of the wind components (m/s) and of the mass difference (kg): the filter's own,
-        what the model's form leaves unknown (:class:`OnlineSettings` ``wind_form_sigma_mps``,
-        ``mass_form_sigma_fraction`` of the mass difference), and for the wind what the
-        autopilot's report says is on its way (its lag, and its gap from the estimate:
-        :meth:`AutopilotWind.lag_mps`, :meth:`AutopilotWind.gap_ne_mps`). After a step
-        that did not settle the estimate (module docstring), the wind and mass variances are
-        a changed state's (their initial ones) until the next step."""
+        what the model's form leaves unknown, for the wind what the autopilot's report says
+        is on its way, and for a mass learnt in hover what the wind held there leaves unknown
+        (:mod:`~estimator.estimation.reported_sigma`). After a step that did not settle the
+        estimate (module docstring), the wind and mass variances are a changed state's (their
+        initial ones) until the next step."""
+        _, wind_cov, mass_var = self._reported_variances()
+        return {
+            "wind_n_mps": math.sqrt(max(float(wind_cov[0, 0]), 0.0)),
+            "wind_e_mps": math.sqrt(max(float(wind_cov[1, 1]), 0.0)),
+            "mass_kg": math.sqrt(max(mass_var, 0.0) + self._held_wind_mass_var_kg2),
+        }
+
+    def _reported_variances(self) -> tuple[np.ndarray, np.ndarray, float]:
+        """The reported state, its wind's covariance (m²/s²) and its mass's variance (kg²)
+        with the terms :attr:`sigma` adds, except the held wind's."""
         x, p, form = self._reported()
         if self._unsettled:  # either part may have changed
             p = self._widened(self._widened(p, wind=True), wind=False)
-        s = self.settings
-        c_n, c_e, c_m = (float(v) for v in form[:3])
-        wind_form_var = s.wind_form_sigma_mps**2
-        mass_form_var = (s.mass_form_sigma_fraction * float(x[2])) ** 2 + c_m**2
-        time_s = self._time_s or 0.0
-        lag_var = self.autopilot.lag_mps(time_s) ** 2  # either way: both components
-        gap_n, gap_e = self.autopilot.gap_ne_mps(x, p, time_s)
-        wind_n_var = wind_form_var + c_n**2 + lag_var + gap_n**2
-        wind_e_var = wind_form_var + c_e**2 + lag_var + gap_e**2
-        return {
-            "wind_n_mps": math.sqrt(max(float(p[0, 0]), 0.0) + wind_n_var),
-            "wind_e_mps": math.sqrt(max(float(p[1, 1]), 0.0) + wind_e_var),
-            "mass_kg": math.sqrt(max(float(p[2, 2]), 0.0) + mass_form_var),
-        }
+        return x, *reported_variances(
+            x, p, form, self.settings, self.autopilot, self._time_s or 0.0
+        )
 
     @property
     def effects(self) -> tuple[Effect, ...]:
@@ -506,6 +501,12 @@ class OnlineEffects:
         leaning = fed and self._detector.half_way()
         self._unsettled = self._rival is None and (self._changing or changing or refused or leaning)
         self._x, self._p, self._form, self._loglik = main.x, main.p, main.form, main.loglik
+        self._held_wind_mass_var_kg2 = 0.0
+        if not step.moving:
+            x, wind_cov, _ = self._reported_variances()
+            self._held_wind_mass_var_kg2 = held_wind_mass_var_kg2(
+                self.powers_w, x, wind_cov, step.rows, s.max_wind_mps
+            )
 
     def _change_goes_on(self, nu: float, changing: bool) -> bool:
         """Whether the step of normalised innovation ``nu`` starts a change (an alarm of the

@@ -1,8 +1,9 @@
 """The held-out flights of ``replay/sitl_held`` through wind turns and reversals
 (``uav-energy sitl-record held16``), through changes across hovers (``held17``), through
 changes the autopilot's report shows late, with releases near them (``held18``), through
-changes in hovers, most of them payload releases (``held19``) and through short wind
-episodes, climbs and strong winds (``held20``); and every held-out set by name
+changes in hovers, most of them payload releases (``held19``), through short wind
+episodes, climbs and strong winds (``held20``) and through hovers in strong winds
+(``held21``); and every held-out set by name
 (:data:`HELD_SETS`; the earlier ones are :mod:`estimator.sitl.held_scenarios` and
 :mod:`estimator.sitl.fast_held_scenarios`).
 
@@ -14,8 +15,10 @@ the lag term while the vehicle hovers; the eighteenth after the commit that took
 mass learnt against the old wind when the report shows a change (3b44bad), a rule these
 flights refuted and that was reverted (docs/residuals.md); the nineteenth after the commit
 that reports the step after an alarm's step with a changed state's 1σ as well; the twentieth
-after the commit that kept the residual loop's winds within the vehicle's airspeed. Steps as
-in :mod:`estimator.sitl.scenarios` (positions and velocities NED, m and m/s; durations s).
+after the commit that kept the residual loop's winds within the vehicle's airspeed; the
+twenty-first after the commit that made the tracker's mass learnt in a hover carry the
+uncertainty of the wind held there. Steps as in :mod:`estimator.sitl.scenarios` (positions
+and velocities NED, m and m/s; durations s).
 """
 
 from __future__ import annotations
@@ -358,6 +361,86 @@ HELD_SCENARIOS_20: dict[str, Scenario] = by_name(
     ),
 )
 
+#: The twenty-first held-out set, for the online tracker whose mass learnt in a hover carries
+#: the uncertainty of the wind held there (:mod:`estimator.estimation.reported_sigma`):
+#: take-offs into strong winds with long hovers, with and without the payload, winds that set
+#: in and stop during hovers, a release in a hover in a strong wind, calm and light-wind
+#: flights with long hovers (a 1σ no wider than it must be), and short wind episodes over
+#: climbs, hovers, circles and legs for the residual loop.
+HELD_SCENARIOS_21: dict[str, Scenario] = by_name(
+    vertical_scenario(
+        "held21_takeoff_wind8_hovers",
+        "wind 8 m/s from 070° throughout; legs, a 25 s hover; legs",
+        SetWind(8, 70), Takeoff(), *LEGS[:5], Hover(25), *LEGS[5:], *LEGS[1:4],
+    ),
+    vertical_scenario(
+        "held21_payload_takeoff_wind7",
+        "1 kg gripper payload from take-off; wind 7 m/s from 300° throughout; legs and a 20 s "
+        "hover",
+        SetWind(7, 300), Grip(True), Hover(3), Takeoff(), *LEGS[:6], Hover(20), *LEGS[6:],
+    ),
+    vertical_scenario(
+        "held21_onset_in_hover",
+        "wind 7 m/s from 180° set in during a 30 s hover mid-flight; legs",
+        Takeoff(), *LEGS[:5], Hover(10), SetWind(7, 180), Hover(20), *LEGS[5:], *LEGS[1:5],
+    ),
+    vertical_scenario(
+        "held21_stop_in_hover",
+        "wind 6 m/s from 045° from take-off, stopped during a 25 s hover mid-flight; legs",
+        SetWind(6, 45), Takeoff(), *LEGS[:5], Hover(10), SetWind(0), Hover(15), *LEGS[5:],
+        *LEGS[1:5],
+    ),
+    vertical_scenario(
+        "held21_release_strong_wind_hover",
+        "1 kg gripper payload from take-off; wind 8 m/s from 120° throughout; legs, the payload "
+        "released in a 20 s hover; legs",
+        SetWind(8, 120), Grip(True), Hover(3), Takeoff(), *LEGS[:6], Hover(8), Grip(False),
+        Hover(12), *LEGS[6:], *LEGS[1:4],
+    ),
+    vertical_scenario(
+        "held21_calm_long_hovers",
+        "no effect; legs and 30 s hovers",
+        Takeoff(), *LEGS[:4], Hover(30), *LEGS[4:8], Hover(30), *LEGS[8:],
+    ),
+    vertical_scenario(
+        "held21_light_wind_hovers",
+        "wind 3 m/s from 210° throughout; legs and 30 s hovers",
+        SetWind(3, 210), Takeoff(), *LEGS[:4], Hover(30), *LEGS[4:8], Hover(30), *LEGS[8:],
+    ),
+    vertical_scenario(
+        "held21_payload_calm_hovers",
+        "1 kg gripper payload from take-off; no wind; legs and 30 s hovers",
+        Grip(True), Hover(3), Takeoff(), *LEGS[:4], Hover(30), *LEGS[4:8], Hover(30),
+        *LEGS[8:],
+    ),
+    vertical_scenario(
+        "held21_gust_climb_hover",
+        "wind 7 m/s from 340° for about 60 s: a climb at 3 m/s by 15 m, a 15 s hover there, "
+        "legs, the descent at 3 m/s; legs",
+        Takeoff(), *LEGS[:4], SetWind(7, 340), Leg(0, 0, 5, -3), Hover(15), *LEGS[4:6],
+        Leg(0, 0, 5, 3), SetWind(0), *LEGS[6:], *LEGS[1:4],
+    ),
+    vertical_scenario(
+        "held21_payload_gust_85s_legs",
+        "1 kg gripper payload from take-off; wind 6 m/s from 090° for about 85 s of legs; legs",
+        Grip(True), Hover(3), Takeoff(), *LEGS[:4], SetWind(6, 90), *LEGS[4:8], Hover(10),
+        Leg(4, 0, 10), SetWind(0), *LEGS[8:], *LEGS[1:4],
+    ),
+    vertical_scenario(
+        "held21_wind_tall_climb_hovers",
+        "wind 8 m/s from 020° throughout; a climb at 5 m/s by 30 m, a 15 s hover, legs, a "
+        "descent at 3 m/s, a 15 s hover at the bottom; legs",
+        SetWind(8, 20), Takeoff(), Hover(10), Leg(0, 0, 6, -5), Hover(15), *LEGS[1:5],
+        Leg(0, 0, 10, 3), Hover(15), *LEGS[5:],
+    ),
+    vertical_scenario(
+        "held21_gust_50s_circles_climb",
+        "wind 6 m/s from 250° for about 50 s: circles and a climb at 2 m/s by 10 m; legs",
+        Takeoff(), *LEGS[:3], SetWind(6, 250), *CIRCLES[1:3], Leg(0, 0, 5, -2), SetWind(0),
+        *CIRCLES[3:], *LEGS[1:4],
+    ),
+)
+
 #: Every held-out set by the name ``uav-energy sitl-record`` records it under.
 HELD_SETS: dict[str, dict[str, Scenario]] = {
     "held": HELD_SCENARIOS,
@@ -380,5 +463,6 @@ HELD_SETS: dict[str, dict[str, Scenario]] = {
     "held18": HELD_SCENARIOS_18,
     "held19": HELD_SCENARIOS_19,
     "held20": HELD_SCENARIOS_20,
+    "held21": HELD_SCENARIOS_21,
 }
 # fmt: on
