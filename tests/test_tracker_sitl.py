@@ -45,17 +45,13 @@ FITTED_ON = SCRIPT.FITTED_ON
 #: the P(V) shape's error carried as a consider term (``estimation/form_error.py``) most
 #: flights without a payload, read 0.03-0.05 kg light when flown fast, do too; and a step the
 #: gate refused is reported with a changed state's 1σ until the next step tells an outlier
-#: from a change (release_wind2's release in hover, 18.3σ before). What is left:
-#: two of them at 77-86 % within 2σ (0.04-0.06 kg light at 1σ 0.035-0.038 kg), the take-off
-#: of outback_wind8 read as a mass; a wind
-#: change is beyond 3σ for the first steps after it, before the autopilot's WIND moves (once
-#: it moves, its lag and its gap from the estimate widen the reported 1σ:
-#: ``AutopilotWind.lag_mps``, to both components, and ``gap_ne_mps``).
+#: from a change (release_wind2's release in hover, 18.3σ before); a mass learnt in a hover in a
+#: wind not yet known carries that wind's uncertainty (``estimation/reported_sigma.py``:
+#: lean2_clean_diag7, outback_wind8 and rtl_cross_wind7 meet the aim with it, 2.5-5.3σ at
+#: most before). What is left: a wind change is beyond 3σ for the first steps after it, before the
+#: autopilot's WIND moves (once it moves, its lag and its gap from the estimate widen the
+#: reported 1σ: ``AutopilotWind.lag_mps``, to both components, and ``gap_ne_mps``).
 SHORT = {
-    "lean2_clean_diag7": "mass 86 % within 2σ (median -0.040 kg at 1σ 0.035 kg)",
-    "outback_wind8": "mass 5.3σ (+0.22 kg) at 18 s",
-    "rtl_cross_wind7": "mass 77 % within 2σ (median -0.056 kg at 1σ 0.038 kg), 3.0σ (-0.08 kg) at "
-    "150 s",
     "wind_stop": "wind 4.8σ (6.7 m/s off) at 120 s",
     "wind_turn": "wind 3.9σ (8.0 m/s off) at 100 s",
 }
