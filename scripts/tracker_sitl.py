@@ -225,6 +225,8 @@ def blind(flights: list[tuple[RecordingTruth, TrackerRun]]) -> str:
     miss the aim only at blind steps."""
     runs_ = [r for _, r in flights]
     beyond = {r.name: int(np.sum(r.z().max(axis=1) > 3.0)) for r in runs_}
+    if not any(beyond.values()):
+        return f"no step is beyond 3σ, on any of the {len(runs_)} flights"
     blind_counts = {r.name: int(np.sum(blind_steps(r))) for r in runs_}
     missing = [r for r in runs_ if not meets_aim([r])]
     only_blind = [

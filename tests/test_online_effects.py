@@ -393,11 +393,42 @@ def test_a_report_that_stalls_while_it_follows_a_change_keeps_its_lag_decaying()
     decays from τ × 0.5 m/s at that pace, not one that drops to zero with its rate."""
     reports, tau_s = _rising_reports()
     assert reports.lag_mps(6.0) == pytest.approx(tau_s * 0.5)
-    for k in range(1, 7):  # then still until 9 s: its rate over 2 s is zero from 8 s on
+    for k in range(1, 7):  # then still until 9 s: its rate over 2 s falls to zero by 8 s
         reports.take(WindSample(6.0 + 0.5 * k, 0.0, 2.0))
-    # decaying from 7.5 s, the last report the rate of 0.5 m/s² still stood at
-    assert reports.lag_mps(9.0) == pytest.approx(tau_s * 0.5 * math.exp(-1.5 / tau_s))
-    assert reports.lag_mps(9.5) == pytest.approx(tau_s * 0.5 * math.exp(-2.0 / tau_s))
+    # decaying from 6 s, the last report the rate over the last 2 s stood at 0.5 m/s²
+    assert reports.lag_mps(9.0) == pytest.approx(tau_s * 0.5 * math.exp(-3.0 / tau_s))
+    assert reports.lag_mps(9.5) == pytest.approx(tau_s * 0.5 * math.exp(-3.5 / tau_s))
+
+
+def test_the_reports_first_wind_after_its_zeros_is_no_lag() -> None:
+    """An autopilot that does not estimate the wind reports exactly zero; ArduCopter SITL's
+    first report at take-off in a 9 m/s wind was 8.5 m/s, a step from those zeros it did not
+    follow from any wind: no lag (it was read as 24 m/s, held through the take-off hover). Its
+    rising after that is the EKF following, and counts."""
+    reports = AutopilotWind(OnlineSettings())
+    for k in range(6):
+        reports.take(WindSample(0.5 * k, 0.0, 0.0))
+    for k in range(6, 10):
+        reports.take(WindSample(0.5 * k, 8.5, 0.0))
+    assert reports.lag_mps(4.5) == 0.0
+    for k in range(10, 14):
+        reports.take(WindSample(0.5 * k, 8.5 + 0.25 * (k - 9), 0.0))
+    assert reports.lag_mps(6.5) == pytest.approx(OnlineSettings().autopilot_wind_lag_s * 0.5)
+
+
+def test_the_reports_rate_is_its_last_spans_at_every_report() -> None:
+    """The rate is measured over the last ``autopilot_wind_rate_span_s`` at each report, not
+    once a span: a report still for 5-6.5 s that then moves 1 m/s in half a second has a lag term
+    at once (τ × 1 m/s over 2 s), however many still reports came before it."""
+    settings = OnlineSettings()
+    for still in (10, 11, 12, 13):
+        reports = AutopilotWind(settings)
+        times = [0.5 * k for k in range(still)]
+        for t in times:
+            reports.take(WindSample(t, 3.0, 0.0))
+        reports.take(WindSample(times[-1] + 0.5, 4.0, 0.0))
+        lag_mps = reports.lag_mps(times[-1] + 0.5)
+        assert lag_mps == pytest.approx(settings.autopilot_wind_lag_s * 1.0 / 2.0)
 
 
 def test_a_report_held_in_a_hover_keeps_its_lag_until_the_vehicle_moves() -> None:

@@ -1,24 +1,24 @@
-"""The held-out flights of ``replay/sitl_held`` through wind turns and reversals
-(``uav-energy sitl-record held16``), through changes across hovers (``held17``), through
-changes the autopilot's report shows late, with releases near them (``held18``), through
-changes in hovers, most of them payload releases (``held19``), through short wind
-episodes, climbs and strong winds (``held20``) and through hovers in strong winds
-(``held21``); and every held-out set by name
-(:data:`HELD_SETS`; the earlier ones are :mod:`estimator.sitl.held_scenarios` and
-:mod:`estimator.sitl.fast_held_scenarios`).
+"""The held-out flights of ``replay/sitl_held`` through wind turns and reversals (``uav-energy
+sitl-record held16``), through changes across hovers (``held17``), through changes the
+autopilot's report shows late, with releases near them (``held18``), through changes in hovers,
+most of them payload releases (``held19``), through short wind episodes, climbs and strong winds
+(``held20``), through hovers in strong winds (``held21``) and through wind changes during legs
+and circles (``held22``); and every held-out set by name (:data:`HELD_SETS`; the earlier ones
+are :mod:`estimator.sitl.held_scenarios` and :mod:`estimator.sitl.fast_held_scenarios`).
 
-The sixteenth set was recorded right after the commit that defined it froze the online
-tracker with the autopilot report's lag term widening both wind components alike
+The sixteenth set was recorded right after the commit that defined it froze the online tracker
+with the autopilot report's lag term widening both wind components alike
 (:meth:`~estimator.estimation.autopilot_wind.AutopilotWind.lag_mps`); none of it was tuned on
-(docs/residuals.md, "Held-out SITL flights"); the seventeenth after the commit that held
-the lag term while the vehicle hovers; the eighteenth after the commit that took back the
-mass learnt against the old wind when the report shows a change (3b44bad), a rule these
-flights refuted and that was reverted (docs/residuals.md); the nineteenth after the commit
-that reports the step after an alarm's step with a changed state's 1σ as well; the twentieth
-after the commit that kept the residual loop's winds within the vehicle's airspeed; the
-twenty-first after the commit that made the tracker's mass learnt in a hover carry the
-uncertainty of the wind held there. Steps as in :mod:`estimator.sitl.scenarios` (positions
-and velocities NED, m and m/s; durations s).
+(docs/residuals.md, "Held-out SITL flights"); the seventeenth after the commit that held the lag
+term while the vehicle hovers; the eighteenth after the commit that took back the mass learnt
+against the old wind when the report shows a change (3b44bad), a rule these flights refuted and
+that was reverted (docs/residuals.md); the nineteenth after the commit that reports the step
+after an alarm's step with a changed state's 1σ as well; the twentieth after the commit that
+kept the residual loop's winds within the vehicle's airspeed; the twenty-first after the commit
+that made the tracker's mass learnt in a hover carry the uncertainty of the wind held there; the
+twenty-second after the commit that measured the autopilot report's rate at every report and
+only once it estimates the wind. Steps as in :mod:`estimator.sitl.scenarios` (positions and
+velocities NED, m and m/s; durations s).
 """
 
 from __future__ import annotations
@@ -441,6 +441,87 @@ HELD_SCENARIOS_21: dict[str, Scenario] = by_name(
     ),
 )
 
+#: The twenty-second held-out set, for the online tracker whose autopilot-report lag is
+#: measured at every report and only once the autopilot estimates the wind
+#: (:meth:`~estimator.estimation.autopilot_wind.AutopilotWind.lag_mps`): winds that set in,
+#: stop, turn and reverse during slow, fast and diagonal legs and circles, take-offs into
+#: winds, a gust and a release with the payload, a clean flight; and wind episodes of 45-90 s
+#: over legs, climbs and circles for the residual loop.
+HELD_SCENARIOS_22: dict[str, Scenario] = by_name(
+    vertical_scenario(
+        "held22_onset_slow_legs",
+        "wind 6 m/s from 030° switched on during a 3 m/s leg mid-flight; legs",
+        Takeoff(), *LEGS[:8], Leg(0, 3, 12), SetWind(6, 30), Leg(0, 3, 18), *LEGS[9:],
+        *LEGS[1:5],
+    ),
+    vertical_scenario(
+        "held22_stop_fast_legs",
+        "wind 7 m/s from 200° from take-off, stopped during a 9 m/s leg; fast legs",
+        SetWind(7, 200), Takeoff(), *FAST_LEGS[:5], Leg(0, 8, 7), SetWind(0), Leg(0, 8, 8),
+        *FAST_LEGS[6:], *LEGS[1:4],
+    ),
+    vertical_scenario(
+        "held22_turn_diagonal_legs",
+        "wind 6 m/s from 300°, turning to 040° during a diagonal leg; legs",
+        SetWind(6, 300), Takeoff(), *FAST_LEGS[:9], Leg(6, 6, 7), SetWind(6, 40), Leg(6, 6, 8),
+        *FAST_LEGS[10:], *LEGS[1:6],
+    ),
+    vertical_scenario(
+        "held22_reversal_circles",
+        "wind 5 m/s from 100°, reversed to 280° during circles; legs",
+        SetWind(5, 100), Takeoff(), *LEGS[:3], *CIRCLES[1:3], SetWind(5, 280), *CIRCLES[3:],
+        *LEGS[1:5],
+    ),
+    vertical_scenario(
+        "held22_takeoff_wind6_fast",
+        "wind 6 m/s from 150° throughout; fast legs",
+        SetWind(6, 150), Takeoff(), *FAST_LEGS, *LEGS[1:5],
+    ),
+    vertical_scenario(
+        "held22_onset_then_stop_legs",
+        "wind 8 m/s from 330° for about 90 s of legs with a 10 s hover; legs",
+        Takeoff(), *LEGS[:4], SetWind(8, 330), *LEGS[4:10], SetWind(0), *LEGS[10:],
+        *LEGS[1:5],
+    ),
+    vertical_scenario(
+        "held22_gust_45s_climb_legs",
+        "wind 7 m/s from 120° for about 45 s: a climb at 2 m/s by 10 m and legs there; legs",
+        Takeoff(), *LEGS[:3], SetWind(7, 120), Leg(0, 0, 5, -2), *LEGS[4:6], SetWind(0),
+        *LEGS[6:], *LEGS[1:4],
+    ),
+    vertical_scenario(
+        "held22_payload_gust_60s_circles",
+        "1 kg gripper payload from take-off; wind 6 m/s from 060° for about 60 s of circles; "
+        "legs",
+        Grip(True), Hover(3), Takeoff(), *LEGS[:3], SetWind(6, 60), *CIRCLES[1:3],
+        SetWind(0), *CIRCLES[3:], *LEGS[1:4],
+    ),
+    vertical_scenario(
+        "held22_release_after_onset",
+        "1 kg gripper payload from take-off; wind 5 m/s from 250° switched on during legs, the "
+        "payload released in a 15 s hover 40 s later; legs",
+        Grip(True), Hover(3), Takeoff(), *LEGS[:4], SetWind(5, 250), *LEGS[4:6], Hover(5),
+        Grip(False), Hover(10), *LEGS[6:], *LEGS[1:4],
+    ),
+    vertical_scenario(
+        "held22_wind_speedup_legs",
+        "wind 3 m/s from 090° rising to 8 m/s from 090° mid-flight; legs",
+        SetWind(3, 90), Takeoff(), *LEGS[:6], SetWind(8, 90), *LEGS[6:], *LEGS[1:5],
+    ),
+    vertical_scenario(
+        "held22_payload_wind_climbs",
+        "1 kg gripper payload from take-off; wind 5 m/s from 010° throughout; climbs at 2 and "
+        "5 m/s by 20 m and their descents between legs",
+        SetWind(5, 10), Grip(True), Hover(3), Takeoff(), *LEGS[:4], Leg(0, 0, 10, -2),
+        *LEGS[4:6], Leg(0, 0, 10, 2), Leg(0, 0, 4, -5), *LEGS[6:], Leg(0, 0, 4, 5),
+    ),
+    vertical_scenario(
+        "held22_clean_fast_mixed",
+        "no effect; fast legs, circles and a climb at 4 m/s by 20 m",
+        Takeoff(), *FAST_LEGS, *CIRCLES[1:4], Leg(0, 0, 5, -4), *LEGS[1:4], Leg(0, 0, 5, 4),
+    ),
+)
+
 #: Every held-out set by the name ``uav-energy sitl-record`` records it under.
 HELD_SETS: dict[str, dict[str, Scenario]] = {
     "held": HELD_SCENARIOS,
@@ -464,5 +545,6 @@ HELD_SETS: dict[str, dict[str, Scenario]] = {
     "held19": HELD_SCENARIOS_19,
     "held20": HELD_SCENARIOS_20,
     "held21": HELD_SCENARIOS_21,
+    "held22": HELD_SCENARIOS_22,
 }
 # fmt: on
