@@ -47,6 +47,14 @@ def test_the_held_winds_sigma_points_stay_below_the_strongest_wind() -> None:
     assert wide <= (2.0 * 15.0**2 / 50.0) ** 2
 
 
+def test_a_wind_covariance_that_lost_positive_definiteness_still_gives_a_variance() -> None:
+    """Bad data can break a covariance before the tracker restarts it: the term then takes the
+    wind's variances alone, and raises nothing."""
+    broken = np.array([[4.0, 9.0], [9.0, 4.0]])
+    var = held_wind_mass_var_kg2(quadratic_power_w, np.zeros(3), broken, HOVER_ROW, 15.0)
+    assert var == pytest.approx(4.0 * 2.0**2 * 2.0**4 / 50.0**2)
+
+
 def hover_tracker(settings: OnlineSettings | None = None) -> OnlineEffects:
     return OnlineEffects.from_vehicle(SITL_QUAD, settings=settings)
 

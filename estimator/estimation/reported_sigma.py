@@ -82,9 +82,15 @@ def held_wind_mass_var_kg2(
     """The variance (kg²) of the mass a hover step's power implies over the wind's
     uncertainty: ``powers_w(points, rows)`` the tracker's model power (W, points × rows) at
     each state of ``points`` (rows as ``x``: [w_n, w_e, δm, …]) for the step's flight-state
-    ``rows``; ``x`` the estimate, ``wind_cov`` (2 × 2, m²/s²) the wind's reported covariance.
-    Zero where the power does not grow with the mass (the mass's floor)."""
-    winds = _WIND_POINTS.points(np.asarray(x[:2], dtype=float), wind_cov)
+    ``rows``; ``x`` the estimate, ``wind_cov`` (2 × 2, m²/s²) the wind's reported covariance
+    (its variances alone where it lost positive definiteness: the tracker restarts such a
+    covariance at its next draw). Zero where the power does not grow with the mass (the mass's
+    floor)."""
+    wind_x = np.asarray(x[:2], dtype=float)
+    try:
+        winds = _WIND_POINTS.points(wind_x, wind_cov)
+    except np.linalg.LinAlgError:
+        winds = _WIND_POINTS.points(wind_x, np.diag(np.maximum(np.diag(wind_cov), 1e-9)))
     speed = np.hypot(winds[:, 0], winds[:, 1])
     winds *= np.minimum(1.0, max_wind_mps / np.maximum(speed, 1e-9))[:, None]
     points = np.tile(np.asarray(x, dtype=float), (len(winds) + 1, 1))
