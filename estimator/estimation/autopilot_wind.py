@@ -108,9 +108,9 @@ class AutopilotWind:
             recent.popleft()  # the next one is old enough to be the anchor
         anchor = recent[0]
         dt = sample.time_s - anchor.time_s
+        if dt > 2.0 * span_s:
+            recent.popleft()  # a gap in the reports: too old to be an anchor
         if not span_s <= dt <= 2.0 * span_s:
-            while len(recent) > 1 and sample.time_s - recent[0].time_s > 2.0 * span_s:
-                recent.popleft()
             return 0.0, 0.0
         return (
             (sample.wind_n_mps - anchor.wind_n_mps) / dt,

@@ -114,7 +114,7 @@ class MerweSigmaPoints:
         an innovation variance that is not positive."""
         z_mean = float(self.wm @ z_sigmas)
         dz = z_sigmas - z_mean
-        s_var = self.variance(z_sigmas) + r_var
+        s_var = float(self.wc @ (dz * dz)) + r_var
         if not s_var > 0.0:
             raise np.linalg.LinAlgError("innovation variance is not positive")
         gain = ((sigmas - x).T @ (self.wc * dz)) / s_var
