@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import math
+from dataclasses import replace
 
 import numpy as np
 import pytest
@@ -336,6 +337,36 @@ def test_the_summary_of_a_reported_wind_gives_its_onset_turn_and_stop() -> None:
     assert (first.at_s, first.until_s) == (100.0, 200.0)
     assert (second.speed_mps, second.from_deg) == pytest.approx((3.0, 180.0))
     assert (second.at_s, second.until_s) == (200.0, 300.0)
+
+
+def test_a_reported_wind_in_a_window_is_calm_outside_it_and_so_is_its_summary() -> None:
+    """An estimate that decays for half a minute after the wind stopped is the wind only
+    until the window's end: no power from its stale tail, and the summary ends there."""
+    st = state(vn=[8.0, 8.0, 8.0], n=3)  # t = 0, 1, 2 s
+    t = np.array([-10.0, 10.0])
+    wind = replace(reported(t, np.array([6.0, 6.0]), np.array([0.0, 0.0])), at_s=1.0, until_s=2.0)
+    got = power(st, wind)
+    assert got[1] == pytest.approx(power(st, Wind(6.0, 0.0))[1])
+    assert got[[0, 2]] == pytest.approx(power(st)[[0, 2]])
+    times = np.arange(0.0, 400.0, 0.5)
+    decaying = np.where(times < 250.0, 6.0, 6.0 * np.exp(-(times - 250.0) / 20.0))
+    holding = reported(times, decaying, np.full(len(times), 90.0))
+    assert holding.steady()[-1].until_s == pytest.approx(250.0 + 20.0 * np.log(6.0), abs=0.5)
+    (windowed,) = replace(holding, at_s=100.0, until_s=250.0).steady()
+    assert (windowed.at_s, windowed.until_s, windowed.speed_mps) == (100.0, 250.0, 6.0)
+
+
+def test_the_estimates_ramp_after_an_onset_is_not_a_wind_of_its_own() -> None:
+    """An EKF's estimate rises over 25 s after an onset: not steady, so the summary is one
+    wind from the ramp on, not a weak wind first and the true one after it; its decay over
+    40 s after the stop is split off, so the wind ends at the stop."""
+    t = np.arange(0.0, 400.0, 0.5)
+    ramp = np.clip((t - 100.0) / 25.0, 0.0, 1.0)
+    decay = np.exp(-np.clip(t - 250.0, 0.0, None) / 40.0)
+    wind = reported(t, 8.0 * ramp * decay, np.full(len(t), 330.0), scale=0.9).steady()[0]
+    assert wind.speed_mps == pytest.approx(7.2, abs=0.3)
+    assert wind.at_s is not None and wind.at_s < 105.0
+    assert wind.until_s == pytest.approx(250.0, abs=10.0)
 
 
 def test_a_steady_or_calm_report_is_summarised_as_one_wind_or_none() -> None:

@@ -231,8 +231,8 @@ def test_an_effect_confined_to_fewer_than_twelve_blocks_cannot_reach_z_3() -> No
     """The cause of the short wind episodes missed on the held-out SITL flights
     (docs/residuals.md): a windowed effect changes nothing outside its window, so only the
     blocks inside it enter the signed-rank test, and n blocks that all gain reach at most
-    z = sqrt(3 n (n + 1) / (2 (2 n + 1))). With 5 s blocks and z > 3, an episode shorter than
-    12 blocks (60 s) cannot be selected however large its gain."""
+    z = sqrt(3 n (n + 1) / (2 (2 n + 1))). With z > 3, an episode shorter than 12 blocks (30 s
+    of the default 2.5 s blocks) cannot be selected however large its gain."""
     rng = np.random.default_rng(1)
     samples = _fake_samples(np.repeat(np.arange(30), 20))
     err = rng.normal(0, 5, 600)
@@ -347,6 +347,33 @@ def test_a_wind_that_stops_is_a_window_not_a_change_to_a_breeze(tmp_path: Path) 
     result = analyze(flights_of(tmp_path, "mixed", 7, (wind,)), VEHICLE)
     assert result.selected[0].label == "wind (window)"
     assert _close(result.selected[0].effects[0], wind)
+
+
+def test_an_autopilot_wind_that_holds_after_the_wind_stopped_is_named_in_its_window(
+    tmp_path: Path,
+) -> None:
+    """The estimate follows the onset 5 s late but decays over 40 s after the stop (as
+    ArduPilot's EKF does): all flight its stale tail costs blocks; in a window it is the wind
+    until the stop, and its summary ends there."""
+    wind = Wind(6.0, 90.0, at_s=150.0, until_s=250.0)
+    (flight,) = flights_of(tmp_path, "mixed", 7, (wind,))
+    t = flight.time_s
+    reported_mps = np.where(
+        t < 250.0,
+        6.0 * np.clip((t - 150.0) / 5.0, 0.0, 1.0),
+        6.0 * np.exp(-np.maximum(t - 250.0, 0.0) / 40.0),
+    )
+    # its direction wanders a little, as a report's does (a constant channel is dropped)
+    extras = {
+        "autopilot_wind_speed_mps": reported_mps,
+        "autopilot_wind_from_deg": 90.0 + 2.0 * np.sin(t / 10.0),
+    }
+    result = analyze([replace(flight, extras=flight.extras | extras)], VEHICLE)
+    first = result.selected[0]
+    assert first.label == "wind (autopilot, window)"
+    (summary,) = result.steady_effects[:1]
+    assert isinstance(summary, Wind) and summary.until_s is not None
+    assert abs(summary.until_s - 250.0) < 10.0 and abs(summary.speed_mps - 6.0) < 1.5
 
 
 def test_verdict_never_says_noise_when_the_residual_is_far_above_the_floor(

@@ -54,7 +54,7 @@ from estimator.analysis.tracker_truth import TrackerRun
 from estimator.logs import load_flights
 from estimator.physics.effects import Climb
 from estimator.physics.vehicle import load_vehicle
-from estimator.sitl.change_held_scenarios import HELD_SETS
+from estimator.sitl.episode_held_scenarios import HELD_SETS
 from estimator.sitl.truth_check import FlightScore
 
 REPO = Path(__file__).resolve().parent.parent

@@ -48,7 +48,8 @@ class Candidate:
     in hover a wind's speed shows and its direction does not, so one window spreading over
     both winds helps nowhere).
     ``source``: what the autopilot reported that the effect follows (its wind estimate, its
-    gripper's actions), shown in the label; the effect's times come from it, not the search.
+    gripper's actions), shown in the label; the effect's times come from it, not the search,
+    unless it is also ``windowed`` (a wind estimate that holds after the wind stopped).
     """
 
     name: str
@@ -64,7 +65,11 @@ class Candidate:
     @property
     def label(self) -> str:
         if self.source:
-            return f"{self.name} ({self.source})"
+            return (
+                f"{self.name} ({self.source}, window)"
+                if self.windowed
+                else f"{self.name} ({self.source})"
+            )
         if self.switch:
             return f"{self.name} (change)"
         return f"{self.name} (window)" if self.windowed else self.name
@@ -106,25 +111,29 @@ def winds_within_reach(effects: Sequence[Effect], state: FlightState, reach_mps:
     return True
 
 
-def _reported_wind(samples: Samples) -> Candidate | None:
-    """The autopilot's wind estimate of a single flight, scaled, if it reports any wind."""
+def _reported_wind(samples: Samples) -> tuple[Candidate, ...]:
+    """The autopilot's wind estimate of a single flight, scaled, if it reports any wind: all
+    flight, and in a time window searched in the data (calm outside it: an estimate that
+    holds its value for half a minute after the wind stopped)."""
     speed = samples.channels.get("autopilot_wind_speed_mps")
     from_deg = samples.channels.get("autopilot_wind_from_deg")
     if speed is None or from_deg is None or len(samples.flight_ids) != 1:
-        return None
+        return ()
     known = np.isfinite(speed) & np.isfinite(from_deg)
     if not np.any(speed[known] >= ReportedWind.CALM_MPS):
-        return None
+        return ()
     wind_n, wind_e = wind_vector_ne_mps(np.where(known, speed, 0.0), np.where(known, from_deg, 0.0))
     time_s = samples.state.time_s
     lower, upper = ReportedWind.bounds["scale"]
-    return Candidate(
-        "wind",
-        (1.0,),
-        (lower,),
-        (upper,),
-        lambda x, _at, _until: ReportedWind(float(x[0]), time_s, wind_n, wind_e),
-        source="autopilot",
+    return _constant_and_windowed(
+        Candidate(
+            "wind",
+            (1.0,),
+            (lower,),
+            (upper,),
+            lambda x, at, until: ReportedWind(float(x[0]), time_s, wind_n, wind_e, at, until),
+            source="autopilot",
+        )
     )
 
 
@@ -239,9 +248,9 @@ def candidates_for(vehicle: Vehicle, samples: Samples, names: Sequence[str]) -> 
             lambda x, _at, _until: Turn(float(x[0])),
         ),
     ]
-    for reported in (_reported_wind(samples), _gripper_mass(samples, mass_lo, mass_hi)):
-        if reported is not None:
-            all_candidates.append(reported)
+    all_candidates.extend(_reported_wind(samples))
+    if (gripper := _gripper_mass(samples, mass_lo, mass_hi)) is not None:
+        all_candidates.append(gripper)
     declared = set(vehicle.effects)
     # a window is on each flight's own clock: shared by several flights it would mean "every
     # flight changed at the same time"; several flights are analysed per flight (--flight)

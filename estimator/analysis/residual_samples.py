@@ -34,7 +34,9 @@ class ResidualOptions:
     folds: int = 5
     #: Length of the held-out chunks (s), assigned to the folds in turn.
     chunk_s: float = 20.0
-    block_s: float = 5.0
+    #: Length of the evaluation blocks of the rank test (s): see the module docstring of
+    #: :mod:`estimator.analysis.residuals`.
+    block_s: float = 2.5
     guard_s: float = 5.0
     z_threshold: float = 3.0
     min_gain_fraction: float = 0.10
@@ -190,7 +192,7 @@ def prepare(flights: Sequence[FlightSeries], options: ResidualOptions | None = N
     n_blocks = len(np.unique(samples.block))
     if n_blocks < 2 * opt.folds:
         raise UserError(
-            f"only {n_blocks} blocks of {opt.block_s:.0f} s of airborne data; need at least "
+            f"only {n_blocks} blocks of {opt.block_s:g} s of airborne data; need at least "
             f"{2 * opt.folds} (a few minutes of flight) for a held-out test"
         )
     return samples

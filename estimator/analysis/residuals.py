@@ -37,11 +37,12 @@ already in
    current and the extended model are summed per evaluation block of ``block_s`` seconds and
    compared pairwise over the blocks (a Wilcoxon signed-rank test on the block gains, as a z:
    a rank test because block gains are heavy-tailed, a few manoeuvre blocks dominating their
-   spread, which would hide an effect that helps nearly every block; 5 s blocks are several
-   times the 1–2 s correlation time of telemetry noise, so block gains are nearly independent,
-   and short enough that an effect seen only in turns or in accelerations still spans many
-   blocks). A candidate qualifies when z > ``z_threshold`` (3: one-sided p ≈ 0.001, ≈ 1 %
-   family-wise over the candidates) *and*
+   spread, which would hide an effect that helps nearly every block; 2.5 s blocks outlast the
+   residual's correlation, which falls to zero within 2 s on SITL telemetry, so block gains
+   are nearly independent, and are short because n blocks that all gain reach at most
+   z = √(3n(n+1)/(2(2n+1))): z 3 takes 12 of them, so an effect confined to a time window
+   can be named only if it lasts 12 blocks, 30 s). A candidate qualifies when
+   z > ``z_threshold`` (3: one-sided p ≈ 0.001, ≈ 1 % family-wise over the candidates) *and*
    it cuts the held-out RMSE by at least ``min_gain_fraction`` *and*, for a wind, the vehicle
    could fly through it (:func:`~estimator.analysis.residual_candidates.winds_within_reach`,
    in most folds, where the vehicle file states its airspeed); the best qualifying one is

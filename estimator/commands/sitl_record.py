@@ -52,7 +52,7 @@ def register(subparsers: argparse._SubParsersAction[argparse.ArgumentParser]) ->
 def run(args: argparse.Namespace) -> int:
     from estimator.commands.sim import _pair
     from estimator.logs.mission_files import load_mission
-    from estimator.sitl.change_held_scenarios import HELD_SETS
+    from estimator.sitl.episode_held_scenarios import HELD_SETS
     from estimator.sitl.episode_scenarios import EPISODE_SCENARIOS
     from estimator.sitl.recorder import record
     from estimator.sitl.scenarios import (

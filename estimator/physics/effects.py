@@ -257,8 +257,13 @@ class ReportedWind(Effect):
     share of the reported wind the power shows (the autopilot's drag model is not the
     vehicle's).
 
-    A recording of one flight, not a vehicle property: its one parameter is ``scale``;
-    :meth:`steady` summarises the scaled report as steady winds, the form a vehicle file holds.
+    It blows from ``at_s`` until ``until_s`` (s, flight clock; None: from the start / to the
+    end), calm outside: an estimate that holds its value after the wind stops (ArduPilot's
+    EKF lets it decay over 30-60 s) is the wind only inside the window.
+
+    A recording of one flight, not a vehicle property: its parameter is ``scale`` (and the
+    window); :meth:`steady` summarises the scaled report as steady winds, the form a vehicle
+    file holds.
     """
 
     name: ClassVar[str] = "wind"
@@ -266,25 +271,31 @@ class ReportedWind(Effect):
     #: A scaled report below this (m/s) is calm in the summary.
     CALM_MPS: ClassVar[float] = 1.0
     #: The summary splits the windy stretch in two where the two mean winds differ by at
-    #: least this (m/s, vector difference), each part lasting at least ``MIN_PART_S``; the
-    #: second starts after the last report within half of it of the first's mean.
+    #: least this (m/s, vector difference), each part lasting at least ``MIN_PART_S`` and the
+    #: first steady that long (reports within half of it of its mean: the estimate's ramp
+    #: after an onset is not a wind of its own); the second starts after the last report
+    #: within half of it of the first's mean (the estimate's decay after a stop is the second,
+    #: so the first ends at the stop).
     CHANGE_MPS: ClassVar[float] = 2.0
     MIN_PART_S: ClassVar[float] = 20.0
     scale: float
     time_s: FloatArray = field(repr=False, compare=False)
     wind_n_mps: FloatArray = field(repr=False, compare=False)
     wind_e_mps: FloatArray = field(repr=False, compare=False)
+    at_s: float | None = None
+    until_s: float | None = None
 
     @property
     def params(self) -> dict[str, Any]:
-        return {"scale": self.scale}
+        return {"scale": self.scale, "at_s": self.at_s, "until_s": self.until_s}
 
     def steady(self) -> tuple[Wind, ...]:
         """The scaled report as steady winds: over the stretch where it is above
-        :attr:`CALM_MPS` (open at the recording's ends), one wind, or two where it changed
-        (the split that leaves the least variance). Each: median speed, direction of the mean
-        vector."""
-        n, e = self.scale * self.wind_n_mps, self.scale * self.wind_e_mps
+        :attr:`CALM_MPS` inside the window (open at the recording's ends), one wind, or two
+        where it changed (the split that leaves the least variance). Each: median speed,
+        direction of the mean vector."""
+        on = active(self.time_s, self.at_s, self.until_s)
+        n, e = self.scale * on * self.wind_n_mps, self.scale * on * self.wind_e_mps
         windy = np.flatnonzero(np.hypot(n, e) >= self.CALM_MPS)
         if not len(windy):
             return ()
@@ -314,8 +325,10 @@ class ReportedWind(Effect):
         mean_n, mean_e = n[:best].mean(), e[:best].mean()
         if math.hypot(mean_n - n[best:].mean(), mean_e - e[best:].mean()) < self.CHANGE_MPS:
             return []
-        near = np.flatnonzero(np.hypot(n[:best] - mean_n, e[:best] - mean_e) <= self.CHANGE_MPS / 2)
-        return [first + (int(near[-1]) + 1 if len(near) else best)]
+        near = np.hypot(n[:best] - mean_n, e[:best] - mean_e) <= self.CHANGE_MPS / 2
+        if near.sum() * float(np.median(np.diff(t))) < self.MIN_PART_S:
+            return []
+        return [first + int(np.flatnonzero(near)[-1]) + 1]
 
     def _wind(self, lo: int, hi: int, at_open: bool, until_open: bool) -> Wind:
         n, e = self.scale * self.wind_n_mps[lo:hi], self.scale * self.wind_e_mps[lo:hi]
@@ -328,8 +341,9 @@ class ReportedWind(Effect):
 
     def adjust(self, ctx: PowerContext) -> None:
         t = ctx.state.time_s
-        ctx.air_vn_mps = ctx.air_vn_mps - self.scale * np.interp(t, self.time_s, self.wind_n_mps)
-        ctx.air_ve_mps = ctx.air_ve_mps - self.scale * np.interp(t, self.time_s, self.wind_e_mps)
+        gain = self.scale * active(t, self.at_s, self.until_s)
+        ctx.air_vn_mps = ctx.air_vn_mps - gain * np.interp(t, self.time_s, self.wind_n_mps)
+        ctx.air_ve_mps = ctx.air_ve_mps - gain * np.interp(t, self.time_s, self.wind_e_mps)
 
 
 @dataclass(frozen=True)

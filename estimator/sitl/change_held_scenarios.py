@@ -3,8 +3,9 @@ sitl-record held16``), through changes across hovers (``held17``), through chang
 autopilot's report shows late, with releases near them (``held18``), through changes in hovers,
 most of them payload releases (``held19``), through short wind episodes, climbs and strong winds
 (``held20``), through hovers in strong winds (``held21``) and through wind changes during legs
-and circles (``held22``); and every held-out set by name (:data:`HELD_SETS`; the earlier ones
-are :mod:`estimator.sitl.held_scenarios` and :mod:`estimator.sitl.fast_held_scenarios`).
+and circles (``held22``); the earlier ones are :mod:`estimator.sitl.held_scenarios` and
+:mod:`estimator.sitl.fast_held_scenarios`, the later ones and every set by name
+:mod:`estimator.sitl.episode_held_scenarios`.
 
 The sixteenth set was recorded right after the commit that defined it froze the online tracker
 with the autopilot report's lag term widening both wind components alike
@@ -23,27 +24,8 @@ velocities NED, m and m/s; durations s).
 
 from __future__ import annotations
 
-from estimator.sitl.fast_held_scenarios import (
-    FAST_LEGS,
-    HELD_SCENARIOS_7,
-    HELD_SCENARIOS_8,
-    HELD_SCENARIOS_9,
-    HELD_SCENARIOS_10,
-    HELD_SCENARIOS_11,
-    HELD_SCENARIOS_12,
-    HELD_SCENARIOS_13,
-    HELD_SCENARIOS_14,
-    HELD_SCENARIOS_15,
-)
-from estimator.sitl.held_scenarios import (
-    HELD_SCENARIOS,
-    HELD_SCENARIOS_2,
-    HELD_SCENARIOS_3,
-    HELD_SCENARIOS_4,
-    HELD_SCENARIOS_5,
-    HELD_SCENARIOS_6,
-    vertical_scenario,
-)
+from estimator.sitl.fast_held_scenarios import FAST_LEGS
+from estimator.sitl.held_scenarios import vertical_scenario
 from estimator.sitl.scenarios import (
     CIRCLES,
     LEGS,
@@ -522,29 +504,4 @@ HELD_SCENARIOS_22: dict[str, Scenario] = by_name(
     ),
 )
 
-#: Every held-out set by the name ``uav-energy sitl-record`` records it under.
-HELD_SETS: dict[str, dict[str, Scenario]] = {
-    "held": HELD_SCENARIOS,
-    "held2": HELD_SCENARIOS_2,
-    "held3": HELD_SCENARIOS_3,
-    "held4": HELD_SCENARIOS_4,
-    "held5": HELD_SCENARIOS_5,
-    "held6": HELD_SCENARIOS_6,
-    "held7": HELD_SCENARIOS_7,
-    "held8": HELD_SCENARIOS_8,
-    "held9": HELD_SCENARIOS_9,
-    "held10": HELD_SCENARIOS_10,
-    "held11": HELD_SCENARIOS_11,
-    "held12": HELD_SCENARIOS_12,
-    "held13": HELD_SCENARIOS_13,
-    "held14": HELD_SCENARIOS_14,
-    "held15": HELD_SCENARIOS_15,
-    "held16": HELD_SCENARIOS_16,
-    "held17": HELD_SCENARIOS_17,
-    "held18": HELD_SCENARIOS_18,
-    "held19": HELD_SCENARIOS_19,
-    "held20": HELD_SCENARIOS_20,
-    "held21": HELD_SCENARIOS_21,
-    "held22": HELD_SCENARIOS_22,
-}
 # fmt: on

@@ -1,6 +1,6 @@
 """The held-out effect flights of ``replay/sitl_held`` flown on fast legs and through wind
 changes (``uav-energy sitl-record held7`` … ``held15``; every set by name is
-:data:`estimator.sitl.change_held_scenarios.HELD_SETS`).
+:data:`estimator.sitl.episode_held_scenarios.HELD_SETS`).
 
 Each set was recorded right after the commit that defined it froze the online tracker and the
 residual analysis; none of it was tuned on (docs/residuals.md, "Held-out SITL flights"): the

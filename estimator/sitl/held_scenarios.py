@@ -1,7 +1,7 @@
 """The held-out effect flights of ``replay/sitl_held`` (``uav-energy sitl-record held``,
 ``held2`` … ``held6``; ``held7`` … on fast legs and through wind changes are
-:mod:`estimator.sitl.fast_held_scenarios` and
-:mod:`estimator.sitl.change_held_scenarios`, and every set by name :data:`HELD_SETS` in the
+:mod:`estimator.sitl.fast_held_scenarios`, :mod:`estimator.sitl.change_held_scenarios` and
+:mod:`estimator.sitl.episode_held_scenarios`, and every set by name :data:`HELD_SETS` in the
 last; the development flights of wind episodes are :mod:`estimator.sitl.episode_scenarios`).
 
 Each held-out set was recorded right after the commit that defined it froze the residual
