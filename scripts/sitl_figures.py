@@ -36,13 +36,10 @@ SITL_VEHICLE = REPO / "config" / "vehicles" / "ardupilot_sitl_quad.toml"
 HELD_RECORDINGS = REPO / "replay" / "sitl_held"
 #: The issue's limit for the held-out RMSE after selection, in noise floors.
 HELD_FLOOR_LIMIT = 2.5
-#: The held-out sets recorded after the residual loop's current rules were frozen: held20_*
-#: after its winds were bounded by the vehicle's airspeed, and held21_* and held22_*, each
-#: recorded after a change to the tracker alone (held14_* to held19_*, held out for the rules
-#: before, were looked at when the bound was chosen; for the tracker, whose report lag is now
-#: measured at every report, a rule chosen on every recording up to held21_*, only held22_* is
-#: held out).
-HELD_FOR_CURRENT_RULES = ("held20", "held21", "held22")
+#: The held-out sets recorded after the residual loop's current rules were frozen: held23_*
+#: after its rank test over 2.5 s blocks and the autopilot's wind in a window, rules chosen
+#: on every recording up to held22_*, which are all development flights for them now.
+HELD_FOR_CURRENT_RULES = ("held23",)
 #: The clean recordings the SITL vehicle file was fitted on.
 CLEAN_RECORDINGS = ("clean_legs", "clean_circles", "clean_mission")
 #: Recordings of ``replay/sitl`` flown for something else than effects.
