@@ -258,8 +258,9 @@ class ReportedWind(Effect):
     vehicle's).
 
     It blows from ``at_s`` until ``until_s`` (s, flight clock; None: from the start / to the
-    end), calm outside: an estimate that holds its value after the wind stops (ArduPilot's
-    EKF lets it decay over 30-60 s) is the wind only inside the window.
+    end), calm outside: an estimate that holds its value after the wind stops (ArduCopter's
+    EKF lets it decay over 20-55 s on SITL, docs/residuals.md) is the wind only inside the
+    window.
 
     A recording of one flight, not a vehicle property: its parameter is ``scale`` (and the
     window); :meth:`steady` summarises the scaled report as steady winds, the form a vehicle
